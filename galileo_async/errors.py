@@ -1,0 +1,134 @@
+"""Every exception the driver raises, grouped by category under one root."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .models import GalileoStatus
+
+__all__ = [
+    "AcceptTimeout",
+    "ConnectionLost",
+    "GalileoConnectionError",
+    "GalileoError",
+    "GalileoTimeout",
+    "GoalAborted",
+    "GoalCancelled",
+    "GoalError",
+    "GoalRejected",
+    "InvalidArgument",
+    "LinkStale",
+    "NotReady",
+    "OperationTimeout",
+    "UnconfirmedOperation",
+]
+
+
+class GalileoError(Exception):
+    """Root of every error raised by galileo_async."""
+
+
+# --- bad input -------------------------------------------------------------
+
+
+class InvalidArgument(GalileoError, ValueError):
+    """An argument is out of range or of the wrong kind; nothing was sent."""
+
+
+# --- link --------------------------------------------------------------------
+
+
+class GalileoConnectionError(GalileoError, ConnectionError):
+    """The link to the robot cannot be opened or is gone."""
+
+
+class ConnectionLost(GalileoConnectionError):
+    """The transport dropped while an operation was waiting on it."""
+
+
+class LinkStale(GalileoConnectionError):
+    """No valid status frame arrived for longer than the stale timeout."""
+
+    def __init__(self, message: str, *, silent_for: float) -> None:
+        super().__init__(message)
+        self.silent_for = silent_for
+
+
+# --- state -------------------------------------------------------------------
+
+
+class NotReady(GalileoError):
+    """A precondition does not hold in the latest status; nothing was sent."""
+
+    def __init__(self, message: str, status: GalileoStatus | None) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+class GalileoTimeout(GalileoError, TimeoutError):
+    """A wait ran past its deadline."""
+
+    def __init__(self, message: str, status: GalileoStatus | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+class OperationTimeout(GalileoTimeout):
+    """An operation did not reach its end state in time."""
+
+
+class UnconfirmedOperation(GalileoTimeout):
+    """A command was sent but the status never showed its effect in time."""
+
+
+# --- goals -------------------------------------------------------------------
+
+
+class GoalError(GalileoError):
+    """A goal ended without arriving."""
+
+    def __init__(
+        self, message: str, *, target_id: int, status: GalileoStatus | None = None
+    ) -> None:
+        super().__init__(message)
+        self.target_id = target_id
+        self.status = status
+
+
+class AcceptTimeout(GoalError, GalileoTimeout):
+    """The robot never showed the goal as accepted within accept_timeout."""
+
+
+class GoalRejected(GoalError):
+    """The robot reported an error for the goal (an invalid or unreachable id)."""
+
+
+class GoalAborted(GoalError):
+    """The goal ended free but far from the target: the planner gave up."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        target_id: int,
+        distance: float | None,
+        status: GalileoStatus | None = None,
+    ) -> None:
+        super().__init__(message, target_id=target_id, status=status)
+        self.distance = distance
+
+
+class GoalCancelled(GoalError):
+    """The goal was cancelled, or preempted by a newer goal (``preempted`` is True)."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        target_id: int,
+        preempted: bool = False,
+        status: GalileoStatus | None = None,
+    ) -> None:
+        super().__init__(message, target_id=target_id, status=status)
+        self.preempted = preempted

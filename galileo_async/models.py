@@ -1,0 +1,223 @@
+"""Status model and wire enums shared by every layer (PROTOCOL.md §1)."""
+
+from __future__ import annotations
+
+import enum
+import math
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+__all__ = [
+    "ARRIVED_DISTANCE",
+    "STATUS_FIELDS",
+    "AngleGoalStatus",
+    "ChargeStatus",
+    "GalileoStatus",
+    "MapStatus",
+    "NavStatus",
+    "Pose",
+    "StatusLayout",
+    "TargetStatus",
+    "VisualStatus",
+]
+
+#: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11).
+ARRIVED_DISTANCE = 0.01
+
+
+class _TolerantIntEnum(enum.IntEnum):
+    """IntEnum that turns an unknown wire value into a pseudo-member instead of raising."""
+
+    @classmethod
+    def _missing_(cls, value: object) -> Any:
+        if not isinstance(value, int) or isinstance(value, bool):
+            return None
+        # Not cached in the value map: bit-flipped garbage must not grow memory.
+        member = int.__new__(cls, value)
+        member._name_ = f"UNKNOWN_{value}"
+        member._value_ = value
+        return member
+
+    @property
+    def known(self) -> bool:
+        """True when the value is one the protocol document names."""
+        return self._name_ is not None and not self._name_.startswith("UNKNOWN_")
+
+
+class NavStatus(_TolerantIntEnum):
+    """Navigation service state (field ``nav_status``)."""
+
+    CLOSED = 0  # 导航服务关闭
+    OPEN = 1  # 导航服务开启
+
+
+class VisualStatus(_TolerantIntEnum):
+    """Visual SLAM state (field ``visual_status``); TRACKING and LOST both mean initialised."""
+
+    OFF = -1  # 视觉系统未开启
+    NOT_INITIALISED = 0  # 未初始化
+    TRACKING = 1  # 正常跟踪
+    LOST = 2  # 跟踪丢失
+
+
+class MapStatus(_TolerantIntEnum):
+    """Map-building state (field ``map_status``)."""
+
+    IDLE = 0  # 未建图
+    MAPPING = 1  # 正在建图
+
+
+class ChargeStatus(_TolerantIntEnum):
+    """Charging state (field ``charge_status``)."""
+
+    FREE = 0  # 未充电
+    CHARGING = 1  # 充电中
+    CHARGED = 2  # 充满 (涓流)
+    FINDING_DOCK = 3  # 寻找充电桩
+    DOCKING = 4  # 对接中
+    ERROR = 5  # 错误
+
+
+class TargetStatus(_TolerantIntEnum):
+    """Goal state (field ``target_status``); real firmware reports errors as INVALID (-1)."""
+
+    INVALID = -1  # 无效 (固件也用它表示错误)
+    FREE = 0  # 空闲: 到达或取消
+    WORKING = 1  # 正在前往目标
+    PAUSED = 2  # 暂停
+    ERROR = 3  # 错误 (文档)
+
+
+class AngleGoalStatus(_TolerantIntEnum):
+    """Rotate-to-angle result (field ``angle_goal_status``)."""
+
+    INVALID = -1
+    NOT_DONE = 0
+    DONE = 1
+    ERROR = 2
+
+
+class StatusLayout(str, enum.Enum):
+    """Wire layout a status frame was decoded from (PROTOCOL.md §1)."""
+
+    V1 = "v1"
+    V1_CHARGE = "v1_charge"
+    V2_TRUNCATED = "v2_truncated"
+    V2 = "v2"
+    ROS = "ros"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class Pose(BaseModel):
+    """Robot pose in the ``map`` frame: metres and radians."""
+
+    model_config = ConfigDict(frozen=True)
+
+    x: float
+    y: float
+    theta: float
+
+    @property
+    def degrees(self) -> float:
+        """Heading in degrees."""
+        return math.degrees(self.theta)
+
+
+class GalileoStatus(BaseModel):
+    """One decoded status frame; fields its layout lacks are None, never zero."""
+
+    model_config = ConfigDict(frozen=True)
+
+    layout: StatusLayout = StatusLayout.V2
+    nav_status: NavStatus | None = None
+    visual_status: VisualStatus | None = None
+    map_status: MapStatus | None = None
+    gc_status: int | None = None
+    gba_status: int | None = None
+    charge_status: ChargeStatus | None = None
+    loop_status: int | None = None
+    power: float | None = None
+    target_num_id: int | None = None
+    target_status: TargetStatus | None = None
+    target_distance: float | None = None
+    angle_goal_status: AngleGoalStatus | None = None
+    control_speed_x: float | None = None
+    control_speed_theta: float | None = None
+    current_speed_x: float | None = None
+    current_speed_theta: float | None = None
+    time_stamp: int | None = None
+    current_pose_x: float | None = None
+    current_pose_y: float | None = None
+    current_angle: float | None = None
+    busy_status: int | None = None
+
+    @property
+    def navigating(self) -> bool:
+        """Navigation service open."""
+        return self.nav_status == NavStatus.OPEN
+
+    @property
+    def visual_initialised(self) -> bool:
+        """Visual SLAM initialised (tracking or lost)."""
+        return self.visual_status in (VisualStatus.TRACKING, VisualStatus.LOST)
+
+    @property
+    def is_busy(self) -> bool:
+        """Robot busy: commands are queued until it is not."""
+        return self.busy_status == 1
+
+    @property
+    def mapping(self) -> bool:
+        """Map building running (None-safe: False when the layout lacks the field)."""
+        return self.map_status == MapStatus.MAPPING
+
+    @property
+    def patrolling(self) -> bool:
+        """Auto-patrol running."""
+        return self.loop_status == 1
+
+    @property
+    def charging(self) -> bool:
+        """On the dock and charging (or trickle-charged)."""
+        return self.charge_status in (ChargeStatus.CHARGING, ChargeStatus.CHARGED)
+
+    @property
+    def goal_active(self) -> bool:
+        """A goal is working or paused."""
+        return self.target_status in (TargetStatus.WORKING, TargetStatus.PAUSED)
+
+    @property
+    def goal_failed(self) -> bool:
+        """The goal state is an error (3 in the document, -1 on real firmware)."""
+        return self.target_status in (TargetStatus.ERROR, TargetStatus.INVALID)
+
+    @property
+    def arrived(self) -> bool:
+        """Goal free and within ARRIVED_DISTANCE of its target."""
+        return (
+            self.target_status == TargetStatus.FREE
+            and self.target_distance is not None
+            and abs(self.target_distance) < ARRIVED_DISTANCE
+        )
+
+    @property
+    def pose(self) -> Pose | None:
+        """Pose in the map frame, or None when the layout lacks it or it is unknown (-1)."""
+        x, y, theta = self.current_pose_x, self.current_pose_y, self.current_angle
+        if x is None or y is None or theta is None:
+            return None
+        if x == -1.0 and y == -1.0 and theta == -1.0:
+            return None
+        return Pose(x=x, y=y, theta=theta)
+
+    @classmethod
+    def trusted(cls, values: dict[str, Any]) -> GalileoStatus:
+        """Build from already-typed decoder values without re-validating them."""
+        return cls.model_construct(**values)
+
+
+#: Names of the wire fields, in the order of the current (v2) struct.
+STATUS_FIELDS: tuple[str, ...] = tuple(n for n in GalileoStatus.model_fields if n != "layout")
