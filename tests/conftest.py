@@ -1,0 +1,32 @@
+"""Shared fixtures: every test must leave no task behind."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile("dev", max_examples=100, deadline=None)
+settings.load_profile("ci")
+
+
+@pytest.fixture(autouse=True)
+async def no_lingering_tasks() -> AsyncIterator[None]:
+    """Fail a test that leaves a task running on its event loop."""
+    before = asyncio.all_tasks()
+    yield
+    for _ in range(3):  # let tasks that are already finishing run to completion
+        await asyncio.sleep(0)
+    # Setup and teardown may run in different tasks: exclude the one running now.
+    current = asyncio.current_task()
+    left = [t for t in asyncio.all_tasks() - before - {current} if not t.done()]
+    for task in left:
+        task.cancel()
+    if left:
+        await asyncio.gather(*left, return_exceptions=True)
+        pytest.fail(f"test left {len(left)} task(s) running: {left}")
