@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
+import logging
+from typing import TYPE_CHECKING, Any
+
 from . import errors, protocol
 from .errors import *  # noqa: F403
 from .models import (
@@ -16,20 +20,52 @@ from .models import (
     VisualStatus,
 )
 
+if TYPE_CHECKING:
+    from .discovery import DiscoveredRobot, discover
+    from .robot import Connection, GoalResult, Robot, connect
+
 __version__ = "0.1.0"
+
+# A library never configures logging; this only silences "no handler" warnings.
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
     "AngleGoalStatus",
     "ChargeStatus",
+    "Connection",
+    "DiscoveredRobot",
     "GalileoStatus",
+    "GoalResult",
     "MapStatus",
     "NavStatus",
     "Pose",
+    "Robot",
     "StatusLayout",
     "TargetStatus",
     "VisualStatus",
     "__version__",
+    "connect",
+    "discover",
     "errors",
     "protocol",
     *errors.__all__,
 ]
+
+# The asyncio layers load on first use, so ``import galileo_async.protocol`` stays I/O-free.
+_LAZY: dict[str, str] = {
+    "DiscoveredRobot": "discovery",
+    "discover": "discovery",
+    "Connection": "robot",
+    "GoalResult": "robot",
+    "Robot": "robot",
+    "connect": "robot",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value

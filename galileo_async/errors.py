@@ -20,6 +20,7 @@ __all__ = [
     "InvalidArgument",
     "LinkStale",
     "NotReady",
+    "OperationFailed",
     "OperationTimeout",
     "UnconfirmedOperation",
 ]
@@ -60,6 +61,14 @@ class LinkStale(GalileoConnectionError):
 
 class NotReady(GalileoError):
     """A precondition does not hold in the latest status; nothing was sent."""
+
+    def __init__(self, message: str, status: GalileoStatus | None) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+class OperationFailed(GalileoError):
+    """The status showed that an operation failed (e.g. a charging or rotation error)."""
 
     def __init__(self, message: str, status: GalileoStatus | None) -> None:
         super().__init__(message)

@@ -12,6 +12,7 @@ from .commands import (
     AddTarget,
     Command,
     Goto,
+    Greeting,
     RawCommand,
     RotateTo,
     SetPatrolDwell,
@@ -53,6 +54,8 @@ def _parse_with_arguments(payload: bytes) -> Command:
             return _PERCENT[code](value)
         if code == ord("s"):
             return Stop(value)
+        if code == ord("H") and value in (0, 1):
+            return Greeting(value == 0)
     elif code == ord("m") and len(rest) == 2 and rest[0] == 5:
         return SetPatrolDwell(rest[1])
     elif code == ord("a") and len(rest) == 2 and rest[0] in (0, 1):

@@ -21,6 +21,9 @@ __all__ = [
 MAX_BUFFER = 4096
 #: A time_stamp jump larger than this (one minute at 30 Hz) is a counter reset, not loss.
 MAX_COUNTED_GAP = 30 * 60
+#: Frames of an unpinned unterminated layout seen in a row before one is accepted without
+#: waiting for the next header: a single frame that lost its tail must not establish it.
+TRUST_AFTER = 3
 
 _VALID_LENGTHS = frozenset((LENGTH_V1, LENGTH_V2))
 _ACCEPT, _REJECT, _NEED_MORE = 0, 1, 2
@@ -74,6 +77,7 @@ class StatusDecoder:
     def __init__(self, layout: StatusLayout | str | None = None) -> None:
         self._pinned = StatusLayout(layout) if layout is not None else None
         self._detected: StatusLayout | None = self._pinned
+        self._run = 0  # frames of the detected layout decoded in a row
         self._buffer = bytearray()
         self._in_sync = True
         self._last_time_stamp: int | None = None
@@ -175,21 +179,29 @@ class StatusDecoder:
         # With no terminator only the next header confirms the frame's end; an
         # established layout is trusted when the next bytes have not arrived yet.
         confirm = not layout.terminated
-        embedded = buf.find(HEADER, pos + _HEADER_SIZE, end)
         # A header inside the frame is either float bytes or the next frame after bytes
-        # were lost; only the next frame starting right at `end` tells them apart.
-        if embedded >= 0 and (embedded + 3 >= size or buf[embedded + 3] in _VALID_LENGTHS):
-            confirm = True
+        # were lost; only the next frame starting right at `end` tells them apart. Every
+        # occurrence counts: float bytes may come before the next frame's real header.
+        embedded = buf.find(HEADER, pos + _HEADER_SIZE, end)
+        while embedded >= 0:
+            if embedded + 3 >= size or buf[embedded + 3] in _VALID_LENGTHS:
+                confirm = True
+                break
+            embedded = buf.find(HEADER, embedded + 1, end)
         if not confirm:
             return _ACCEPT
-        following = bytes(buf[end : end + len(HEADER)])
-        if following != HEADER[: len(following)]:
+        # Only a header with a valid length byte starts the next frame.
+        following = bytes(buf[end : end + _HEADER_SIZE])
+        if following[:3] != HEADER[: len(following)]:
             return _REJECT
-        if len(following) == len(HEADER):
-            return _ACCEPT
-        if embedded < 0 and layout.name is self._detected:
+        if len(following) == _HEADER_SIZE:
+            return _ACCEPT if following[3] in _VALID_LENGTHS else _REJECT
+        if embedded < 0 and layout.name is self._detected and self._trusted():
             return _ACCEPT
         return _NEED_MORE
+
+    def _trusted(self) -> bool:
+        return self._pinned is not None or self._run >= TRUST_AFTER
 
     def _decode(self, buf: bytearray, pos: int, layout: Layout) -> GalileoStatus:
         values = _CONVERTERS[layout.name](buf, pos)
@@ -199,6 +211,8 @@ class StatusDecoder:
         if self._detected is not layout.name:
             self._detected = layout.name
             stats.layout = layout.name
+            self._run = 0
+        self._run += 1
         time_stamp = values.get("time_stamp")
         if time_stamp is not None:
             last = self._last_time_stamp

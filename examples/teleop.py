@@ -1,0 +1,57 @@
+"""Drive by hand from a script: forward, an arc, a turn on the spot, then stop.
+
+    python examples/teleop.py [URL]    # default: $GALILEO_PORT, else sim://
+
+Teleop speeds persist until changed (the firmware has no keep-alive), so a script must
+always send a stop at the end, even when something fails on the way.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import sys
+
+import galileo_async as galileo
+
+URL = sys.argv[1] if len(sys.argv) > 1 else os.environ.get("GALILEO_PORT", "sim://")
+
+
+async def hold(robot: galileo.Robot, frames: int) -> galileo.GalileoStatus:
+    """Let ``frames`` status frames go by (30 per simulated second); return the last."""
+    seen = 0
+    async for status in robot.statuses():
+        seen += 1
+        if seen >= frames:
+            return status
+    raise galileo.ConnectionLost("the status stream ended")
+
+
+async def main() -> int:
+    async with galileo.connect(URL) as robot:
+        await robot.start_navigation(timeout=60)  # for a pose to print; teleop works without
+        try:
+            await robot.forward(50)
+            status = await hold(robot, 45)
+            print(f"forward: {status.current_speed_x:+.2f} m/s")
+            await robot.turn_left(40)  # forward and a turn together drive an arc
+            status = await hold(robot, 30)
+            speed, turn = status.current_speed_x, status.current_speed_theta
+            print(f"arc: {speed:+.2f} m/s, {turn:+.2f} rad/s")
+            await robot.stop()
+            await robot.turn_right(60)
+            status = await hold(robot, 30)
+            print(f"turn on the spot: {status.current_speed_theta:+.2f} rad/s")
+        finally:
+            await robot.stop()
+        status = await robot.wait_until(
+            lambda s: s.current_speed_x == 0 and s.current_speed_theta == 0, timeout=10
+        )
+        pose = status.pose
+        where = f" at ({pose.x:.2f}, {pose.y:.2f}), {pose.degrees:.0f}°" if pose else ""
+        print(f"stopped{where}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(asyncio.run(main()))

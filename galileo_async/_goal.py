@@ -1,0 +1,275 @@
+"""The goto state machine: statuses seen after ``g N`` in, a verdict out (no I/O)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from dataclasses import dataclass
+from typing import NoReturn
+
+from ._operations import Deadline, Operations
+from .errors import (
+    AcceptTimeout,
+    GalileoTimeout,
+    GoalAborted,
+    GoalCancelled,
+    GoalRejected,
+    OperationTimeout,
+)
+from .models import GalileoStatus, TargetStatus
+from .protocol import Goto
+
+__all__ = ["GoalHandle", "GoalResult", "GoalTracker", "run_goal"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class GoalResult:
+    """A goal that ended free within ``arrive_tolerance`` of its target."""
+
+    target_id: int
+    distance: float | None
+    elapsed: float
+    status: GalileoStatus
+
+
+class GoalHandle:
+    """One running ``goto`` of a Robot; a newer goal of the same Robot preempts it."""
+
+    __slots__ = ("preempted", "target_id")
+
+    def __init__(self, target_id: int) -> None:
+        self.target_id = target_id
+        self.preempted = False
+
+    def check(self, status: GalileoStatus | None) -> None:
+        """Raise GoalCancelled(preempted=True) once a newer goal of this Robot was started."""
+        if self.preempted:
+            raise GoalCancelled(
+                f"goal {self.target_id} was preempted by a newer goal",
+                target_id=self.target_id,
+                preempted=True,
+                status=status,
+            )
+
+
+def _failed_transition(previous: GalileoStatus | None, status: GalileoStatus) -> bool:
+    """True when ``status`` shows a goal error that ``previous`` did not already show."""
+    if previous is None or not status.goal_failed:
+        return False
+    if not previous.goal_failed:
+        return True
+    return (previous.target_num_id, previous.target_status) != (
+        status.target_num_id,
+        status.target_status,
+    )
+
+
+class GoalTracker:
+    """Decide acceptance and the end of goal ``target_id`` from the statuses after the send.
+
+    ``before`` is the latest status when the command was sent: the first frames after
+    ``g N`` may still show it (a cached status re-sent with a new counter, PROTOCOL.md §1),
+    so only transitions away from it count, never levels that it already showed.
+    """
+
+    def __init__(
+        self, target_id: int, *, before: GalileoStatus | None, arrive_tolerance: float
+    ) -> None:
+        self.target_id = target_id
+        self.arrive_tolerance = arrive_tolerance
+        self.accepted = False
+        self.distance: float | None = None
+        self._previous = before
+        self._before_id = before.target_num_id if before is not None else None
+        # Re-sending the goal that is already running: the firmware cancels and restarts it
+        # (PROTOCOL.md §2.b), which may show one cancelled frame before it works again.
+        self._restarting = (
+            before is not None and before.target_num_id == target_id and before.goal_active
+        )
+
+    def feed(self, status: GalileoStatus) -> bool:
+        """Consume one status; True when the goal arrived, GoalError when it ended otherwise."""
+        try:
+            if status.nav_status is not None and not status.navigating:
+                raise GoalCancelled(
+                    f"goal {self.target_id} ended: navigation was stopped",
+                    target_id=self.target_id,
+                    status=status,
+                )
+            if self.accepted:
+                return self._track(status)
+            return self._accept(status)
+        finally:
+            self._previous = status
+
+    def _accept(self, status: GalileoStatus) -> bool:
+        ours = status.target_num_id == self.target_id
+        if ours and status.target_status == TargetStatus.WORKING:
+            self.accepted = True
+            self._note_distance(status)
+            return False
+        if _failed_transition(self._previous, status):
+            # The document reports a bad goal as 3; the firmware as -1, leaving
+            # target_num_id unchanged (PROTOCOL.md §2.b): an id check cannot be used.
+            raise GoalRejected(
+                f"the robot rejected goal {self.target_id} "
+                f"(target_status {_name(status.target_status)}): no such target, "
+                "or it cannot be reached",
+                target_id=self.target_id,
+                status=status,
+            )
+        if ours and self._before_id != self.target_id and status.target_status == TargetStatus.FREE:
+            # Accepted and finished between two frames: the id changing to ours is the proof.
+            self.accepted = True
+            return self._track(status)
+        return False
+
+    def _track(self, status: GalileoStatus) -> bool:
+        state = status.target_status
+        ours = status.target_num_id == self.target_id
+        if self._restarting and not (ours and status.goal_active):
+            # The first end seen is the restart's own cancel, not the end of the new goal.
+            self._restarting = False
+            self.accepted = False
+            return self._accept(status)
+        if not ours:
+            return self._id_changed(status)
+        if state in (TargetStatus.WORKING, TargetStatus.PAUSED):
+            self._note_distance(status)
+            return False
+        if state == TargetStatus.FREE:
+            self._note_distance(status)
+            if self.distance is not None and abs(self.distance) <= self.arrive_tolerance:
+                return True
+            where = (
+                "at an unknown distance" if self.distance is None else (f"{self.distance:.2f} m")
+            )
+            raise GoalAborted(
+                f"goal {self.target_id} stopped short, {where} from the target "
+                f"(arrive_tolerance {self.arrive_tolerance} m): the planner gave up",
+                target_id=self.target_id,
+                distance=self.distance,
+                status=status,
+            )
+        if status.goal_failed:
+            raise GoalRejected(
+                f"the robot reported an error for goal {self.target_id} while moving "
+                f"(target_status {_name(state)})",
+                target_id=self.target_id,
+                status=status,
+            )
+        return False  # an unknown target_status value from newer firmware: not an end
+
+    def _id_changed(self, status: GalileoStatus) -> NoReturn:
+        preempted = status.goal_active
+        what = f"preempted by goal {status.target_num_id}" if preempted else "cancelled"
+        raise GoalCancelled(
+            f"goal {self.target_id} was {what}",
+            target_id=self.target_id,
+            preempted=preempted,
+            status=status,
+        )
+
+    def settle(self) -> None:
+        """Stop treating the first end as a restart's cancel (the restart window is over)."""
+        self._restarting = False
+
+    def _note_distance(self, status: GalileoStatus) -> None:
+        distance = status.target_distance
+        if distance is not None and distance >= 0:  # -1 means "invalid" (PROTOCOL.md §1)
+            self.distance = distance
+
+
+def _name(value: TargetStatus | None) -> str:
+    return "unknown" if value is None else f"{int(value)} ({value.name})"
+
+
+async def run_goal(
+    ops: Operations,
+    handle: GoalHandle,
+    *,
+    deadline: Deadline,
+    accept_timeout: float,
+    arrive_tolerance: float,
+    cancel_on_exit: bool,
+) -> GoalResult:
+    """Send ``g N`` (registered first) and follow the goal to its end; see Robot.goto."""
+    loop = asyncio.get_running_loop()
+    target_id = handle.target_id
+    with ops.store.watch() as watch:
+        tracker = GoalTracker(target_id, before=ops.store.status, arrive_tolerance=arrive_tolerance)
+        try:
+            await ops.link.send(Goto(target_id))
+            sent_at = loop.time()
+            accept_by = sent_at + accept_timeout
+            while True:
+                handle.check(ops.store.status)
+                now = loop.time()
+                if tracker.accepted:
+                    if now >= accept_by:
+                        tracker.settle()
+                    wait = deadline.remaining()
+                else:
+                    wait = accept_by - now
+                    if deadline.at is not None:
+                        wait = min(wait, deadline.at - now)
+                    wait = max(0.0, wait)
+                try:
+                    status = await watch.next(wait)
+                except (TimeoutError, asyncio.TimeoutError):
+                    overall = deadline.at is not None and deadline.at <= accept_by
+                    raise _timeout(
+                        tracker, ops.store.status, deadline, accept_timeout, overall=overall
+                    ) from None
+                handle.check(status)
+                was_accepted = tracker.accepted
+                if tracker.feed(status):
+                    _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
+                    return GoalResult(target_id, tracker.distance, loop.time() - sent_at, status)
+                if tracker.accepted and not was_accepted:
+                    _log.debug("goal %d accepted", target_id)
+        except (asyncio.CancelledError, GalileoTimeout):
+            # Leaving while the robot may still drive: stop it, unless a newer goal of
+            # this Robot already replaced this one (a cancel would stop the new goal).
+            if cancel_on_exit and not handle.preempted:
+                _log.info("goal %d left before its end: sending cancel", target_id)
+                await ops.send_cancel_shielded()
+            raise
+
+
+def _timeout(
+    tracker: GoalTracker,
+    status: GalileoStatus | None,
+    deadline: Deadline,
+    accept_timeout: float,
+    *,
+    overall: bool,
+) -> GalileoTimeout:
+    target_id = tracker.target_id
+    if tracker.accepted:
+        return OperationTimeout(
+            f"goal {target_id} did not end within {deadline.timeout} s "
+            f"(last distance {tracker.distance} m)",
+            status,
+        )
+    if overall:
+        return OperationTimeout(
+            f"goal {target_id} was not accepted before the timeout of {deadline.timeout} s",
+            status,
+        )
+    hint = ""
+    if status is not None and status.goal_failed:
+        # Real firmware leaves target_num_id alone and reports -1 (PROTOCOL.md §2.b): with
+        # -1 already showing before the command, a rejection looks like a lost command.
+        hint = (
+            f"; target_status still shows {int(status.target_status or 0)}, so the robot may"
+            " have rejected the id without a visible change (real firmware reports"
+            " errors as -1 and leaves target_num_id unchanged)"
+        )
+    return AcceptTimeout(
+        f"the robot did not show goal {target_id} as working within {accept_timeout} s{hint}",
+        target_id=target_id,
+        status=status,
+    )

@@ -1,0 +1,258 @@
+"""Robot operations outside goals: teleoperation, patrol, mapping, charging, the host."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from ._operations import DEFAULT_TIMEOUT, ROTATE_TIMEOUT, Deadline, Operations, check_timeout
+from .errors import (
+    GalileoConnectionError,
+    GalileoTimeout,
+    InvalidArgument,
+    UnconfirmedOperation,
+)
+from .models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
+from .protocol import (
+    Backward,
+    Cancel,
+    Command,
+    Forward,
+    Pause,
+    Resume,
+    RotateTo,
+    SaveDock,
+    SaveMap,
+    SetPatrolDwell,
+    ShutdownHost,
+    StartCharging,
+    StartMapping,
+    StartPatrol,
+    Stop,
+    StopCharging,
+    StopMapping,
+    StopPatrol,
+    TurnLeft,
+    TurnRight,
+    UpdateMap,
+)
+
+__all__ = ["RobotServices"]
+
+
+def _navigating(status: GalileoStatus) -> bool:
+    return status.navigating
+
+
+class RobotServices:
+    """Operations every Robot has besides goals; each validates, checks, sends, confirms."""
+
+    _ops: Operations
+    _closed: bool
+
+    # --- goal control ---------------------------------------------------------------
+
+    async def pause(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Pause the working goal; return once the status shows it paused."""
+        await self._goal_command(Pause(), TargetStatus.WORKING, TargetStatus.PAUSED, timeout)
+
+    async def resume(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Resume the paused goal; return once the status shows it working."""
+        await self._goal_command(Resume(), TargetStatus.PAUSED, TargetStatus.WORKING, timeout)
+
+    async def cancel(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Cancel the goal (sent at once, even while busy); return once no goal is active."""
+        check_timeout("timeout", timeout)
+        self._ensure_open()
+        await self._ops.link.send(Cancel())
+        try:
+            await self._ops.store.wait_until(lambda s: not s.goal_active, timeout=timeout)
+        except GalileoTimeout as exc:
+            raise UnconfirmedOperation(
+                f"cancel: sent, but a goal was still active after {timeout} s", exc.status
+            ) from None
+
+    async def rotate_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
+        """Rotate to ``degrees`` (-180..180, rounded) in the map frame; wait angle_goal_status."""
+        if isinstance(degrees, bool) or not isinstance(degrees, (int, float)):
+            raise InvalidArgument(f"degrees must be a number, got {degrees!r}")
+        if not math.isfinite(degrees):
+            raise InvalidArgument(f"degrees must be finite, got {degrees!r}")
+        command = RotateTo(round(degrees))
+        check_timeout("timeout", timeout)
+        self._require(
+            lambda s: s.visual_initialised and not s.goal_active,
+            "rotate_to: the visual system must be initialised and no goal active",
+        )
+        seen_not_done = False
+
+        def done(status: GalileoStatus) -> bool:
+            # The firmware derives angle_goal_status from the goal state, so a stale 1
+            # (done) shows before the rotation starts: wait for 0 then 1 (PROTOCOL.md §1).
+            nonlocal seen_not_done
+            seen_not_done = seen_not_done or status.angle_goal_status == AngleGoalStatus.NOT_DONE
+            return seen_not_done and status.angle_goal_status == AngleGoalStatus.DONE
+
+        try:
+            await self._ops.send_confirmed(
+                command, done, field="angle_goal_status", deadline=Deadline(timeout),
+                what=f"rotate_to({degrees})",
+                failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
+            )  # fmt: skip
+        except UnconfirmedOperation as exc:
+            # No published firmware handles 'a' (PROTOCOL.md §2.g).
+            raise UnconfirmedOperation(
+                f"{exc}; many firmware versions ignore the rotate command 'a' entirely",
+                exc.status,
+            ) from None
+
+    # --- teleoperation ---------------------------------------------------------------
+
+    async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Drive forward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        await self._send(Forward(percent), timeout, "forward")
+
+    async def backward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Drive backward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        await self._send(Backward(percent), timeout, "backward")
+
+    async def turn_left(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Turn left at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        await self._send(TurnLeft(percent), timeout, "turn_left")
+
+    async def turn_right(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Turn right at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        await self._send(TurnRight(percent), timeout, "turn_right")
+
+    async def stop(self, brake: int = 100) -> None:
+        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy."""
+        command = Stop(brake)
+        self._ensure_open()
+        await self._ops.link.send(command)
+
+    # --- patrol, mapping, charging, host -------------------------------------------------
+
+    async def start_patrol(
+        self, dwell: int | None = None, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> None:
+        """Start auto-patrol (``dwell`` s at each target if given); return once loop_status is 1."""
+        command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
+        check_timeout("timeout", timeout)
+        self._require(_navigating, "start_patrol: navigation must be open")
+        await self._ops.send_confirmed(
+            command, lambda s: s.patrolling, field="loop_status", deadline=Deadline(timeout),
+            what="start_patrol",
+        )  # fmt: skip
+
+    async def stop_patrol(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop auto-patrol, keep navigation (``m 6``); return once loop_status is 0."""
+        check_timeout("timeout", timeout)
+        self._require(lambda s: True, "stop_patrol")
+        # The document's 'm' 4 would stop navigation; firmware stops patrol with 'm' 6
+        # (PROTOCOL.md §2.g).
+        await self._ops.send_confirmed(
+            StopPatrol(), lambda s: not s.patrolling, field="loop_status",
+            deadline=Deadline(timeout), what="stop_patrol",
+        )  # fmt: skip
+
+    async def set_patrol_dwell(
+        self, seconds: int, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> None:
+        """Set the patrol wait at each target (0-255 s); the firmware also starts patrol."""
+        command = SetPatrolDwell(seconds)
+        check_timeout("timeout", timeout)
+        self._require(_navigating, "set_patrol_dwell: navigation must be open")
+        await self._send(command, timeout, "set_patrol_dwell")
+
+    async def start_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Start building a map; return once map_status is 1. Navigation must be closed."""
+        await self._mapping_command(StartMapping(), True, timeout, "start_mapping")
+
+    async def stop_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop building the map; return once map_status is 0."""
+        await self._mapping_command(StopMapping(), False, timeout, "stop_mapping")
+
+    async def save_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Save the map; the status cannot confirm it and some firmware ignores it."""
+        check_timeout("timeout", timeout)
+        self._require(lambda s: not s.navigating, "save_map: navigation must be closed")
+        await self._send(SaveMap(), timeout, "save_map")
+
+    async def update_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Update the map; the status cannot confirm it."""
+        check_timeout("timeout", timeout)
+        self._require(lambda s: not s.navigating, "update_map: navigation must be closed")
+        await self._send(UpdateMap(), timeout, "update_map")
+
+    async def start_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> ChargeStatus:
+        """Go to the dock and charge; return the charge_status once it leaves FREE."""
+        check_timeout("timeout", timeout)
+        self._require(lambda s: True, "start_charging")
+        status = await self._ops.send_confirmed(
+            StartCharging(), lambda s: s.charge_status not in (None, ChargeStatus.FREE),
+            field="charge_status", deadline=Deadline(timeout), what="start_charging",
+            failed=lambda s: s.charge_status == ChargeStatus.ERROR,
+        )  # fmt: skip
+        assert status.charge_status is not None
+        return status.charge_status
+
+    async def stop_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop charging; return once charge_status is FREE."""
+        check_timeout("timeout", timeout)
+        self._require(lambda s: True, "stop_charging")
+        await self._ops.send_confirmed(
+            StopCharging(), lambda s: s.charge_status == ChargeStatus.FREE,
+            field="charge_status", deadline=Deadline(timeout), what="stop_charging",
+        )  # fmt: skip
+
+    async def save_dock(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Save the current pose as the dock position; the status cannot confirm it."""
+        await self._send(SaveDock(), timeout, "save_dock")
+
+    async def shutdown_host(self, *, confirm: bool = False) -> None:
+        """Power the navigation computer off; refuses unless ``confirm=True``."""
+        if confirm is not True:
+            raise InvalidArgument(
+                "shutdown_host powers the robot's computer off: pass confirm=True"
+            )
+        self._ensure_open()
+        await self._ops.link.send(ShutdownHost())
+
+    # --- helpers -----------------------------------------------------------------------
+
+    def _ensure_open(self) -> None:
+        if self._closed:
+            raise GalileoConnectionError("this Robot is closed")
+
+    def _require(self, ok: Callable[[GalileoStatus], bool], message: str) -> GalileoStatus:
+        self._ensure_open()
+        return self._ops.require(ok, message)
+
+    async def _send(self, command: Command, timeout: float | None, what: str) -> None:
+        check_timeout("timeout", timeout)
+        self._ensure_open()
+        await self._ops.send(command, Deadline(timeout), what)
+
+    async def _mapping_command(
+        self, command: Command, mapping: bool, timeout: float | None, what: str
+    ) -> None:
+        check_timeout("timeout", timeout)
+        self._require(lambda s: not s.navigating, f"{what}: navigation must be closed")
+        await self._ops.send_confirmed(
+            command, lambda s: s.mapping == mapping, field="map_status",
+            deadline=Deadline(timeout), what=what,
+        )  # fmt: skip
+
+    async def _goal_command(
+        self, command: Command, needed: TargetStatus, result: TargetStatus, timeout: float | None
+    ) -> None:
+        what = type(command).__name__.lower()
+        check_timeout("timeout", timeout)
+        self._require(
+            lambda s: s.target_status == needed,
+            f"{what}: the goal must be {needed.name.lower()}",
+        )
+        await self._ops.send_confirmed(
+            command, lambda s: s.target_status == result, field="target_status",
+            deadline=Deadline(timeout), what=what,
+        )  # fmt: skip

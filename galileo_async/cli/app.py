@@ -1,0 +1,117 @@
+"""The ``galileo`` Typer application: global options and the command table."""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated
+
+import typer
+
+from .. import __version__
+from . import capture, demo, ops, serve, teleop, watch
+from .runner import DEFAULT_PORT, Settings, setup_logging
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    name="galileo",
+    help="Drive and watch a Galileo navigation robot (serial, socket:// or the sim:// default).",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+    rich_markup_mode=None,
+)
+
+
+#: Layouts of the serial status stream (PROTOCOL.md §1) that --layout accepts.
+_LAYOUTS = ("v2", "v2_truncated", "v1", "v1_charge")
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"galileo {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def options(
+    ctx: typer.Context,
+    port: Annotated[
+        str,
+        typer.Option(
+            "--port",
+            "-p",
+            envvar="GALILEO_PORT",
+            show_envvar=True,
+            help="Serial device, socket://host:port, or sim://?speed=…&layout=… (simulator).",
+        ),
+    ] = DEFAULT_PORT,
+    layout: Annotated[
+        str | None,
+        typer.Option(help="Pin the status layout: v2, v2_truncated, v1, v1_charge (default auto)."),
+    ] = None,
+    map_targets: Annotated[
+        int | None,
+        typer.Option(
+            "--map-targets",
+            envvar="GALILEO_MAP_TARGETS",
+            min=0,
+            max=255,
+            help="Number of targets in the robot's map (needed by goto-point).",
+        ),
+    ] = None,
+    verbose: Annotated[
+        int, typer.Option("--verbose", "-v", count=True, help="-v debug logs, -vv raw frames.")
+    ] = 0,
+    json_output: Annotated[
+        bool, typer.Option("--json", help="JSON output where the output is data.")
+    ] = False,
+    version: Annotated[
+        bool | None,
+        typer.Option("--version", callback=_version, is_eager=True, help="Show the version."),
+    ] = None,
+) -> None:
+    """Drive and watch a Galileo navigation robot. Every command works on sim:// out of the box."""
+    if layout is not None and layout not in _LAYOUTS:
+        message = f"{layout!r} is not one of {', '.join(_LAYOUTS)}"
+        raise typer.BadParameter(message, param_hint="--layout")
+    ctx.obj = Settings(
+        port=port or os.environ.get("GALILEO_PORT") or DEFAULT_PORT,
+        layout=layout,
+        verbose=verbose,
+        json=json_output,
+        map_targets=map_targets,
+    )
+    setup_logging(verbose)
+
+
+_NUMBERS = {"ignore_unknown_options": True}  # lets "-2.5" through as a number
+
+app.command("status")(watch.status)
+app.command("monitor")(watch.monitor)
+app.add_typer(ops.nav_app, name="nav")
+app.command("goto")(ops.goto)
+app.command("goto-point", context_settings=_NUMBERS)(ops.goto_point)
+_GROUPS = {
+    None: app, "nav": ops.nav_app, "patrol": ops.patrol_app, "map": ops.map_app,
+    "charge": ops.charge_app,
+}  # fmt: skip
+for _group, _name, _method, _done, _help in ops.SIMPLE_COMMANDS:
+    _GROUPS[_group].command(_name, help=_help)(ops.simple_command(_method, _done, _help))
+app.command("rotate", context_settings=_NUMBERS)(ops.rotate)
+app.command("teleop")(teleop.teleop)
+app.add_typer(ops.patrol_app, name="patrol")
+app.add_typer(ops.map_app, name="map")
+app.add_typer(ops.charge_app, name="charge")
+app.command("shutdown")(ops.shutdown)
+app.command("send", context_settings=_NUMBERS)(ops.send)
+app.command("decode")(capture.decode)
+app.command("record")(capture.record)
+app.command("ports")(serve.ports)
+app.command("sim")(serve.sim)
+app.command("demo")(demo.demo)
+
+
+def main() -> None:
+    """Console-script entry point of ``galileo``."""
+    app(prog_name="galileo")

@@ -1,0 +1,175 @@
+"""``record`` raw bytes from a link (with timestamps) and ``decode`` captures into JSON lines.
+
+Recording format (``galileo record``): the 18-byte magic ``GALILEO-CAPTURE 1\\n``, then one
+record per chunk received: a little-endian float64 (seconds since the recording started), a
+little-endian uint32 byte count, and that many bytes exactly as they came off the link.
+``decode`` reads recordings and plain raw byte dumps (anything without the magic) alike.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import signal
+import struct
+import sys
+from collections.abc import Iterator
+from dataclasses import asdict
+from pathlib import Path
+from typing import IO, Annotated, Any
+
+import anyio
+import typer
+
+from ..protocol import StatusDecoder
+from .connectors import open_raw
+from .render import status_dict
+from .runner import ExitCode, err_console, fail, out_console, run, settings_of
+
+__all__ = ["MAGIC", "RECORD", "decode", "iter_capture", "record", "stop_requested"]
+
+#: First bytes of a recording made by ``galileo record``.
+MAGIC = b"GALILEO-CAPTURE 1\n"
+#: Per-chunk header of a recording: seconds since start (float64), byte count (uint32).
+RECORD = struct.Struct("<dI")
+_READ_SIZE = 65536
+
+
+def iter_capture(stream: IO[bytes]) -> Iterator[tuple[float | None, bytes]]:
+    """Yield (seconds or None, bytes) chunks from a recording or a raw dump."""
+    head = stream.read(len(MAGIC))
+    if head != MAGIC:
+        if head:
+            yield None, head
+        while chunk := stream.read(_READ_SIZE):
+            yield None, chunk
+        return
+    while True:
+        prefix = stream.read(RECORD.size)
+        if len(prefix) < RECORD.size:
+            return  # end of file (a cut-off record header is ignored)
+        seconds, size = RECORD.unpack(prefix)
+        data = stream.read(size)
+        if data:
+            yield seconds, data
+        if len(data) < size:
+            return
+
+
+def decode(
+    ctx: typer.Context,
+    source: Annotated[str, typer.Argument(help="Capture file (raw bytes or a recording), or -.")],
+    summary_only: Annotated[
+        bool, typer.Option("--summary-only", "-s", help="Print only the summary.")
+    ] = False,
+    json_output: Annotated[bool, typer.Option("--json", help="Summary as JSON too.")] = False,
+) -> None:
+    """Decode captured bytes: one JSON line per status, then a summary of the stream."""
+    settings = settings_of(ctx)
+    as_json = settings.json or json_output
+    try:
+        handle: IO[bytes] = (
+            sys.stdin.buffer if source == "-" else Path(source).open("rb")  # noqa: SIM115
+        )
+    except OSError as exc:
+        fail(f"cannot read {source}: {exc.strerror or exc}")
+    decoder = StatusDecoder(settings.layout)
+    out = sys.stdout
+    total = chunks = 0
+    first: float | None = None
+    last: float | None = None
+    recording = False
+    with handle:
+        for seconds, data in iter_capture(handle):
+            chunks += 1
+            total += len(data)
+            if seconds is not None:
+                recording = True
+                first = seconds if first is None else first
+                last = seconds
+            for status in decoder.feed(data):
+                if summary_only:
+                    continue
+                line: dict[str, Any] = {} if seconds is None else {"t": round(seconds, 4)}
+                line |= status_dict(status)
+                out.write(json.dumps(line) + "\n")
+    stats = asdict(decoder.stats)
+    summary: dict[str, Any] = {
+        "format": "recording" if recording else "raw",
+        "bytes": total,
+        "chunks": chunks,
+        **stats,
+        "layout": None if decoder.stats.layout is None else decoder.stats.layout.value,
+        "bytes_pending": decoder.buffered,
+        "duration": None if first is None or last is None else round(last - first, 3),
+    }
+    if as_json:
+        out.write(json.dumps({"summary": summary}) + "\n")
+    else:
+        text = ", ".join(f"{key} {value}" for key, value in summary.items())
+        err_console().print(f"summary: {text}", markup=False)
+    out.flush()
+    raise typer.Exit(0 if decoder.stats.frames or not total else int(ExitCode.ERROR))
+
+
+@contextlib.contextmanager
+def stop_requested() -> Iterator[asyncio.Event]:
+    """An event set by Ctrl-C (SIGINT) while the block runs, for a clean stop."""
+    loop = asyncio.get_running_loop()
+    event = asyncio.Event()
+    installed = False
+    with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+        loop.add_signal_handler(signal.SIGINT, event.set)
+        installed = True
+    try:
+        yield event
+    finally:
+        if installed:
+            loop.remove_signal_handler(signal.SIGINT)
+
+
+def record(
+    ctx: typer.Context,
+    path: Annotated[Path, typer.Argument(help="File to write.", dir_okay=False)],
+    duration: Annotated[
+        float | None, typer.Option(min=0.01, help="Stop after seconds (default: Ctrl-C).")
+    ] = None,
+    raw: Annotated[bool, typer.Option("--raw", help="Plain bytes, no timestamps.")] = False,
+) -> None:
+    """Capture the raw byte stream from --port into a file (a recording, or --raw bytes)."""
+    settings = settings_of(ctx)
+
+    async def main() -> int:
+        chunks: asyncio.Queue[tuple[float, bytes] | None] = asyncio.Queue()
+        written = count = 0
+        closed = False
+        async with (
+            open_raw(settings.url, chunks) as started,
+            await anyio.open_file(path, "wb") as file,
+        ):
+            if not raw:
+                await file.write(MAGIC)
+            with stop_requested() as stop:
+                async with anyio.create_task_group() as group:
+                    group.start_soon(_cancel_on, stop, group.cancel_scope)
+                    with anyio.move_on_after(duration):
+                        while (item := await chunks.get()) is not None:
+                            seconds, data = item[0] - started, item[1]
+                            header = b"" if raw else RECORD.pack(seconds, len(data))
+                            await file.write(header + data)
+                            written += len(data)
+                            count += 1
+                        closed = True
+                    group.cancel_scope.cancel()
+        if closed:
+            err_console().print("the link closed; recording ended")
+        out_console().print(f"recorded {written} bytes in {count} chunks to {path}")
+        return 0
+
+    run(settings, main)
+
+
+async def _cancel_on(event: asyncio.Event, scope: anyio.CancelScope) -> None:
+    await event.wait()
+    scope.cancel()

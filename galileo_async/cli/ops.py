@@ -1,0 +1,271 @@
+"""Commands that drive the robot: navigation, goals, patrol, mapping, charging, raw commands."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Awaitable, Callable
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from ..errors import InvalidArgument
+from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
+from .goals import follow_goal, with_progress
+from .runner import ExitCode, fail, out_console, run_robot, settings_of
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+
+__all__ = [
+    "SIMPLE_COMMANDS",
+    "charge_app",
+    "goto",
+    "goto_point",
+    "map_app",
+    "nav_app",
+    "parse_command",
+    "patrol_app",
+    "rotate",
+    "send",
+    "shutdown",
+    "simple_command",
+]
+
+StartNav = Annotated[
+    bool | None,
+    typer.Option(
+        "--start-nav/--no-start-nav",
+        help="Start navigation first when it is closed (default: only on sim://).",
+        show_default=False,
+    ),
+]
+GoalTimeout = Annotated[
+    float, typer.Option("--timeout", "-t", min=0.1, help="Give up (and cancel) after seconds.")
+]
+JsonFlag = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
+
+
+nav_app = typer.Typer(help="Start or stop the navigation service.", no_args_is_help=True)
+patrol_app = typer.Typer(help="Auto-patrol over every target.", no_args_is_help=True)
+map_app = typer.Typer(help="Build, save and update the map.", no_args_is_help=True)
+charge_app = typer.Typer(help="Docking and charging.", no_args_is_help=True)
+
+
+def _simple(
+    ctx: typer.Context,
+    call: Callable[[Robot], Awaitable[object]],
+    done: str,
+    *,
+    navigation: bool | None = False,
+) -> None:
+    settings = settings_of(ctx)
+    label = ctx.command_path.removeprefix(ctx.find_root().info_name or "").strip()
+
+    async def body(robot: Robot) -> int:
+        await with_progress(robot, label, call(robot), show=not settings.json)
+        if settings.json:
+            out_console().print(json.dumps({"result": "ok", "done": done}), markup=False)
+        else:
+            out_console().print(done)
+        return 0
+
+    run_robot(settings, body, navigation=navigation)
+
+
+# --- goals -------------------------------------------------------------------------------
+
+
+def goto(
+    ctx: typer.Context,
+    target_id: Annotated[int, typer.Argument(min=0, max=255, help="Map target id.")],
+    timeout: GoalTimeout = 300.0,
+    start_nav: StartNav = None,
+    json_output: JsonFlag = False,
+) -> None:
+    """Go to a map target with live progress; the exit code tells the result."""
+    settings = settings_of(ctx)
+    settings.json = settings.json or json_output
+
+    async def body(robot: Robot) -> int:
+        return await follow_goal(
+            settings, robot, f"goto {target_id}", lambda: robot.goto(target_id, timeout=timeout)
+        )
+
+    run_robot(settings, body, navigation=start_nav)
+
+
+def goto_point(
+    ctx: typer.Context,
+    x: Annotated[float, typer.Argument(help="Map x, metres.")],
+    y: Annotated[float, typer.Argument(help="Map y, metres.")],
+    timeout: GoalTimeout = 300.0,
+    start_nav: StartNav = None,
+    json_output: JsonFlag = False,
+) -> None:
+    """Go to map coordinates (a dynamic target) with live progress; exit code by result."""
+    settings = settings_of(ctx)
+    settings.json = settings.json or json_output
+
+    async def body(robot: Robot) -> int:
+        label = f"goto-point ({x:g}, {y:g})"
+        return await follow_goal(
+            settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout)
+        )
+
+    run_robot(settings, body, navigation=start_nav)
+
+
+def rotate(
+    ctx: typer.Context,
+    degrees: Annotated[int, typer.Argument(min=-180, max=180, help="Heading, degrees.")],
+    timeout: Annotated[float, typer.Option("--timeout", "-t", min=0.1)] = 15.0,
+    start_nav: StartNav = None,
+) -> None:
+    """Rotate to a heading (-180..180); many firmware versions ignore it (then: timeout)."""
+    _simple(
+        ctx,
+        lambda robot: robot.rotate_to(degrees, timeout=timeout),
+        f"rotated to {degrees}°",
+        navigation=start_nav,
+    )
+
+
+# --- patrol, mapping, charging -------------------------------------------------------------
+
+
+@patrol_app.command("start")
+def patrol_start(
+    ctx: typer.Context,
+    dwell: Annotated[
+        int | None, typer.Option(min=0, max=255, help="Seconds to wait at each target.")
+    ] = None,
+    start_nav: StartNav = None,
+) -> None:
+    """Start auto-patrol (navigation must be running)."""
+    _simple(
+        ctx, lambda robot: robot.start_patrol(dwell=dwell), "patrol running", navigation=start_nav
+    )
+
+
+#: Commands that call one Robot method without arguments:
+#: (group or None for top level, name, Robot method, line printed when done, help).
+SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
+    ("nav", "start", "start_navigation", "navigation open, visual initialised",
+     "Start navigation; return once it is open and the visual system is initialised."),
+    ("nav", "stop", "stop_navigation", "navigation closed",
+     "Stop navigation (also stops patrol and the goal)."),
+    (None, "pause", "pause", "goal paused", "Pause the working goal."),
+    (None, "resume", "resume", "goal resumed", "Resume the paused goal."),
+    (None, "cancel", "cancel", "goal cancelled", "Cancel the goal."),
+    ("patrol", "stop", "stop_patrol", "patrol stopped",
+     "Stop auto-patrol and keep navigation (firmware 'm' 6)."),
+    ("map", "start", "start_mapping", "mapping", "Start mapping (stops navigation)."),
+    ("map", "stop", "stop_mapping", "mapping stopped", "Stop mapping."),
+    ("map", "save", "save_map", "map save sent", "Save the map (some firmware ignores it)."),
+    ("map", "update", "update_map", "map update sent", "Update the map."),
+    ("charge", "start", "start_charging", "going to the dock", "Go to the dock and charge."),
+    ("charge", "stop", "stop_charging", "charging stopped", "Stop charging."),
+    ("charge", "save-dock", "save_dock", "dock position saved",
+     "Save the current pose as the dock position."),
+)  # fmt: skip
+
+
+def simple_command(method: str, done: str, help_text: str) -> Callable[[typer.Context], None]:
+    """A command function that awaits ``robot.<method>()`` and prints ``done``."""
+
+    def command(ctx: typer.Context) -> None:
+        _simple(ctx, lambda robot: getattr(robot, method)(), done)
+
+    command.__doc__ = help_text
+    return command
+
+
+def shutdown(
+    ctx: typer.Context,
+    yes: Annotated[bool, typer.Option("--yes", help="Really power the computer off.")] = False,
+) -> None:
+    """Power the navigation computer off (needs --yes)."""
+    if not yes:
+        fail("shutdown powers the navigation computer off; pass --yes to confirm", ExitCode.USAGE)
+    _simple(ctx, lambda robot: robot.shutdown_host(confirm=True), "shutdown sent")
+
+
+# --- raw commands ------------------------------------------------------------------------------
+
+_TRUE = {"1", "true", "yes", "on"}
+_FALSE = {"0", "false", "no", "off"}
+
+
+def _convert(kind: Any, text: str, name: str) -> object:
+    kind = kind if isinstance(kind, str) else getattr(kind, "__name__", str(kind))
+    try:
+        if kind == "int":
+            return int(text, 0)
+        if kind == "float":
+            return float(text)
+        if kind == "bytes":
+            return bytes.fromhex(text)
+    except ValueError:
+        raise InvalidArgument(f"{name} must be {kind}, got {text!r}") from None
+    if kind == "bool":
+        if text.lower() in _TRUE | _FALSE:
+            return text.lower() in _TRUE
+        raise InvalidArgument(f"{name} must be true or false, got {text!r}")
+    return text
+
+
+def parse_command(name: str, args: list[str]) -> Command:
+    """Build a command from its class name (any case, ``-``/``_`` ignored) and text arguments."""
+    by_key = {key.lower(): cls for key, cls in COMMAND_TYPES.items()}
+    cls = by_key.get(name.replace("-", "").replace("_", "").lower())
+    if cls is None:
+        known = ", ".join(sorted(COMMAND_TYPES))
+        raise InvalidArgument(f"unknown command {name!r}; known: {known}")
+    fields = dataclasses.fields(cls)
+    required = [f for f in fields if f.default is dataclasses.MISSING]
+    if not len(required) <= len(args) <= len(fields):
+        wanted = " ".join(f.name.upper() for f in fields) or "no arguments"
+        raise InvalidArgument(f"{cls.name} takes {wanted}; got {len(args)} argument(s)")
+    values = [_convert(f.type, text, f.name) for f, text in zip(fields, args, strict=False)]
+    return cls(*values)
+
+
+def send(
+    ctx: typer.Context,
+    command: Annotated[
+        list[str] | None, typer.Argument(help="Command class name and arguments: Goto 3")
+    ] = None,
+    hex_payload: Annotated[
+        str | None, typer.Option("--hex", help="Raw payload after the length byte: 6d00")
+    ] = None,
+) -> None:
+    """Send one raw command, by class name with arguments or as a hex payload."""
+    settings = settings_of(ctx)
+    try:
+        if hex_payload is not None:
+            if command:
+                raise InvalidArgument("give either a command name or --hex, not both")
+            try:
+                payload = bytes.fromhex(hex_payload)
+            except ValueError:
+                raise InvalidArgument(f"--hex needs hex digits, got {hex_payload!r}") from None
+            to_send: Command = RawCommand(payload)
+        elif command:
+            to_send = parse_command(command[0], command[1:])
+        else:
+            raise InvalidArgument("name a command (e.g. `send Goto 3`) or pass --hex")
+    except InvalidArgument as exc:
+        fail(str(exc), ExitCode.USAGE)
+
+    async def body(robot: Robot) -> int:
+        await robot.send(to_send)
+        wire = encode(to_send).hex(" ")
+        if settings.json:
+            line = json.dumps({"sent": to_send.name, "bytes": wire})
+            out_console().print(line, markup=False)
+        else:
+            out_console().print(f"sent {to_send!r}: {wire}", markup=False)
+        return 0
+
+    run_robot(settings, body)

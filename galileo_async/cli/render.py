@@ -1,0 +1,212 @@
+"""How the CLI shows statuses, link statistics and events: JSON-ready dicts and rich tables."""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from collections.abc import Iterable
+from typing import Any
+
+from rich.console import Group, RenderableType
+from rich.panel import Panel
+from rich.table import Table
+
+from ..models import GalileoStatus
+
+__all__ = [
+    "dashboard",
+    "event_dict",
+    "event_text",
+    "goal_line",
+    "link_dict",
+    "status_dict",
+    "status_line",
+    "status_table",
+]
+
+
+def status_dict(status: GalileoStatus) -> dict[str, Any]:
+    """A status as plain JSON values: enums as their wire integers, layout as its name."""
+    return status.model_dump(mode="json")
+
+
+def _value(value: object) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, enum.IntEnum):
+        return f"{value.name.lower()} ({int(value)})"
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    return str(value)
+
+
+def status_table(status: GalileoStatus) -> Table:
+    """Every field of a status, one per row (enum fields show name and wire value)."""
+    table = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
+    table.add_column("field")
+    table.add_column("value", justify="right")
+    for name in type(status).model_fields:
+        table.add_row(name, _value(getattr(status, name)))
+    return table
+
+
+def _metres(value: float | None) -> str:
+    return "—" if value is None or value < 0 else f"{value:.2f} m"
+
+
+def status_line(status: GalileoStatus) -> str:
+    """A one-line summary: states, goal, distance, pose and speed."""
+    pose = status.pose
+    where = f"({pose.x:+.2f}, {pose.y:+.2f}) {pose.degrees:+.0f}°" if pose else "pose unknown"
+    goal = "—" if status.target_status is None else status.target_status.name.lower()
+    speed = status.current_speed_x
+    return (
+        f"nav {_name(status.nav_status)} · visual {_name(status.visual_status)} · "
+        f"target {status.target_num_id} {goal} {_metres(status.target_distance)} · "
+        f"{where} · {0.0 if speed is None else speed:+.2f} m/s"
+    )
+
+
+def goal_line(status: GalileoStatus) -> str:
+    """A short goal progress line: state, distance to go, speed."""
+    goal = "—" if status.target_status is None else status.target_status.name.lower()
+    speed = status.current_speed_x or 0.0
+    return (
+        f"target {status.target_num_id} {goal} · {_metres(status.target_distance)} to go · "
+        f"{speed:.2f} m/s"
+    )
+
+
+def _name(value: enum.IntEnum | None) -> str:
+    return "—" if value is None else value.name.lower()
+
+
+def link_dict(link: object) -> dict[str, Any]:
+    """Link statistics (robot.link) as plain values, including last_frame_age."""
+    values: dict[str, Any] = {}
+    if dataclasses.is_dataclass(link) and not isinstance(link, type):
+        values.update({f.name: getattr(link, f.name) for f in dataclasses.fields(link) if f.repr})
+    age = getattr(link, "last_frame_age", None)
+    values["last_frame_age"] = None if age is None else round(float(age), 3)
+    layout = values.get("layout")
+    if isinstance(layout, enum.Enum):
+        values["layout"] = layout.value
+    return values
+
+
+def event_dict(event: object) -> dict[str, Any]:
+    """An event as its type name and data fields (the status it carries is left out)."""
+    values: dict[str, Any] = {"event": type(event).__name__}
+    if dataclasses.is_dataclass(event) and not isinstance(event, type):
+        for item in dataclasses.fields(event):
+            if item.name != "status":
+                value = getattr(event, item.name)
+                values[item.name] = value.name.lower() if isinstance(value, enum.Enum) else value
+    return values
+
+
+def event_text(event: object) -> str:
+    """An event as ``Name key=value …``."""
+    values = event_dict(event)
+    name = values.pop("event")
+    rest = " ".join(f"{key}={_plain(value)}" for key, value in values.items())
+    return f"{name} {rest}".strip()
+
+
+def _plain(value: object) -> str:
+    if isinstance(value, float):
+        return "—" if math.isnan(value) else f"{value:.2f}"
+    return str(value)
+
+
+def _grid(rows: Iterable[tuple[str, str]]) -> Table:
+    table = Table.grid(padding=(0, 2), expand=True)
+    table.add_column(style="dim", no_wrap=True)
+    table.add_column(justify="right", no_wrap=True)
+    for key, value in rows:
+        table.add_row(key, value)
+    return table
+
+
+def dashboard(
+    status: GalileoStatus | None,
+    link: object,
+    events: Iterable[tuple[float, str]],
+    *,
+    url: str,
+) -> RenderableType:
+    """The monitor screen: states, pose and speeds, goal, link statistics, recent events."""
+    if status is None:
+        return Panel(f"waiting for the first status from {url} …", title="galileo monitor")
+    pose = status.pose
+    states = _grid(
+        [
+            ("navigation", _name(status.nav_status)),
+            ("visual", _name(status.visual_status)),
+            ("map", _name(status.map_status)),
+            ("charge", _name(status.charge_status)),
+            ("patrol", _flag(status.loop_status, status.patrolling, "on", "off")),
+            ("busy", _flag(status.busy_status, status.is_busy, "yes", "no")),
+            ("power", "—" if status.power is None else f"{status.power:.1f} V"),
+        ]
+    )
+    motion = _grid(
+        [
+            ("x", "—" if pose is None else f"{pose.x:+.2f} m"),
+            ("y", "—" if pose is None else f"{pose.y:+.2f} m"),
+            ("heading", "—" if pose is None else f"{pose.degrees:+.1f}°"),
+            ("speed", _unit(status.current_speed_x, "m/s")),
+            ("turn rate", _unit(status.current_speed_theta, "rad/s")),
+            ("planner speed", _unit(status.control_speed_x, "m/s")),
+            ("planner turn", _unit(status.control_speed_theta, "rad/s")),
+        ]
+    )
+    goal = _grid(
+        [
+            ("target", _value(status.target_num_id)),
+            ("state", _name(status.target_status)),
+            ("distance", _metres(status.target_distance)),
+            ("angle goal", _name(status.angle_goal_status)),
+        ]
+    )
+    link_grid = _grid(_link_rows(link_dict(link)))
+    recent = Table.grid()
+    for when, text in events:
+        recent.add_row(f"[dim]{when:7.1f}s[/] {text}")
+    top = Table.grid(padding=(0, 1), expand=True)
+    top.add_column(ratio=1)
+    top.add_column(ratio=1)
+    top.add_row(Panel(states, title="states"), Panel(motion, title="pose & speed"))
+    top.add_row(Panel(goal, title="goal"), Panel(link_grid, title="link"))
+    title = f"galileo monitor · {url} · layout {status.layout.value} · frame {status.time_stamp}"
+    return Panel(Group(top, Panel(recent, title="recent events")), title=title)
+
+
+#: Link statistics shown by the monitor, with their short labels.
+_LINK_ROWS = (
+    ("frames", "frames"),
+    ("bytes_received", "bytes"),
+    ("bytes_discarded", "discarded"),
+    ("resyncs", "resyncs"),
+    ("lost_frames", "lost"),
+    ("reconnects", "reconnects"),
+    ("commands_sent", "sent"),
+)
+
+
+def _link_rows(stats: dict[str, Any]) -> list[tuple[str, str]]:
+    rows = [(label, _value(stats.get(key))) for key, label in _LINK_ROWS]
+    state = "stale" if stats.get("stale") else "up" if stats.get("connected") else "down"
+    age = stats.get("last_frame_age")
+    rows.append(("link", state))
+    rows.append(("age", "—" if age is None else f"{age * 1000:.0f} ms"))
+    return rows
+
+
+def _flag(raw: int | None, value: bool, yes: str, no: str) -> str:
+    return "—" if raw is None else (yes if value else no)
+
+
+def _unit(value: float | None, unit: str) -> str:
+    return "—" if value is None else f"{value:+.2f} {unit}"

@@ -1,0 +1,279 @@
+"""Shared plumbing of the CLI: settings, exit codes, error reporting, running a robot session."""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import logging
+import os
+import sys
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, NoReturn
+from urllib.parse import parse_qsl, urlencode, urlsplit
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from ..errors import (
+    GalileoConnectionError,
+    GalileoError,
+    GalileoTimeout,
+    GoalAborted,
+    GoalCancelled,
+    GoalRejected,
+    InvalidArgument,
+    NotReady,
+)
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+
+__all__ = [
+    "DEFAULT_PORT",
+    "ExitCode",
+    "Settings",
+    "ensure_navigation",
+    "err_console",
+    "exit_code_for",
+    "fail",
+    "is_sim",
+    "out_console",
+    "report",
+    "run",
+    "run_robot",
+    "settings_of",
+    "setup_logging",
+    "with_query",
+]
+
+#: The URL used when neither --port nor GALILEO_PORT is given: an in-process simulator.
+DEFAULT_PORT = "sim://"
+
+
+class ExitCode(enum.IntEnum):
+    """Process exit codes of the ``galileo`` command (documented in docs/cli.md)."""
+
+    OK = 0  # done; for goto: arrived
+    ERROR = 1  # any other error (I/O, a command the robot never confirmed, …)
+    USAGE = 2  # bad command line or argument out of range; nothing was sent
+    REJECTED = 3  # the robot reported an error for the goal (invalid id)
+    ABORTED = 4  # the goal ended free far from the target (planner gave up)
+    CANCELLED = 5  # the goal was cancelled or preempted by another goal
+    TIMEOUT = 6  # an operation ran past its timeout
+    CONNECTION = 7  # the link could not be opened, dropped or went stale
+    NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
+    INTERRUPTED = 130  # Ctrl-C
+
+
+@dataclass
+class Settings:
+    """Global options of one ``galileo`` invocation."""
+
+    port: str = DEFAULT_PORT
+    layout: str | None = None
+    verbose: int = 0
+    json: bool = False
+    map_targets: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def url(self) -> str:
+        """The URL to connect to; for sim:// the global --layout also sets the sim's layout."""
+        if not is_sim(self.port) or self.layout is None:
+            return self.port
+        return with_query(self.port, layout=self.layout)
+
+    def connect_options(self, *, long_running: bool = False) -> dict[str, Any]:
+        """Keyword options for ``galileo_async.connect`` (watchers keep reconnecting)."""
+        options: dict[str, Any] = dict(self.extra)
+        if self.layout is not None:
+            options["layout"] = self.layout
+        if self.map_targets is not None:
+            options["map_targets"] = self.map_targets
+        elif is_sim(self.port):
+            # The simulator's map is known: goto-point works on sim:// without --map-targets.
+            from ..sim import parse_sim_url
+
+            options["map_targets"] = len(parse_sim_url(self.url).targets)
+        if not is_sim(self.port) and not long_running:
+            # A one-shot command should fail at once on a dead link, not retry forever.
+            options.setdefault("reconnect", False)
+        return options
+
+
+def with_query(url: str, **defaults: str) -> str:
+    """``url`` with query options added where it does not set them already."""
+    parts = urlsplit(url)
+    query = dict(parse_qsl(parts.query))
+    for key, value in defaults.items():
+        query.setdefault(key, value)
+    # Spelled out: urlunsplit would drop the "//" of "sim://" when the host is empty.
+    return f"{parts.scheme}://{parts.netloc}{parts.path}?{urlencode(query)}"
+
+
+def is_sim(url: str) -> bool:
+    """True for the in-process simulator URL (``sim://…``)."""
+    return url.startswith("sim:")
+
+
+def settings_of(ctx: typer.Context) -> Settings:
+    """The Settings stored by the global callback (defaults when run without it)."""
+    root = ctx.find_root()
+    if not isinstance(root.obj, Settings):
+        root.obj = Settings(port=os.environ.get("GALILEO_PORT") or DEFAULT_PORT)
+    return root.obj
+
+
+def out_console() -> Console:
+    """A console on the current stdout (data and results)."""
+    return Console(file=sys.stdout, highlight=False, soft_wrap=True)
+
+
+def err_console() -> Console:
+    """A console on the current stderr (progress, messages, errors)."""
+    return Console(file=sys.stderr, highlight=False, soft_wrap=True)
+
+
+_CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
+    # Order matters: AcceptTimeout is both a GoalError and a GalileoTimeout.
+    (GalileoTimeout, ExitCode.TIMEOUT),
+    (GoalRejected, ExitCode.REJECTED),
+    (GoalAborted, ExitCode.ABORTED),
+    (GoalCancelled, ExitCode.CANCELLED),
+    (GalileoConnectionError, ExitCode.CONNECTION),
+    (NotReady, ExitCode.NOT_READY),
+    (InvalidArgument, ExitCode.USAGE),
+    (TimeoutError, ExitCode.TIMEOUT),
+    (ConnectionError, ExitCode.CONNECTION),
+)
+
+
+def exit_code_for(exc: BaseException) -> ExitCode:
+    """The exit code that reports ``exc``."""
+    for kind, code in _CODES:
+        if isinstance(exc, kind):
+            return code
+    return ExitCode.ERROR
+
+
+def _hint(exc: BaseException) -> str:
+    if isinstance(exc, NotReady) and "navigation" in str(exc).lower():
+        return " (start it with `galileo nav start`, or pass --start-nav)"
+    return ""
+
+
+def report(exc: BaseException, verbose: int) -> ExitCode:
+    """Print one clear line for ``exc`` (a traceback too with -v) and return its exit code."""
+    code = exit_code_for(exc)
+    console = err_console()
+    if verbose:
+        console.print_exception(show_locals=False)
+    kind = type(exc).__name__ if isinstance(exc, GalileoError) else "error"
+    message = str(exc) or type(exc).__name__
+    console.print(f"[bold red]{kind}:[/] {escape(message)}{_hint(exc)}", highlight=False)
+    return code
+
+
+def fail(message: str, code: ExitCode = ExitCode.ERROR) -> NoReturn:
+    """Print ``message`` as an error line and exit with ``code``."""
+    err_console().print(f"[bold red]error:[/] {escape(message)}")
+    raise typer.Exit(int(code))
+
+
+def run(
+    settings: Settings,
+    main: Callable[[], Awaitable[int | None]],
+    *,
+    interrupted: ExitCode = ExitCode.INTERRUPTED,
+) -> NoReturn:
+    """Run ``main`` on a fresh event loop and exit with its code or the code of its error."""
+    try:
+        code = asyncio.run(_as_coroutine(main))
+    except KeyboardInterrupt:
+        code = int(interrupted)
+    except Exception as exc:
+        error = _first_leaf(exc)  # task groups wrap what their tasks raised
+        if not isinstance(error, _REPORTED):
+            raise
+        code = int(report(error, settings.verbose))
+    raise typer.Exit(int(code or 0))
+
+
+#: Errors reported as one line; anything else is a bug and keeps its traceback.
+_REPORTED = (GalileoError, OSError, TimeoutError, ValueError)
+
+
+def _first_leaf(exc: BaseException) -> BaseException:
+    children = getattr(exc, "exceptions", None)  # an exception group's members
+    while isinstance(children, tuple) and children:
+        exc = children[0]
+        children = getattr(exc, "exceptions", None)
+    return exc
+
+
+async def _as_coroutine(main: Callable[[], Awaitable[int | None]]) -> int | None:
+    return await main()
+
+
+def run_robot(
+    settings: Settings,
+    body: Callable[[Robot], Awaitable[int | None]],
+    *,
+    navigation: bool | None = False,
+    interrupted: ExitCode = ExitCode.INTERRUPTED,
+    long_running: bool = False,
+) -> NoReturn:
+    """Connect (connect waits for the first status), maybe open navigation, run ``body``, exit.
+
+    ``navigation``: False = leave it alone; True = start it when it is closed; None = start
+    it only on sim:// (each invocation gets a fresh simulated robot with navigation closed).
+    ``long_running`` commands (watchers) reconnect after a drop; one-shot commands do not.
+    """
+
+    async def main() -> int | None:
+        from ..robot import connect
+
+        options = settings.connect_options(long_running=long_running)
+        async with connect(settings.url, **options) as robot:
+            start = is_sim(settings.port) if navigation is None else navigation
+            if start:
+                await ensure_navigation(robot, settings)
+            return await body(robot)
+
+    run(settings, main, interrupted=interrupted)
+
+
+async def ensure_navigation(robot: Robot, settings: Settings) -> None:
+    """Start navigation (and wait for the visual system) unless it is already running."""
+    status = robot.status
+    if status is not None and status.navigating and status.visual_initialised:
+        return
+    note = " (sim:// is a fresh simulated robot on every run)" if is_sim(settings.port) else ""
+    err_console().print(f"[dim]starting navigation{note}…[/]")
+    await robot.start_navigation()
+
+
+_log_handler: logging.Handler | None = None
+
+
+def setup_logging(verbose: int) -> None:
+    """-v: driver debug logs on stderr; -vv: raw frames too (logger galileo_async.link.frames)."""
+    global _log_handler
+    package = logging.getLogger("galileo_async")
+    frames = logging.getLogger("galileo_async.link.frames")
+    if _log_handler is not None:  # an earlier invocation in this process (tests) set it up
+        package.removeHandler(_log_handler)
+        package.setLevel(logging.NOTSET)
+        frames.setLevel(logging.NOTSET)
+        _log_handler = None
+    if not verbose:
+        return
+    from rich.logging import RichHandler
+
+    _log_handler = RichHandler(console=err_console(), show_path=False, rich_tracebacks=False)
+    _log_handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+    package.addHandler(_log_handler)
+    package.setLevel(logging.DEBUG)
+    frames.setLevel(logging.DEBUG if verbose >= 2 else logging.INFO)

@@ -1,0 +1,105 @@
+"""``galileo sim`` (serve the simulator over TCP or a pty) and ``galileo ports``."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+import typer
+
+from ..errors import InvalidArgument
+from .capture import stop_requested
+from .runner import ExitCode, err_console, fail, out_console, run, settings_of
+
+__all__ = ["ports", "sim"]
+
+#: Where ``galileo sim`` listens by default: loopback only.
+DEFAULT_TCP = "127.0.0.1:7000"
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit():
+        raise InvalidArgument(f"--tcp wants HOST:PORT, got {text!r}")
+    return host.strip("[]") or "127.0.0.1", int(port)
+
+
+def sim(
+    ctx: typer.Context,
+    tcp: Annotated[
+        str | None,
+        typer.Option(help=f"Serve on HOST:PORT (default {DEFAULT_TCP}; port 0 picks one)."),
+    ] = None,
+    pty: Annotated[bool, typer.Option("--pty", help="Serve on a pseudo-terminal.")] = False,
+    speed: Annotated[float, typer.Option(min=0.01, help="Time scale (20 = 20x).")] = 1.0,
+    layout: Annotated[str, typer.Option(help="Status layout: v2, v2_truncated, v1, v1_charge.")] = (
+        "v2"
+    ),
+    firmware: Annotated[str, typer.Option(help="real (default) or document.")] = "real",
+    seed: Annotated[int, typer.Option(help="Random seed (faults, planner).")] = 0,
+    options: Annotated[
+        str | None,
+        typer.Option("--options", help="More simulator options, as a sim:// query: drop=0.1&…"),
+    ] = None,
+) -> None:
+    """Serve a simulated robot until Ctrl-C: over TCP (loopback default) or a pty."""
+    settings = settings_of(ctx)
+    if tcp is not None and pty:
+        fail("choose --tcp or --pty, not both", ExitCode.USAGE)
+    from ..sim import Simulator
+
+    query = f"speed={speed}&layout={layout}&firmware={firmware}&seed={seed}"
+    if options:
+        query += "&" + options.lstrip("?&")
+
+    async def main() -> int:
+        simulator = Simulator.from_url(f"sim://?{query}")
+        server: Any = None
+        try:
+            if pty:
+                where = simulator.open_pty()
+            else:
+                host, port = _host_port(tcp or DEFAULT_TCP)
+                server = await simulator.serve_tcp(host, port)
+                bound = server.sockets[0].getsockname()
+                name = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
+                where = f"socket://{name}:{bound[1]}"
+            console = out_console()
+            console.print(where, markup=False)
+            console.file.flush()
+            err_console().print(
+                f"simulator ({layout}, firmware {firmware}, speed {speed:g}x) on {where}; "
+                f"connect with: galileo --port {where} status · Ctrl-C stops"
+            )
+            with stop_requested() as stop:
+                await stop.wait()
+        finally:
+            if server is not None:
+                server.close()
+            await simulator.close()
+        return 0
+
+    run(settings, main, interrupted=ExitCode.OK)
+
+
+def ports(
+    ctx: typer.Context,
+    json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
+) -> None:
+    """List serial ports (the robot is usually /dev/galileo or /dev/ttyUSB*)."""
+    from serial.tools import list_ports
+
+    found = sorted(list_ports.comports(), key=lambda port: str(port.device))
+    rows = [{"device": p.device, "description": p.description, "hwid": p.hwid} for p in found]
+    if settings_of(ctx).json or json_output:
+        out_console().print(json.dumps(rows), markup=False)
+        return
+    if not rows:
+        err_console().print("no serial ports found")
+        return
+    from rich.table import Table
+
+    table = Table("device", "description", "hwid", box=None)
+    for row in rows:
+        table.add_row(row["device"], row["description"], row["hwid"])
+    out_console().print(table)

@@ -1,0 +1,145 @@
+"""Commands that only watch: ``status`` (once or --watch) and the live ``monitor`` dashboard."""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+from typing import TYPE_CHECKING, Annotated
+
+import anyio
+import typer
+from rich.console import RenderableType
+from rich.live import Live
+
+from ..errors import ConnectionLost
+from ..models import GalileoStatus
+from .goals import aclose
+from .render import dashboard, event_dict, event_text, link_dict, status_dict, status_line
+from .runner import ExitCode, out_console, run_robot, settings_of
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+
+__all__ = ["monitor", "status"]
+
+#: How many recent events the monitor keeps on screen.
+RECENT_EVENTS = 10
+#: Dashboard refreshes per second.
+MONITOR_REFRESH = 8.0
+
+
+def status(
+    ctx: typer.Context,
+    watch: Annotated[bool, typer.Option("--watch", "-w", help="Keep printing.")] = False,
+    interval: Annotated[
+        float, typer.Option(min=0.02, help="Seconds between lines with --watch.")
+    ] = 0.5,
+    count: Annotated[
+        int | None, typer.Option(min=1, help="Stop after this many lines with --watch.")
+    ] = None,
+    json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
+) -> None:
+    """Show the latest status (every field), or one line per interval with --watch."""
+    settings = settings_of(ctx)
+    as_json = settings.json or json_output
+    console = out_console()
+
+    async def body(robot: Robot) -> int:
+        if not watch:
+            latest = robot.status
+            assert latest is not None  # connect() waited for the first status
+            if as_json:
+                data = {"status": status_dict(latest), "link": link_dict(robot.link)}
+                console.print(json.dumps(data), markup=False)
+            else:
+                from .render import status_table
+
+                console.print(status_table(latest))
+            return 0
+        printed = 0
+        next_at = 0.0
+        stream = robot.statuses()
+        try:
+            async for current in stream:
+                now = anyio.current_time()
+                if now < next_at:
+                    continue
+                next_at = now + interval
+                text = json.dumps(status_dict(current)) if as_json else status_line(current)
+                console.print(text, markup=False)
+                printed += 1
+                if count is not None and printed >= count:
+                    return 0
+        finally:
+            await aclose(stream)
+        raise ConnectionLost("the link closed")
+
+    run_robot(settings, body, interrupted=ExitCode.OK, long_running=watch)
+
+
+def monitor(
+    ctx: typer.Context,
+    duration: Annotated[
+        float | None, typer.Option(min=0.1, help="Stop after seconds (default: Ctrl-C).")
+    ] = None,
+) -> None:
+    """Live dashboard: states, pose, speeds, goal and distance, link statistics, events."""
+    settings = settings_of(ctx)
+
+    async def body(robot: Robot) -> int:
+        started = anyio.current_time()
+        recent: deque[tuple[float, str]] = deque(maxlen=RECENT_EVENTS)
+        latest: list[GalileoStatus | None] = [robot.status]
+        console = out_console()
+
+        async def follow_events() -> None:
+            stream = robot.events()
+            try:
+                async for event in stream:
+                    if settings.json:
+                        line = {"t": round(anyio.current_time() - started, 3)}
+                        console.print(json.dumps(line | event_dict(event)), markup=False)
+                    recent.append((anyio.current_time() - started, event_text(event)))
+            finally:
+                await aclose(stream)
+
+        async def follow_statuses() -> None:
+            stream = robot.statuses()
+            try:
+                async for current in stream:
+                    latest[0] = current
+            finally:
+                await aclose(stream)
+
+        def screen() -> RenderableType:
+            return dashboard(latest[0], robot.link, list(recent), url=settings.url)
+
+        async with anyio.create_task_group() as group:
+            group.start_soon(follow_events)
+            group.start_soon(follow_statuses)
+            deadline = None if duration is None else started + duration
+            if settings.json:
+                while await _tick(deadline, 1.0):
+                    if latest[0] is not None:
+                        data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
+                        console.print(json.dumps(data), markup=False)
+            else:
+                with Live(screen(), console=console, refresh_per_second=MONITOR_REFRESH) as live:
+                    while await _tick(deadline, 1 / MONITOR_REFRESH):
+                        live.update(screen())
+            group.cancel_scope.cancel()
+        return 0
+
+    run_robot(settings, body, interrupted=ExitCode.OK, long_running=True)
+
+
+async def _tick(deadline: float | None, period: float) -> bool:
+    """Sleep one period (less when the deadline is nearer); False once the deadline passed."""
+    if deadline is None:
+        await anyio.sleep(period)
+        return True
+    left = deadline - anyio.current_time()
+    if left <= 0:
+        return False
+    await anyio.sleep(min(period, left))
+    return True

@@ -1,0 +1,276 @@
+"""Typed transition events and the pure function that derives them from two statuses."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from .models import ChargeStatus, GalileoStatus, TargetStatus, VisualStatus
+
+__all__ = [
+    "DEFAULT_ARRIVE_TOLERANCE",
+    "BusyEnded",
+    "BusyStarted",
+    "ChargeStateChanged",
+    "ConnectionLost",
+    "ConnectionRestored",
+    "Event",
+    "GoalAborted",
+    "GoalAccepted",
+    "GoalCancelled",
+    "GoalEvent",
+    "GoalFailed",
+    "GoalPaused",
+    "GoalReached",
+    "GoalResumed",
+    "LinkRestored",
+    "LinkStale",
+    "MappingStarted",
+    "MappingStopped",
+    "NavigationClosed",
+    "NavigationOpened",
+    "PatrolStarted",
+    "PatrolStopped",
+    "VisualInitialised",
+    "VisualLost",
+    "VisualRecovered",
+    "derive_events",
+]
+
+#: A goal that ends free within this many metres of its target counts as reached.
+DEFAULT_ARRIVE_TOLERANCE = 0.3
+
+_ACTIVE = (TargetStatus.WORKING, TargetStatus.PAUSED)
+_FAILED = (TargetStatus.ERROR, TargetStatus.INVALID)
+_INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Event:
+    """Base of every event: ``status`` is the status that showed it (None if none yet)."""
+
+    status: GalileoStatus | None
+
+    def __str__(self) -> str:
+        details = ", ".join(
+            f"{f.name}={getattr(self, f.name)!r}" for f in fields(self) if f.name != "status"
+        )
+        return f"{type(self).__name__}({details})"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NavigationOpened(Event):
+    """The navigation service opened (nav_status 0 → 1)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NavigationClosed(Event):
+    """The navigation service closed (nav_status 1 → 0)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VisualInitialised(Event):
+    """Visual SLAM became initialised (tracking or lost) from off / not initialised."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VisualLost(Event):
+    """Visual tracking was lost, or the visual system stopped being initialised."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VisualRecovered(Event):
+    """Visual tracking resumed after it was lost (visual_status 2 → 1)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalEvent(Event):
+    """Base of the goal events: ``target_id`` is the goal they are about."""
+
+    target_id: int | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalAccepted(GoalEvent):
+    """A goal started working (a new id, or working after free / error)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalReached(GoalEvent):
+    """The goal ended free within the arrive tolerance of its target."""
+
+    distance: float | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalAborted(GoalEvent):
+    """The goal ended free far from its target: the planner gave up."""
+
+    distance: float | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalFailed(GoalEvent):
+    """The goal state became an error (3 in the document, -1 on real firmware)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalCancelled(GoalEvent):
+    """The goal was dropped (id changed); ``preempted`` when a new goal replaced it."""
+
+    preempted: bool = False
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalPaused(GoalEvent):
+    """The working goal was paused."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalResumed(GoalEvent):
+    """The paused goal is working again."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BusyStarted(Event):
+    """The robot became busy: commands wait until it is not."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BusyEnded(Event):
+    """The robot is no longer busy."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ChargeStateChanged(Event):
+    """charge_status changed from ``old`` to ``new``."""
+
+    old: ChargeStatus
+    new: ChargeStatus
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PatrolStarted(Event):
+    """Auto-patrol started (loop_status 0 → 1)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PatrolStopped(Event):
+    """Auto-patrol stopped (loop_status 1 → 0)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MappingStarted(Event):
+    """Map building started (map_status 0 → 1)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MappingStopped(Event):
+    """Map building stopped (map_status 1 → 0)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LinkStale(Event):
+    """No valid status frame arrived for ``silent_for`` seconds; ``status`` is the last one."""
+
+    silent_for: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LinkRestored(Event):
+    """Valid status frames arrive again after the link was stale."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ConnectionLost(Event):
+    """The transport dropped; ``reason`` says why."""
+
+    reason: str
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ConnectionRestored(Event):
+    """The transport is connected again after a drop."""
+
+
+def derive_events(
+    prev: GalileoStatus | None,
+    cur: GalileoStatus,
+    *,
+    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+) -> list[Event]:
+    """Events for the transition prev → cur; a field unknown (None) on either side is no change."""
+    if prev is None:
+        return []
+    out: list[Event] = []
+    _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
+    _visual(out, prev.visual_status, cur.visual_status, cur)
+    _goal(out, prev, cur, arrive_tolerance)
+    _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
+    old, new = prev.charge_status, cur.charge_status
+    if old is not None and new is not None and old != new:
+        out.append(ChargeStateChanged(status=cur, old=old, new=new))
+    _two_state(out, prev.loop_status, cur.loop_status, cur, PatrolStarted, PatrolStopped)
+    _two_state(out, prev.map_status, cur.map_status, cur, MappingStarted, MappingStopped)
+    return out
+
+
+def _two_state(
+    out: list[Event],
+    old: int | None,
+    new: int | None,
+    cur: GalileoStatus,
+    on: type[Event],
+    off: type[Event],
+) -> None:
+    if old is None or new is None or (old == 1) == (new == 1):
+        return
+    out.append(on(status=cur) if new == 1 else off(status=cur))
+
+
+def _visual(
+    out: list[Event], old: VisualStatus | None, new: VisualStatus | None, cur: GalileoStatus
+) -> None:
+    if old is None or new is None or old == new:
+        return
+    was, now = old in _INITIALISED, new in _INITIALISED
+    if now and not was:
+        out.append(VisualInitialised(status=cur))
+    elif new == VisualStatus.LOST or (was and not now and old != VisualStatus.LOST):
+        out.append(VisualLost(status=cur))
+    elif old == VisualStatus.LOST and new == VisualStatus.TRACKING:
+        out.append(VisualRecovered(status=cur))
+
+
+def _goal(out: list[Event], prev: GalileoStatus, cur: GalileoStatus, tolerance: float) -> None:
+    old, new = prev.target_status, cur.target_status
+    if old is None or new is None:
+        return
+    old_id, new_id = prev.target_num_id, cur.target_num_id
+    same_id = old_id == new_id
+    if old in _ACTIVE:
+        if new in _ACTIVE and same_id:
+            if old != new:
+                kind = GoalPaused if new == TargetStatus.PAUSED else GoalResumed
+                out.append(kind(status=cur, target_id=new_id))
+            return
+        if new in _FAILED:
+            out.append(GoalFailed(status=cur, target_id=new_id))
+            return
+        if not same_id:
+            preempted = new in _ACTIVE
+            out.append(GoalCancelled(status=cur, target_id=old_id, preempted=preempted))
+            if preempted:
+                out.append(GoalAccepted(status=cur, target_id=new_id))
+            return
+        distance = cur.target_distance
+        if distance is None or abs(distance) <= tolerance:
+            out.append(GoalReached(status=cur, target_id=new_id, distance=distance))
+        else:
+            out.append(GoalAborted(status=cur, target_id=new_id, distance=distance))
+        return
+    if new in _ACTIVE:
+        out.append(GoalAccepted(status=cur, target_id=new_id))
+        if new == TargetStatus.PAUSED:
+            out.append(GoalPaused(status=cur, target_id=new_id))
+    elif new in _FAILED and (old not in _FAILED or not same_id):
+        out.append(GoalFailed(status=cur, target_id=new_id))

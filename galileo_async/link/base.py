@@ -1,0 +1,306 @@
+"""BaseLink: one paced writer, reconnect with back-off, a stale-link watchdog and stats."""
+
+from __future__ import annotations
+
+import abc
+import asyncio
+import logging
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument, LinkStale
+from ..models import GalileoStatus, StatusLayout
+from ..protocol import Command
+from ..state import StatusStore
+
+__all__ = [
+    "CLOSE_TIMEOUT",
+    "DEFAULT_MIN_COMMAND_INTERVAL",
+    "DEFAULT_RECONNECT_INITIAL",
+    "DEFAULT_RECONNECT_MAX",
+    "DEFAULT_STALE_TIMEOUT",
+    "BaseLink",
+    "LinkStats",
+    "frames_log",
+]
+
+_log = logging.getLogger(__name__)
+#: Raw frames in hex, both directions, at DEBUG only.
+frames_log = logging.getLogger("galileo_async.link.frames")
+
+#: The document allows at most 100 commands/s; back-to-back writes lose commands (PROTOCOL.md §2).
+DEFAULT_MIN_COMMAND_INTERVAL = 0.010
+#: Status arrives at 30 Hz; this long without a valid frame makes the link stale.
+DEFAULT_STALE_TIMEOUT = 1.0
+DEFAULT_RECONNECT_INITIAL = 0.1
+DEFAULT_RECONNECT_MAX = 5.0
+#: Longest close() waits for its tasks and for the transport to close.
+CLOSE_TIMEOUT = 2.0
+
+
+@dataclass
+class LinkStats:
+    """Counters and health of one link (read by users as ``robot.link``)."""
+
+    frames: int = 0
+    bytes_received: int = 0
+    bytes_discarded: int = 0
+    resyncs: int = 0
+    lost_frames: int = 0
+    reconnects: int = 0
+    commands_sent: int = 0
+    connected: bool = False
+    stale: bool = False
+    layout: StatusLayout | None = None
+    last_frame_at: float | None = field(default=None, repr=False)
+
+    @property
+    def last_frame_age(self) -> float | None:
+        """Seconds since the last valid frame (time.monotonic), or None before the first."""
+        if self.last_frame_at is None:
+            return None
+        return time.monotonic() - self.last_frame_at
+
+
+_Pending = tuple[Command, "asyncio.Future[None]"]
+
+
+class BaseLink(abc.ABC):
+    """Transport-independent half of a link; subclasses connect, write and disconnect."""
+
+    def __init__(
+        self,
+        store: StatusStore,
+        *,
+        reconnect: bool = True,
+        reconnect_initial: float = DEFAULT_RECONNECT_INITIAL,
+        reconnect_max: float = DEFAULT_RECONNECT_MAX,
+        stale_timeout: float | None = DEFAULT_STALE_TIMEOUT,
+        min_command_interval: float = DEFAULT_MIN_COMMAND_INTERVAL,
+    ) -> None:
+        if not 0 < reconnect_initial <= reconnect_max:
+            raise InvalidArgument("need 0 < reconnect_initial <= reconnect_max")
+        if stale_timeout is not None and stale_timeout <= 0:
+            raise InvalidArgument(f"stale_timeout must be positive or None, got {stale_timeout}")
+        if min_command_interval < 0:
+            raise InvalidArgument(f"min_command_interval must be >= 0, got {min_command_interval}")
+        self.store = store
+        self.stats = LinkStats()
+        self.reconnect = reconnect
+        self.reconnect_initial = reconnect_initial
+        self.reconnect_max = reconnect_max
+        self.stale_timeout = stale_timeout
+        self.min_command_interval = min_command_interval
+        self._queue: deque[_Pending] = deque()
+        self._queue_ready = asyncio.Event()
+        self._writer_task: asyncio.Task[None] | None = None
+        self._reconnect_task: asyncio.Task[None] | None = None
+        self._watchdog: asyncio.TimerHandle | None = None
+        self._last_write: float | None = None
+        self._alive_since = 0.0
+        self._opened = False
+        self._closing = False
+        self._closed = asyncio.Event()
+
+    @property
+    def connected(self) -> bool:
+        """True while the transport is up."""
+        return self.stats.connected
+
+    @property
+    def closed(self) -> bool:
+        """True once close() has started."""
+        return self._closing
+
+    # --- subclass interface --------------------------------------------------------------
+
+    @abc.abstractmethod
+    async def _connect(self) -> None:
+        """Open the transport; raise GalileoConnectionError on failure."""
+
+    @abc.abstractmethod
+    def _write(self, command: Command) -> None:
+        """Hand one command's bytes to the transport (one write); raise ConnectionLost if down."""
+
+    @abc.abstractmethod
+    async def _disconnect(self) -> None:
+        """Close the transport, if any, and release what the link owns (bounded)."""
+
+    # --- public API ------------------------------------------------------------------------
+
+    async def open(self) -> None:
+        """Make the first connection; raise GalileoConnectionError if it fails."""
+        if self._closing:
+            raise GalileoConnectionError("the link is closed")
+        if self._opened:
+            return
+        await self._connect()
+        self._opened = True
+        self._writer_task = asyncio.create_task(self._writer(), name=f"{self!r} writer")
+        self._on_connected()
+
+    async def send(self, command: Command) -> None:
+        """Queue one command for the paced writer; return once its bytes were written."""
+        if self._closing:
+            raise ConnectionLost("the link is closed")
+        if not self.stats.connected:
+            again = ", reconnecting" if self._reconnect_task is not None else ""
+            raise ConnectionLost(f"not connected{again}")
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._queue.append((command, future))
+        self._queue_ready.set()
+        await future
+
+    async def close(self) -> None:
+        """Stop every task and timer, close the transport and the store (idempotent, bounded)."""
+        if self._closing:
+            await self._closed.wait()
+            return
+        self._closing = True
+        try:
+            self._cancel_watchdog()
+            tasks = [t for t in (self._writer_task, self._reconnect_task) if t is not None]
+            for task in tasks:
+                task.cancel()
+            if tasks:
+                await asyncio.wait(tasks, timeout=CLOSE_TIMEOUT)
+            self._writer_task = self._reconnect_task = None
+            self._fail_pending(ConnectionLost("the link is closed"))
+            self.stats.connected = False
+            try:
+                await asyncio.wait_for(self._disconnect(), CLOSE_TIMEOUT)
+            except (asyncio.TimeoutError, GalileoConnectionError, OSError) as exc:
+                _log.warning("closing the transport failed: %r", exc)
+            self.store.close()
+        finally:
+            self._closed.set()
+
+    # --- called by subclasses --------------------------------------------------------------
+
+    def _on_status(self, status: GalileoStatus) -> None:
+        """Account for one valid status and hand it to the store (hot path)."""
+        stats = self.stats
+        stats.frames += 1
+        stats.layout = status.layout
+        stats.last_frame_at = self._alive_since = time.monotonic()
+        if stats.stale:
+            stats.stale = False
+            _log.info("link fresh again")
+            self.store.link_fresh()
+            self._arm_watchdog(self.stale_timeout)
+        self.store.update(status)
+
+    def _on_lost(self, exc: BaseException | None) -> None:
+        """The transport dropped (EOF, close or error): fail waiters, then reconnect."""
+        if self._closing or not self.stats.connected:
+            return
+        self.stats.connected = False
+        self.stats.stale = False
+        self._cancel_watchdog()
+        reason = f"connection lost: {exc}" if exc is not None else "connection closed by the peer"
+        error = ConnectionLost(reason)
+        _log.warning("%s", reason)
+        self._fail_pending(error)
+        self.store.connection_lost(error)
+        if self.reconnect:
+            self._reconnect_task = asyncio.get_running_loop().create_task(
+                self._reconnect_loop(), name=f"{self!r} reconnect"
+            )
+        else:
+            # Nothing will feed the store again: end its iterators instead of leaving them hanging.
+            self.store.close()
+
+    # --- internals -------------------------------------------------------------------------
+
+    def _on_connected(self) -> None:
+        self.stats.connected = True
+        self.stats.stale = False
+        self._alive_since = time.monotonic()
+        self.store.connection_restored()
+        self._arm_watchdog(self.stale_timeout)
+        if self._queue:
+            self._queue_ready.set()
+
+    async def _reconnect_loop(self) -> None:
+        delay = self.reconnect_initial
+        try:
+            while not self._closing:
+                await asyncio.sleep(delay)
+                try:
+                    await self._connect()
+                except Exception as exc:  # any failure: back off and try again
+                    delay = min(delay * 2, self.reconnect_max)
+                    _log.info("reconnect failed (%s); next try in %.2f s", exc, delay)
+                    continue
+                self.stats.reconnects += 1
+                _log.info("reconnected")
+                self._on_connected()
+                return
+        finally:
+            if self._reconnect_task is asyncio.current_task():
+                self._reconnect_task = None
+
+    async def _writer(self) -> None:
+        queue = self._queue
+        while True:
+            if not queue or not self.stats.connected:
+                self._queue_ready.clear()
+                await self._queue_ready.wait()
+                continue
+            command, future = queue[0]
+            if future.done():  # its sender was cancelled before the write
+                queue.popleft()
+                continue
+            if self._last_write is not None:
+                wait = self._last_write + self.min_command_interval - time.monotonic()
+                if wait > 0:
+                    await asyncio.sleep(wait)
+                    continue
+            queue.popleft()
+            try:
+                self._write(command)
+            except GalileoConnectionError as exc:
+                future.set_exception(exc)
+                continue
+            except Exception as exc:  # a broken transport must not kill the only writer
+                _log.exception("writing %s failed", command)
+                error = GalileoConnectionError(f"writing {command} failed: {exc!r}")
+                error.__cause__ = exc
+                future.set_exception(error)
+                continue
+            self._last_write = time.monotonic()
+            self.stats.commands_sent += 1
+            future.set_result(None)
+
+    def _fail_pending(self, exc: GalileoConnectionError) -> None:
+        pending = list(self._queue)
+        self._queue.clear()  # in place: the writer holds a reference to this deque
+        for _, future in pending:
+            if not future.done():
+                future.set_exception(exc)
+
+    def _arm_watchdog(self, delay: float | None) -> None:
+        self._cancel_watchdog()
+        if delay is None or self._closing:
+            return
+        self._watchdog = asyncio.get_running_loop().call_later(delay, self._check_stale)
+
+    def _cancel_watchdog(self) -> None:
+        if self._watchdog is not None:
+            self._watchdog.cancel()
+            self._watchdog = None
+
+    def _check_stale(self) -> None:
+        self._watchdog = None
+        timeout = self.stale_timeout
+        if timeout is None or self._closing or not self.stats.connected:
+            return
+        silent = time.monotonic() - self._alive_since
+        if silent < timeout:
+            self._arm_watchdog(timeout - silent)
+            return
+        self.stats.stale = True
+        error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
+        _log.warning("%s", error)
+        self.store.link_stale(error)

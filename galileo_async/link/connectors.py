@@ -1,0 +1,114 @@
+"""Connectors: coroutines that open a byte transport (serial, TCP) for StreamLink."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import importlib
+import logging
+from collections.abc import Awaitable, Callable, Iterator
+from types import ModuleType
+from typing import Any
+from urllib.parse import urlsplit
+
+from ..errors import GalileoConnectionError, GalileoError, InvalidArgument
+
+__all__ = [
+    "DEFAULT_BAUDRATE",
+    "DEFAULT_CONNECT_TIMEOUT",
+    "Connector",
+    "ProtocolFactory",
+    "parse_socket_url",
+    "serial_backend",
+    "serial_connector",
+    "socket_connector",
+    "translate_errors",
+]
+
+_log = logging.getLogger(__name__)
+
+#: The navigation serial port runs at 115200 baud, 8N1 (PROTOCOL.md, introduction).
+DEFAULT_BAUDRATE = 115200
+#: Longest a TCP connect may take before it counts as failed.
+DEFAULT_CONNECT_TIMEOUT = 5.0
+
+ProtocolFactory = Callable[[], asyncio.Protocol]
+#: Opens a transport and ties it to the protocol the factory makes.
+Connector = Callable[
+    [asyncio.AbstractEventLoop, ProtocolFactory],
+    Awaitable[tuple[asyncio.BaseTransport, asyncio.Protocol]],
+]
+
+
+@contextlib.contextmanager
+def translate_errors(what: str) -> Iterator[None]:
+    """Turn transport-level exceptions into GalileoConnectionError (the link edge only)."""
+    try:
+        yield
+    except GalileoError:
+        raise
+    # serial.SerialException subclasses OSError; asyncio.TimeoutError is separate before 3.11.
+    except (OSError, EOFError, asyncio.TimeoutError) as exc:
+        raise GalileoConnectionError(f"{what}: {exc or type(exc).__name__}") from exc
+
+
+def serial_backend() -> ModuleType:
+    """serial_asyncio_fast when installed (opens and closes off the loop), else serial_asyncio."""
+    try:
+        return importlib.import_module("serial_asyncio_fast")
+    except ImportError:
+        return importlib.import_module("serial_asyncio")
+
+
+def serial_connector(
+    port: str, *, baudrate: int = DEFAULT_BAUDRATE, **serial_options: Any
+) -> Connector:
+    """Connector for a serial device path or pyserial URL (8N1, no flow control)."""
+    if not isinstance(baudrate, int) or isinstance(baudrate, bool) or baudrate <= 0:
+        raise InvalidArgument(f"baudrate must be a positive int, got {baudrate!r}")
+
+    async def connect(
+        loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
+    ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+        backend = serial_backend()
+        with translate_errors(f"cannot open serial port {port}"):
+            try:
+                result: tuple[asyncio.BaseTransport, asyncio.Protocol]
+                result = await backend.create_serial_connection(
+                    loop, factory, port, baudrate=baudrate, **serial_options
+                )
+            except ValueError as exc:  # pyserial: a bad setting or an unknown URL scheme
+                raise InvalidArgument(f"serial port {port}: {exc}") from exc
+        _log.debug("opened %s at %d baud with %s", port, baudrate, backend.__name__)
+        return result
+
+    return connect
+
+
+def socket_connector(
+    host: str, port: int, *, connect_timeout: float = DEFAULT_CONNECT_TIMEOUT
+) -> Connector:
+    """Connector for a TCP byte stream (ser2net, a simulator); EOF counts as a drop."""
+
+    async def connect(
+        loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
+    ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+        with translate_errors(f"cannot connect to {host}:{port}"):
+            transport, protocol = await asyncio.wait_for(
+                loop.create_connection(factory, host, port), connect_timeout
+            )
+        return transport, protocol
+
+    return connect
+
+
+def parse_socket_url(url: str) -> tuple[str, int]:
+    """(host, port) of ``socket://host:port`` (IPv6 hosts in brackets)."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError as exc:
+        raise InvalidArgument(f"bad port in {url!r}") from exc
+    if parts.scheme != "socket" or not parts.hostname or port is None:
+        raise InvalidArgument(f"expected socket://host:port, got {url!r}")
+    return parts.hostname, port

@@ -1,0 +1,33 @@
+"""ROS 1 link: the master/slave XML-RPC APIs and TCPROS from asyncio, no ROS install needed."""
+
+from __future__ import annotations
+
+from .link import DEFAULT_MASTER_PORT, RosLink, open_ros_link, parse_ros_url
+from .messages import (
+    CMDS_MD5,
+    CMDS_TOPIC,
+    CMDS_TYPE,
+    STATUS_MD5,
+    STATUS_TOPIC,
+    STATUS_TYPE,
+    StatusMessageDecoder,
+    encode_cmds,
+)
+from .node import NodeStats, RosNode
+
+__all__ = [
+    "CMDS_MD5",
+    "CMDS_TOPIC",
+    "CMDS_TYPE",
+    "DEFAULT_MASTER_PORT",
+    "STATUS_MD5",
+    "STATUS_TOPIC",
+    "STATUS_TYPE",
+    "NodeStats",
+    "RosLink",
+    "RosNode",
+    "StatusMessageDecoder",
+    "encode_cmds",
+    "open_ros_link",
+    "parse_ros_url",
+]

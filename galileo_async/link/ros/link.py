@@ -1,0 +1,154 @@
+"""RosLink: the BaseLink that drives a robot over its ROS 1 master (``ros://host:port``)."""
+
+from __future__ import annotations
+
+import logging
+import os
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from ...errors import GalileoConnectionError, InvalidArgument
+from ...models import GalileoStatus
+from ...protocol.commands import Command
+from ...state import StatusStore
+from ..base import BaseLink
+from .node import (
+    DEFAULT_CONNECT_TIMEOUT,
+    DEFAULT_MASTER_CHECK_INTERVAL,
+    DEFAULT_RPC_TIMEOUT,
+    NodeStats,
+    RosNode,
+    default_node_name,
+    local_address_for,
+)
+
+__all__ = ["DEFAULT_MASTER_PORT", "RosLink", "open_ros_link", "parse_ros_url"]
+
+_log = logging.getLogger(__name__)
+
+DEFAULT_MASTER_PORT = 11311
+_QUERY_OPTIONS = {"host": str, "node_name": str, "connect_timeout": float}
+# Serial-only options a generic caller may pass along; they mean nothing over ROS.
+_IGNORED_OPTIONS = ("baudrate", "serial_options")
+
+
+def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
+    """``ros://host[:port][?host=…&node_name=…]`` → (master URI, options from the query)."""
+    parts = urlsplit(url)
+    if parts.scheme.lower() != "ros" or not parts.hostname:
+        raise InvalidArgument(f"not a ros://host[:port] URL: {url!r}")
+    try:
+        port = parts.port or DEFAULT_MASTER_PORT
+    except ValueError as exc:
+        raise InvalidArgument(f"bad port in {url!r}") from exc
+    host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
+    options: dict[str, Any] = {}
+    for key, values in parse_qs(parts.query).items():
+        if key not in _QUERY_OPTIONS:
+            raise InvalidArgument(f"unknown option {key!r} in {url!r}")
+        try:
+            options[key] = _QUERY_OPTIONS[key](values[-1])
+        except ValueError as exc:
+            raise InvalidArgument(f"bad value for {key} in {url!r}") from exc
+    return f"http://{host}:{port}/", options
+
+
+class RosLink(BaseLink):
+    """Commands published on /galileo/cmds, statuses from /galileo/status (any version)."""
+
+    def __init__(
+        self,
+        store: StatusStore,
+        master_uri: str,
+        *,
+        host: str | None = None,
+        bind: str | None = None,
+        node_name: str | None = None,
+        connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+        rpc_timeout: float = DEFAULT_RPC_TIMEOUT,
+        master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
+        name: str | None = None,
+        **base_options: Any,
+    ) -> None:
+        super().__init__(store, **base_options)
+        self.master_uri = master_uri
+        # Like rospy: an explicit option, else ROS_IP / ROS_HOSTNAME, else the route's address.
+        self.host = host or os.environ.get("ROS_IP") or os.environ.get("ROS_HOSTNAME")
+        self.bind = bind
+        self.node_name = node_name or default_node_name()
+        self.connect_timeout = connect_timeout
+        self.rpc_timeout = rpc_timeout
+        self.master_check_interval = master_check_interval
+        self.name = name or master_uri
+        self.node: RosNode | None = None
+        self._counted = NodeStats()
+
+    def __repr__(self) -> str:
+        return f"<RosLink {self.name}>"
+
+    async def _connect(self) -> None:
+        await self._drop_node()
+        host = self.host or await local_address_for(self.master_uri)
+        node = RosNode(
+            self.master_uri,
+            on_status=self._status_from_node,
+            on_lost=self._on_lost,
+            host=host,
+            bind=self.bind,
+            name=self.node_name,
+            connect_timeout=self.connect_timeout,
+            rpc_timeout=self.rpc_timeout,
+            master_check_interval=self.master_check_interval,
+        )
+        self._counted = NodeStats()
+        try:
+            await node.start()
+        except GalileoConnectionError:
+            raise
+        except OSError as exc:  # foreign errors are translated at the link edge
+            raise GalileoConnectionError(f"cannot connect to {self.master_uri}: {exc}") from exc
+        self.node = node
+        _log.info("connected to %s as %s", self.master_uri, node.name)
+
+    def _status_from_node(self, status: GalileoStatus) -> None:
+        node = self.node
+        if node is not None:
+            stats, counted = self.stats, self._counted
+            current = node.stats
+            stats.bytes_received += current.bytes_received - counted.bytes_received
+            stats.lost_frames += current.lost_messages - counted.lost_messages
+            stats.bytes_discarded += current.decode_errors - counted.decode_errors
+            self._counted = NodeStats(
+                current.messages,
+                current.bytes_received,
+                current.decode_errors,
+                current.lost_messages,
+                current.master_restarts,
+            )
+        self._on_status(status)
+
+    def _write(self, command: Command) -> None:
+        if self.node is None:
+            raise GalileoConnectionError(f"not connected to {self.master_uri}")
+        self.node.publish(command)
+
+    async def _disconnect(self) -> None:
+        await self._drop_node()
+
+    async def _drop_node(self) -> None:
+        node, self.node = self.node, None
+        if node is not None:
+            await node.close()
+
+
+def open_ros_link(url: str, store: StatusStore, **options: Any) -> RosLink:
+    """A RosLink (not yet opened) for ``ros://host[:port]``; options as RosLink and BaseLink."""
+    master_uri, url_options = parse_ros_url(url)
+    for key in _IGNORED_OPTIONS:
+        options.pop(key, None)
+    layout = options.pop("layout", None)
+    if layout is not None and str(layout) != "ros":
+        raise InvalidArgument(
+            f"layout {layout!r} does not apply to ros:// (status is decoded by name)"
+        )
+    return RosLink(store, master_uri, name=url, **(url_options | options))

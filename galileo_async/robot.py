@@ -1,0 +1,394 @@
+"""Robot: awaitable operations with preconditions, busy back-off and confirmation."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from collections.abc import AsyncIterator, Callable, Generator
+from types import TracebackType
+from typing import Any
+
+from ._goal import GoalHandle, GoalResult, run_goal
+from ._operations import (
+    DEFAULT_TIMEOUT,
+    ROTATE_TIMEOUT,
+    Deadline,
+    Operations,
+    check_timeout,
+)
+from ._services import RobotServices
+from .errors import (
+    GalileoConnectionError,
+    GalileoTimeout,
+    InvalidArgument,
+    LinkStale,
+    NotReady,
+    UnconfirmedOperation,
+)
+from .events import DEFAULT_ARRIVE_TOLERANCE, Event
+from .link import BaseLink, LinkStats, open_link
+from .models import GalileoStatus
+from .protocol import (
+    AddTarget,
+    Command,
+    Goto,
+    ResetTargets,
+    StartNavigation,
+    StopNavigation,
+)
+from .state import StatusStore
+
+__all__ = [
+    "DEFAULT_ACCEPT_TIMEOUT",
+    "DEFAULT_ARRIVE_TOLERANCE",
+    "DEFAULT_TIMEOUT",
+    "FIRST_STATUS_TIMEOUT",
+    "NAVIGATION_TIMEOUT",
+    "ROTATE_TIMEOUT",
+    "Connection",
+    "GoalResult",
+    "Robot",
+    "connect",
+]
+
+_log = logging.getLogger(__name__)
+
+#: Seconds for the robot to show a goal as working after ``g N``.
+DEFAULT_ACCEPT_TIMEOUT = 5.0
+#: Seconds for navigation to open and the visual system to initialise.
+NAVIGATION_TIMEOUT = 60.0
+#: Seconds ``connect`` waits for the first status frame.
+FIRST_STATUS_TIMEOUT = 3.0
+#: Highest goal id the ``g`` command can carry.
+_MAX_TARGET_ID = 255
+
+
+def _navigating(status: GalileoStatus) -> bool:
+    return status.navigating
+
+
+_GOAL_READY = "navigation must be open and the visual system initialised"
+
+
+def _goal_ready(status: GalileoStatus) -> bool:
+    return status.navigating and status.visual_initialised
+
+
+class Robot(RobotServices):
+    """A connected Galileo robot; every method validates, checks, sends, then confirms."""
+
+    def __init__(
+        self,
+        link: BaseLink,
+        store: StatusStore,
+        *,
+        map_targets: int | None = None,
+        accept_timeout: float = DEFAULT_ACCEPT_TIMEOUT,
+        arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    ) -> None:
+        if map_targets is not None and (
+            not isinstance(map_targets, int)
+            or isinstance(map_targets, bool)
+            or not 0 <= map_targets <= _MAX_TARGET_ID
+        ):
+            raise InvalidArgument(f"map_targets must be an int in 0..255, got {map_targets!r}")
+        check_timeout("accept_timeout", accept_timeout, allow_none=False)
+        if isinstance(arrive_tolerance, bool) or not isinstance(arrive_tolerance, (int, float)):
+            raise InvalidArgument(f"arrive_tolerance must be metres, got {arrive_tolerance!r}")
+        if not math.isfinite(arrive_tolerance) or arrive_tolerance < 0:
+            raise InvalidArgument(f"arrive_tolerance must be ≥ 0, got {arrive_tolerance!r}")
+        self._link = link
+        self._store = store
+        self._ops = Operations(link, store)
+        self.map_targets = map_targets
+        self.accept_timeout = float(accept_timeout)
+        self.arrive_tolerance = float(arrive_tolerance)
+        self._dynamic_targets: int | None = None  # unknown until reset_targets in this session
+        self._goal: GoalHandle | None = None
+        self._closed = False
+        self._closing: asyncio.Future[None] | None = None
+
+    # --- state -----------------------------------------------------------------------
+
+    @property
+    def status(self) -> GalileoStatus | None:
+        """The latest status, or None before the first frame."""
+        return self._store.status
+
+    @property
+    def link(self) -> LinkStats:
+        """Link statistics: frames, bytes, discards, lost frames, reconnects, layout …"""
+        return self._link.stats
+
+    @property
+    def closed(self) -> bool:
+        """True once close() was called."""
+        return self._closed
+
+    async def wait_until(
+        self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None
+    ) -> GalileoStatus:
+        """Return the first status (the latest included) for which ``predicate`` is true."""
+        check_timeout("timeout", timeout)
+        return await self._store.wait_until(predicate, timeout)
+
+    def statuses(self) -> AsyncIterator[GalileoStatus]:
+        """Iterate over statuses, newest only: a slow consumer skips to the latest."""
+        return self._store.statuses()
+
+    def events(self) -> AsyncIterator[Event]:
+        """Iterate over typed transition events (goal reached, visual lost, link stale …)."""
+        return self._store.events()
+
+    async def send(self, command: Command, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Send any command object as is, after busy back-off; nothing is confirmed."""
+        if not isinstance(command, Command):
+            raise InvalidArgument(f"expected a protocol command object, got {command!r}")
+        await self._send(command, timeout, f"send({command!r})")
+
+    # --- navigation --------------------------------------------------------------------
+
+    async def start_navigation(self, *, timeout: float | None = NAVIGATION_TIMEOUT) -> None:
+        """Open navigation; return once it is open and the visual system is initialised."""
+        check_timeout("timeout", timeout)
+        what = "start_navigation"
+        status = self._require(lambda s: not s.mapping, f"{what}: the robot is building a map")
+        deadline = Deadline(timeout)
+        if not status.navigating:
+            # The firmware ignores a start within 5-30 s of the previous one (PROTOCOL.md §2.a).
+            await self._ops.send_confirmed(
+                StartNavigation(), _navigating, field="nav_status", deadline=deadline,
+                what=f"{what} (the firmware ignores a start soon after the previous one)",
+            )  # fmt: skip
+        try:
+            await self._store.wait_until(_goal_ready, timeout=deadline.remaining())
+        except GalileoTimeout as exc:
+            raise UnconfirmedOperation(
+                f"{what}: navigation is open but the visual system did not initialise "
+                f"within {timeout} s",
+                exc.status,
+            ) from None
+
+    async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop navigation (also patrol and the goal); return once it is closed."""
+        check_timeout("timeout", timeout)
+        status = self._require(lambda s: True, "stop_navigation")
+        if status.navigating:
+            await self._ops.send_confirmed(
+                StopNavigation(), lambda s: not s.navigating, field="nav_status",
+                deadline=Deadline(timeout), what="stop_navigation",
+            )  # fmt: skip
+
+    async def goto(
+        self,
+        target_id: int,
+        *,
+        timeout: float | None = None,
+        accept_timeout: float | None = None,
+        cancel_on_exit: bool = True,
+    ) -> GoalResult:
+        """Go to map target ``target_id``; return a GoalResult on arrival, else raise.
+
+        GoalRejected, GoalAborted (stopped short), GoalCancelled (cancelled or preempted),
+        AcceptTimeout, OperationTimeout (after ``timeout`` s), ConnectionLost or LinkStale.
+        When the call is cancelled or times out, Cancel (``i 2``) is sent first unless
+        ``cancel_on_exit`` is False.
+        """
+        Goto(target_id)  # validate before anything is sent
+        check_timeout("timeout", timeout)
+        check_timeout("accept_timeout", accept_timeout)
+        accept = self.accept_timeout if accept_timeout is None else accept_timeout
+        return await self._goto(target_id, Deadline(timeout), accept, cancel_on_exit)
+
+    async def goto_point(
+        self, x: float, y: float, *, timeout: float | None = None, cancel_on_exit: bool = True
+    ) -> GoalResult:
+        """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there."""
+        command = AddTarget(x, y)  # validate before anything is sent
+        check_timeout("timeout", timeout)
+        self._require_map_targets("goto_point")
+        self._require(_goal_ready, "goto_point: " + _GOAL_READY)
+        deadline = Deadline(timeout)
+        await self._reset_targets(deadline)
+        target_id = await self._add_target(command, deadline)
+        return await self._goto(target_id, deadline, self.accept_timeout, cancel_on_exit)
+
+    async def add_target(
+        self, x: float, y: float, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> int:
+        """Append a dynamic target at (x, y) metres in the map frame; return its goal id."""
+        command = AddTarget(x, y)
+        check_timeout("timeout", timeout)
+        return await self._add_target(command, Deadline(timeout))
+
+    async def reset_targets(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Drop every dynamic target (the map's own stay); not confirmable by status."""
+        check_timeout("timeout", timeout)
+        await self._reset_targets(Deadline(timeout))
+
+    # --- lifecycle -----------------------------------------------------------------------
+
+    async def close(self) -> None:
+        """Close the link and end every iterator and waiter; idempotent and bounded."""
+        if self._closing is not None:
+            await asyncio.shield(self._closing)
+            return
+        self._closed = True
+        self._closing = asyncio.get_running_loop().create_future()
+        try:
+            await self._link.close()
+        finally:
+            self._store.close()
+            self._closing.set_result(None)
+
+    async def __aenter__(self) -> Robot:
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self.close()
+
+    # --- helpers -----------------------------------------------------------------------
+
+    async def _goto(
+        self, target_id: int, deadline: Deadline, accept_timeout: float, cancel_on_exit: bool
+    ) -> GoalResult:
+        what = f"goto({target_id})"
+        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        await self._ops.wait_not_busy(deadline, what)
+        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        if self._goal is not None:
+            self._goal.preempted = True
+        handle = GoalHandle(target_id)
+        self._goal = handle
+        try:
+            return await run_goal(
+                self._ops, handle, deadline=deadline, accept_timeout=accept_timeout,
+                arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+            )  # fmt: skip
+        finally:
+            if self._goal is handle:
+                self._goal = None
+
+    async def _add_target(self, command: AddTarget, deadline: Deadline) -> int:
+        map_targets = self._require_map_targets("add_target")
+        self._require(_navigating, "add_target: navigation must be open")
+        await self._ops.wait_not_busy(deadline, "add_target")
+        count = self._dynamic_targets
+        if count is None:
+            raise NotReady(
+                "add_target: the number of dynamic targets on the robot is unknown; "
+                "call reset_targets() first (goto_point does)",
+                self.status,
+            )
+        target_id = map_targets + count
+        if target_id > _MAX_TARGET_ID:
+            raise NotReady(
+                f"add_target: goal ids stop at {_MAX_TARGET_ID}; call reset_targets()",
+                self.status,
+            )
+        self._dynamic_targets = count + 1  # reserved now: concurrent calls get distinct ids
+        try:
+            await self._link.send(command)
+        except BaseException:
+            self._dynamic_targets = None  # it may or may not have reached the robot
+            raise
+        return target_id
+
+    async def _reset_targets(self, deadline: Deadline) -> None:
+        self._require(_navigating, "reset_targets: navigation must be open")
+        await self._ops.wait_not_busy(deadline, "reset_targets")
+        self._dynamic_targets = None  # unknown until the command is written
+        await self._link.send(ResetTargets())
+        self._dynamic_targets = 0
+
+    def _require_map_targets(self, what: str) -> int:
+        if self.map_targets is None:
+            raise NotReady(
+                f"{what}: the number of targets in the robot's map is unknown (the serial "
+                "link cannot read it); pass map_targets=N to connect()",
+                self.status,
+            )
+        return self.map_targets
+
+
+class Connection:
+    """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
+
+    def __init__(self, url: str, options: dict[str, Any]) -> None:
+        self.url = url
+        self._options = options
+        self._robot: Robot | None = None
+
+    def __await__(self) -> Generator[Any, None, Robot]:
+        return self._open().__await__()
+
+    async def __aenter__(self) -> Robot:
+        self._robot = await self._open()
+        return self._robot
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._robot is not None:
+            await self._robot.close()
+
+    async def _open(self) -> Robot:
+        options = dict(self._options)
+        robot_options = {
+            name: options.pop(name)
+            for name in ("map_targets", "accept_timeout", "arrive_tolerance")
+            if name in options
+        }
+        first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
+        check_timeout("first_status_timeout", first_status_timeout)
+        store = StatusStore(
+            arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
+        )
+        link = open_link(self.url, store, **options)
+        try:
+            robot = Robot(link, store, **robot_options)
+        except BaseException:
+            await link.close()
+            raise
+        try:
+            await link.open()
+            if first_status_timeout is not None:
+                await _first_status(store, first_status_timeout, self.url)
+        except BaseException:
+            await robot.close()
+            raise
+        _log.debug("connected to %s", self.url)
+        return robot
+
+
+async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
+    try:
+        await store.wait_until(lambda _status: True, timeout=timeout)
+    except (GalileoTimeout, LinkStale):
+        raise GalileoConnectionError(
+            f"connected to {url}, but no valid status frame arrived within {timeout} s "
+            "(wrong port, baud rate or device?)"
+        ) from None
+
+
+def connect(url: str, **options: Any) -> Connection:
+    """Connect to the robot at ``url``: ``async with connect(url) as robot`` or ``await``.
+
+    ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
+    Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
+    ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
+    Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
+    ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``, ``connect_timeout``.
+    """
+    if not isinstance(url, str) or not url:
+        raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
+    return Connection(url, options)

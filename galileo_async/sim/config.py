@@ -1,0 +1,225 @@
+"""Simulator options (SimConfig, Faults) and the ``sim://`` URL form."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+from urllib.parse import parse_qsl, urlsplit
+
+from ..errors import InvalidArgument
+from ..models import StatusLayout
+
+__all__ = ["DEFAULT_TARGETS", "FRAME_RATE", "Faults", "SimConfig", "parse_sim_url"]
+
+#: Status frames per second of simulated time (PROTOCOL.md §1).
+FRAME_RATE = 30
+#: The default map: six targets spread over a ~10 m area around the start pose (0, 0).
+DEFAULT_TARGETS: tuple[tuple[float, float], ...] = (
+    (2.0, 0.0),
+    (4.0, 3.0),
+    (0.0, 5.0),
+    (-3.0, 2.0),
+    (-4.0, -3.0),
+    (3.0, -4.0),
+)
+
+Firmware = Literal["real", "document"]
+
+
+def _check_fraction(name: str, value: float) -> None:
+    if not 0.0 <= value <= 1.0:
+        raise InvalidArgument(f"{name} must be in 0..1, got {value!r}")
+
+
+def _check_non_negative(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0.0):
+        raise InvalidArgument(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Faults:
+    """Fault injection; every probability is drawn from the simulator's seeded generator."""
+
+    #: Probability per frame and connection of a burst of 1-16 garbage bytes before it.
+    garbage: float = 0.0
+    #: Fraction of frames not sent to a connection (the time_stamp still advances).
+    drop: float = 0.0
+    #: Probability per frame and connection that one random bit of the frame is flipped.
+    bitflip: float = 0.0
+    #: Close each stream connection this many *simulated* seconds after it opened.
+    disconnect_after: float | None = None
+    #: Probability per goal that the planner gives up half way (free, far from the target);
+    #: "next" aborts the next goal only.
+    planner_abort: float | Literal["next"] = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("garbage", "drop", "bitflip"):
+            _check_fraction(name, getattr(self, name))
+        if self.disconnect_after is not None:
+            _check_non_negative("disconnect_after", self.disconnect_after)
+        if self.planner_abort != "next":
+            if isinstance(self.planner_abort, str):
+                raise InvalidArgument(
+                    f"planner_abort must be 0..1 or 'next', got {self.planner_abort!r}"
+                )
+            _check_fraction("planner_abort", self.planner_abort)
+
+    @property
+    def any_stream_fault(self) -> bool:
+        """True when frames need per-connection processing."""
+        return self.garbage > 0.0 or self.drop > 0.0 or self.bitflip > 0.0
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that shapes a simulated robot; times are simulated seconds."""
+
+    layout: StatusLayout = StatusLayout.V2
+    #: "real": behave like the vendor's published firmware; "document": like its document.
+    firmware: Firmware = "real"
+    #: Time scale: simulated seconds per real second (30 x speed frames per real second).
+    speed: float = 1.0
+    targets: tuple[tuple[float, float], ...] = DEFAULT_TARGETS
+    seed: int = 0
+    visual_init_time: float = 2.0
+    #: A start-navigation within this long of the previous one is ignored; None: 10 s on
+    #: real firmware, 0 in document mode (PROTOCOL.md §2.a).
+    start_ignore_time: float | None = None
+    busy_on_start: float = 1.0
+    busy_on_map_stop: float = 2.0
+    busy_on_save: float = 1.0
+    #: How long a command waits for busy to end before it is dropped (PROTOCOL.md §2).
+    busy_max_wait: float = 180.0
+    patrol_dwell: float = 3.0
+    #: Some firmware versions ignore 'V' 2 (PROTOCOL.md §2.h).
+    ignore_save_map: bool = False
+    #: Several commands in one write keep only the first and last; None: on for real firmware.
+    concat_loss: bool | None = None
+    max_speed: float = 0.8
+    max_turn_rate: float = 1.5
+    acceleration: float = 1.0
+    angular_acceleration: float = 3.0
+    arrival_distance: float = 0.005
+    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    dock: tuple[float, float] = (-1.0, 0.0)
+    docking_time: float = 2.0
+    power: float = 25.0
+    #: Volts lost per simulated second (charging adds charge_rate instead).
+    power_drain: float = 0.0005
+    power_full: float = 28.0
+    charge_rate: float = 0.05
+    faults: Faults = field(default_factory=Faults)
+
+    def __post_init__(self) -> None:
+        try:
+            layout = StatusLayout(self.layout)
+        except ValueError:
+            raise InvalidArgument(f"unknown layout {self.layout!r}") from None
+        if layout is StatusLayout.ROS:
+            raise InvalidArgument("the simulator speaks the serial layouts, not 'ros'")
+        object.__setattr__(self, "layout", layout)
+        if self.firmware not in ("real", "document"):
+            raise InvalidArgument(f"firmware must be 'real' or 'document', got {self.firmware!r}")
+        if not (math.isfinite(self.speed) and 0.0 < self.speed <= 1000.0):
+            raise InvalidArgument(f"speed must be in (0, 1000], got {self.speed!r}")
+        targets = tuple((float(x), float(y)) for x, y in self.targets)
+        if len(targets) > 256 or not all(map(math.isfinite, sum(targets, ()))):
+            raise InvalidArgument("targets must be at most 256 finite (x, y) pairs")
+        object.__setattr__(self, "targets", targets)
+        for name in (
+            "visual_init_time", "busy_on_start", "busy_on_map_stop", "busy_on_save",
+            "busy_max_wait", "patrol_dwell", "docking_time", "power_drain", "charge_rate",
+        ):  # fmt: skip
+            _check_non_negative(name, getattr(self, name))
+        if self.start_ignore_time is not None:
+            _check_non_negative("start_ignore_time", self.start_ignore_time)
+        for name in ("max_speed", "max_turn_rate", "acceleration", "angular_acceleration"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise InvalidArgument(f"{name} must be > 0, got {value!r}")
+
+    @property
+    def real_firmware(self) -> bool:
+        """True in the default firmware="real" mode."""
+        return self.firmware == "real"
+
+    @property
+    def effective_start_ignore_time(self) -> float:
+        """The start-navigation ignore window actually applied."""
+        if self.start_ignore_time is not None:
+            return self.start_ignore_time
+        return 10.0 if self.real_firmware else 0.0
+
+    @property
+    def effective_concat_loss(self) -> bool:
+        """Whether commands concatenated in one write lose the middle ones."""
+        return self.real_firmware if self.concat_loss is None else self.concat_loss
+
+    def replace(self, **overrides: Any) -> SimConfig:
+        """A copy with fields replaced; fault names (drop, garbage, …) go into ``faults``."""
+        fault_names = {f.name for f in dataclasses.fields(Faults)}
+        fault_overrides = {k: overrides.pop(k) for k in list(overrides) if k in fault_names}
+        unknown = set(overrides) - {f.name for f in dataclasses.fields(SimConfig)}
+        if unknown:
+            raise InvalidArgument(f"unknown simulator option(s): {', '.join(sorted(unknown))}")
+        config = dataclasses.replace(self, **overrides) if overrides else self
+        if fault_overrides:
+            faults = dataclasses.replace(config.faults, **fault_overrides)
+            config = dataclasses.replace(config, faults=faults)
+        return config
+
+
+_FLOAT_OPTIONS = frozenset(
+    {
+        "speed", "visual_init_time", "start_ignore_time", "busy_on_start", "busy_on_map_stop",
+        "busy_on_save", "busy_max_wait", "patrol_dwell", "max_speed", "max_turn_rate",
+        "acceleration", "angular_acceleration", "arrival_distance", "docking_time", "power",
+        "power_drain", "power_full", "charge_rate", "garbage", "drop", "bitflip",
+        "disconnect_after",
+    }
+)  # fmt: skip
+_BOOL_OPTIONS = frozenset({"ignore_save_map", "concat_loss"})
+
+
+def _parse_pairs(name: str, text: str) -> tuple[tuple[float, float], ...]:
+    """Parse ``x,y;x,y`` into pairs."""
+    pairs = []
+    for item in filter(None, text.split(";")):
+        parts = item.split(",")
+        if len(parts) != 2:
+            raise InvalidArgument(f"{name} must look like 'x,y;x,y', got {text!r}")
+        pairs.append((float(parts[0]), float(parts[1])))
+    return tuple(pairs)
+
+
+def _parse_value(name: str, text: str) -> Any:
+    try:
+        if name in _FLOAT_OPTIONS:
+            return float(text)
+        if name == "seed":
+            return int(text)
+        if name in _BOOL_OPTIONS:
+            lowered = text.lower()
+            if lowered not in ("1", "0", "true", "false", "yes", "no", "on", "off"):
+                raise ValueError(text)
+            return lowered in ("1", "true", "yes", "on")
+        if name == "targets":
+            return _parse_pairs(name, text)
+        if name in ("start_pose", "dock"):
+            return tuple(float(part) for part in text.split(","))
+        if name == "planner_abort":
+            return "next" if text == "next" else float(text)
+    except ValueError:
+        raise InvalidArgument(f"bad value for simulator option {name}: {text!r}") from None
+    return text  # layout, firmware: validated by SimConfig
+
+
+def parse_sim_url(url: str, base: SimConfig | None = None) -> SimConfig:
+    """Parse ``sim://?speed=20&layout=v1&targets=1,2;3,4&drop=0.1`` into a SimConfig."""
+    parts = urlsplit(url)
+    if parts.scheme != "sim":
+        raise InvalidArgument(f"not a sim:// URL: {url!r}")
+    options = {name: _parse_value(name, value) for name, value in parse_qsl(parts.query)}
+    return (base or SimConfig()).replace(**options)

@@ -1,0 +1,211 @@
+"""Simulator: one virtual Galileo served in-process, over TCP and over a pty."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Awaitable, Callable
+from types import TracebackType
+from typing import Any
+
+from ..errors import InvalidArgument
+from ..memory import create_transport_pair
+from ..models import GalileoStatus, Pose
+from .config import SimConfig, parse_sim_url
+from .device import DeviceConnection, DeviceStats, SimDevice, Ticker
+from .robot_model import RobotModel
+from .serve import PtyTransport
+
+__all__ = ["Connector", "SimState", "Simulator"]
+
+#: ``async (loop, protocol_factory) -> (transport, protocol)``: how a stream link connects.
+Connector = Callable[
+    [asyncio.AbstractEventLoop, Callable[[], asyncio.Protocol]],
+    Awaitable[tuple[asyncio.BaseTransport, asyncio.Protocol]],
+]
+
+_CLOSE_TIMEOUT = 2.0
+
+
+class SimState:
+    """Read-only live view of the simulated robot (for tests, the CLI and dashboards)."""
+
+    __slots__ = ("_device", "_model")
+
+    def __init__(self, device: SimDevice) -> None:
+        self._device = device
+        self._model: RobotModel = device.model
+
+    @property
+    def status(self) -> GalileoStatus:
+        """The status the next frame would carry (full v2 fields)."""
+        return self._model.status()
+
+    @property
+    def time(self) -> float:
+        """Simulated seconds since the robot started."""
+        return self._model.time
+
+    @property
+    def time_stamp(self) -> int:
+        """The frame counter of the last frame (0 before the first)."""
+        return self._model.time_stamp
+
+    @property
+    def pose(self) -> Pose:
+        """The true pose in the map frame, even when the status reports it unknown."""
+        model = self._model
+        return Pose(x=model.x, y=model.y, theta=model.theta)
+
+    @property
+    def targets(self) -> tuple[tuple[float, float], ...]:
+        """Map targets followed by dynamic targets, by id."""
+        return tuple(self._model.targets)
+
+    @property
+    def dock(self) -> tuple[float, float]:
+        """The dock position."""
+        return self._model.dock
+
+    @property
+    def patrol_dwell(self) -> float:
+        """Seconds the patrol waits at each target."""
+        return self._model.patrol_dwell
+
+    @property
+    def greeting(self) -> bool:
+        """Greeting switched on."""
+        return self._model.greeting
+
+    @property
+    def pending_commands(self) -> int:
+        """Commands waiting for busy to end."""
+        return self._model.pending
+
+    @property
+    def commands_handled(self) -> int:
+        """Commands the robot has processed (queued ones once they ran)."""
+        return self._model.commands_handled
+
+    @property
+    def shutdown(self) -> bool:
+        """True after the host-shutdown command."""
+        return self._model.shutdown
+
+    @property
+    def connections(self) -> int:
+        """Hosts connected right now."""
+        return len(self._device.connections)
+
+    @property
+    def stats(self) -> DeviceStats:
+        """Frames, faults and commands counted by the device."""
+        return self._device.stats
+
+
+class Simulator:
+    """A virtual Galileo on the device side of the protocol (see docs/simulator.md)."""
+
+    def __init__(
+        self, config: SimConfig | None = None, *, ticker: Ticker | None = None, **overrides: Any
+    ) -> None:
+        config = (config or SimConfig()).replace(**overrides)
+        if ticker is not None and ticker.speed != config.speed:
+            raise InvalidArgument(
+                f"the shared ticker runs at speed {ticker.speed}, not {config.speed}"
+            )
+        self.config = config
+        self._device = SimDevice(config, ticker or Ticker(config.speed), self._stop_serving)
+        self._servers: list[asyncio.Server] = []
+        self._ptys: list[PtyTransport] = []
+        self._closed = False
+
+    @classmethod
+    def from_url(cls, url: str, *, ticker: Ticker | None = None, **overrides: Any) -> Simulator:
+        """Build from ``sim://?speed=20&layout=v1&firmware=document&seed=1&targets=x,y;x,y``."""
+        return cls(parse_sim_url(url).replace(**overrides), ticker=ticker)
+
+    @property
+    def state(self) -> SimState:
+        """Read-only live view of the robot."""
+        return SimState(self._device)
+
+    @property
+    def model(self) -> RobotModel:
+        """The underlying model (for fault injection such as ``abort_next_goal``)."""
+        return self._device.model
+
+    @property
+    def accepting(self) -> bool:
+        """False after close() or the host-shutdown command."""
+        return not self._device.closed
+
+    def start(self) -> None:
+        """Start the robot's clock without a connection (needs a running loop)."""
+        self._device.start()
+
+    def connector(self) -> Connector:
+        """A connector giving each call a fresh in-memory stream to this same robot."""
+
+        async def connect(
+            loop: asyncio.AbstractEventLoop, protocol_factory: Callable[[], asyncio.Protocol]
+        ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+            if self._device.closed:
+                raise ConnectionRefusedError("the simulated robot is off")
+            protocol = protocol_factory()
+            transport, _ = create_transport_pair(
+                protocol, DeviceConnection(self._device), loop=loop, extra_a={"sim": self}
+            )
+            return transport, protocol
+
+        return connect
+
+    async def serve_tcp(self, host: str = "127.0.0.1", port: int = 0) -> asyncio.Server:
+        """Listen on ``host:port`` (loopback by default); every client gets the status stream."""
+        if self._device.closed:
+            raise ConnectionRefusedError("the simulated robot is off")
+        loop = asyncio.get_running_loop()
+        server = await loop.create_server(lambda: DeviceConnection(self._device), host, port)
+        self._servers.append(server)
+        self._device.start()
+        return server
+
+    def open_pty(self) -> str:
+        """Serve over a new pseudo-terminal; returns the path a host opens as a serial port."""
+        if self._device.closed:
+            raise ConnectionRefusedError("the simulated robot is off")
+        connection = DeviceConnection(self._device, disconnectable=False)
+        pty = PtyTransport(asyncio.get_running_loop(), connection)
+        self._ptys.append(pty)
+        return pty.path
+
+    def _stop_serving(self) -> None:
+        for server in self._servers:
+            server.close()
+        for pty in self._ptys:
+            pty.close()
+
+    async def close(self) -> None:
+        """Stop the clock, drop every connection and listener; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._device.stop()
+        self._stop_serving()
+        for server in self._servers:
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(server.wait_closed(), _CLOSE_TIMEOUT)
+        self._servers.clear()
+        self._ptys.clear()
+        await asyncio.sleep(0)  # let connection_lost callbacks run
+
+    async def __aenter__(self) -> Simulator:
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self.close()

@@ -1,0 +1,410 @@
+"""StatusStore: the latest status, waiters on predicates, subscriptions and events (no I/O)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+import weakref
+from collections import deque
+from collections.abc import Callable, Iterator
+from operator import attrgetter
+from types import TracebackType
+from typing import Any, Generic, TypeVar
+
+from . import events as ev
+from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
+from .events import DEFAULT_ARRIVE_TOLERANCE, Event, derive_events
+from .models import GalileoStatus
+
+__all__ = [
+    "DEFAULT_EVENT_QUEUE",
+    "DEFAULT_WATCH_QUEUE",
+    "EventStream",
+    "StatusStore",
+    "StatusStream",
+    "Watch",
+]
+
+_log = logging.getLogger(__name__)
+
+#: Statuses a Watch keeps before it drops the oldest.
+DEFAULT_WATCH_QUEUE = 256
+#: Events an events() consumer keeps before it drops the oldest.
+DEFAULT_EVENT_QUEUE = 1024
+
+# Only these fields can produce an event; time_stamp, speeds, pose, power and distance
+# change on nearly every frame, so frames that differ only in them skip derive_events.
+_EVENT_KEY = attrgetter(
+    "nav_status", "visual_status", "map_status", "charge_status", "loop_status",
+    "target_num_id", "target_status", "busy_status",
+)  # fmt: skip
+
+_T = TypeVar("_T")
+_Sub = TypeVar("_Sub", bound="_Queue[Any]")
+
+
+class _Waiter:
+    __slots__ = ("future", "predicate")
+
+    def __init__(
+        self, predicate: Callable[[GalileoStatus], bool], future: asyncio.Future[GalileoStatus]
+    ) -> None:
+        self.predicate = predicate
+        self.future = future
+
+
+class _Queue(Generic[_T]):
+    """A bounded FIFO with one wake-up future: the core of every subscription."""
+
+    __slots__ = (
+        "__weakref__", "_registry", "_store", "_wakeup", "buffer", "closed", "dropped", "error"
+    )  # fmt: skip
+
+    def __init__(self, store: StatusStore, registry: _Subscribers[Any], maxlen: int) -> None:
+        if maxlen < 1:
+            raise ValueError(f"maxlen must be at least 1, got {maxlen}")
+        self._store = store
+        self._registry = registry
+        self.buffer: deque[_T] = deque(maxlen=maxlen)
+        self._wakeup: asyncio.Future[None] | None = None
+        self.dropped = 0
+        self.closed = False
+        self.error: GalileoConnectionError | None = None
+
+    def _push(self, item: _T) -> None:
+        buffer = self.buffer
+        if len(buffer) == buffer.maxlen:
+            self.dropped += 1
+        buffer.append(item)
+        self._wake()
+
+    def _fail(self, exc: GalileoConnectionError) -> None:
+        self.error = exc
+        self._wake()
+
+    def _close(self) -> None:
+        self.closed = True
+        self._wake()
+
+    def _wake(self) -> None:
+        wakeup = self._wakeup
+        if wakeup is not None and not wakeup.done():
+            wakeup.set_result(None)
+
+    async def _wait(self, timeout: float | None) -> None:
+        """Wait until something is buffered, an error is pending or the queue is closed."""
+        loop = asyncio.get_running_loop()
+        wakeup = self._wakeup = loop.create_future()
+        timer = None if timeout is None else loop.call_later(timeout, _expire, wakeup)
+        try:
+            await wakeup
+        finally:
+            self._wakeup = None
+            if timer is not None:
+                timer.cancel()
+
+    def __aiter__(self) -> _Queue[_T]:
+        return self
+
+    async def __anext__(self) -> _T:
+        while True:
+            if self.buffer:
+                return self.buffer.popleft()
+            if self.closed:
+                raise StopAsyncIteration
+            await self._wait(None)
+
+    def close(self) -> None:
+        """Stop receiving (idempotent); what is buffered can still be read."""
+        self._registry.discard(self)
+        self.closed = True
+        self._wake()
+
+    async def aclose(self) -> None:
+        """Same as close(), for ``contextlib.aclosing``."""
+        self.close()
+
+
+class _Subscribers(Generic[_T]):
+    """Weakly held subscriptions: one a consumer dropped unregisters itself when collected."""
+
+    __slots__ = ("_by_id", "refs")
+
+    def __init__(self) -> None:
+        self._by_id: dict[int, weakref.ref[_T]] = {}
+        # An immutable snapshot for the hot path: iterating it never races a removal.
+        self.refs: tuple[weakref.ref[_T], ...] = ()
+
+    def add(self, item: _T) -> None:
+        key = id(item)
+        self._by_id[key] = weakref.ref(item, lambda _ref: self._forget(key))
+        self.refs = tuple(self._by_id.values())
+
+    def discard(self, item: _T) -> None:
+        self._forget(id(item))
+
+    def _forget(self, key: int) -> None:
+        if self._by_id.pop(key, None) is not None:
+            self.refs = tuple(self._by_id.values())
+
+    def clear(self) -> None:
+        self._by_id.clear()
+        self.refs = ()
+
+    def __len__(self) -> int:
+        return len(self._by_id)
+
+    def __iter__(self) -> Iterator[_T]:
+        for ref in self.refs:
+            item = ref()
+            if item is not None:
+                yield item
+
+
+def _expire(future: asyncio.Future[Any]) -> None:
+    if not future.done():
+        future.set_exception(TimeoutError())
+
+
+class Watch(_Queue[GalileoStatus]):
+    """Every status after registration (bounded: oldest dropped); raises pushed link errors."""
+
+    __slots__ = ()
+
+    async def next(self, timeout: float | None = None) -> GalileoStatus:
+        """The next status; GalileoTimeout after ``timeout`` s, link errors as pushed."""
+        while True:
+            if self.buffer:
+                return self.buffer.popleft()
+            if self.error is not None:
+                error, self.error = self.error, None
+                raise error
+            if self.closed:
+                raise ConnectionLost("the watch is closed (or its status store is)")
+            try:
+                await self._wait(timeout)
+            except TimeoutError:
+                status = self._store.status
+                raise GalileoTimeout(f"no status within {timeout} s", status=status) from None
+
+    def __enter__(self) -> Watch:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    async def __anext__(self) -> GalileoStatus:
+        try:
+            return await self.next()
+        except ConnectionLost:
+            if self.closed and not self.buffer:
+                raise StopAsyncIteration from None
+            raise
+
+
+class EventStream(_Queue[Event]):
+    """Async iterator of events (bounded queue: oldest dropped); ends when the store closes."""
+
+    __slots__ = ()
+
+
+class StatusStream(_Queue[GalileoStatus]):
+    """Async iterator of the newest status only: a slow consumer skips to the newest one."""
+
+    __slots__ = ()
+
+
+class StatusStore:
+    """Latest status and everything that waits on it; fed synchronously by the link."""
+
+    def __init__(
+        self,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    ) -> None:
+        self.status: GalileoStatus | None = None
+        self.last_update: float | None = None
+        self.closed = False
+        self._clock = clock
+        self._arrive_tolerance = arrive_tolerance
+        self._event_key: tuple[Any, ...] | None = None
+        self._waiters: list[_Waiter] = []
+        # Weak: a subscription its consumer dropped unregisters itself when collected.
+        self._watches: _Subscribers[Watch] = _Subscribers()
+        self._status_streams: _Subscribers[StatusStream] = _Subscribers()
+        self._event_streams: _Subscribers[EventStream] = _Subscribers()
+        self._link_error: GalileoConnectionError | None = None
+
+    @property
+    def link_error(self) -> GalileoConnectionError | None:
+        """The error the link reported and has not cleared yet (lost or stale), else None."""
+        return self._link_error
+
+    # --- fed by the link --------------------------------------------------------------
+
+    def update(self, status: GalileoStatus) -> None:
+        """Record a new status and wake whatever waits on it (hot path; never raises)."""
+        prev = self.status
+        self.status = status
+        self.last_update = self._clock()
+        key = _EVENT_KEY(status)
+        if key != self._event_key:
+            self._event_key = key
+            if self._event_streams and prev is not None:
+                for event in derive_events(prev, status, arrive_tolerance=self._arrive_tolerance):
+                    self._emit(event)
+        if self._waiters:
+            self._check_waiters(status)
+        for ref in self._watches.refs:
+            watch = ref()
+            if watch is not None:
+                watch._push(status)
+        for stream_ref in self._status_streams.refs:
+            stream = stream_ref()
+            if stream is not None:
+                stream._push(status)
+
+    def connection_lost(self, exc: GalileoConnectionError) -> None:
+        """The transport dropped: fail every waiter and watch at once with ``exc``."""
+        was_lost = isinstance(self._link_error, ConnectionLost)
+        self._link_error = exc
+        self._fail_all(exc)
+        if not was_lost:
+            self._emit(ev.ConnectionLost(status=self.status, reason=str(exc)))
+
+    def connection_restored(self) -> None:
+        """The transport is back (no-op unless it was lost)."""
+        if self._link_error is None:
+            return
+        was_lost = isinstance(self._link_error, ConnectionLost)
+        self._link_error = None
+        if was_lost:
+            self._emit(ev.ConnectionRestored(status=self.status))
+
+    def link_stale(self, exc: LinkStale) -> None:
+        """No frame for too long: fail every waiter and watch with ``exc`` and emit LinkStale."""
+        if self._link_error is not None:
+            return
+        self._link_error = exc
+        self._fail_all(exc)
+        self._emit(ev.LinkStale(status=self.status, silent_for=exc.silent_for))
+
+    def link_fresh(self) -> None:
+        """Frames arrive again after the link was stale."""
+        if isinstance(self._link_error, LinkStale):
+            self._link_error = None
+            self._emit(ev.LinkRestored(status=self.status))
+
+    def close(self) -> None:
+        """End every iterator and fail every waiter with ConnectionLost (idempotent)."""
+        if self.closed:
+            return
+        self.closed = True
+        self._fail_waiters(ConnectionLost("the status store is closed"))
+        for subscriptions in (self._watches, self._event_streams, self._status_streams):
+            for subscription in subscriptions:
+                subscription._close()
+        self._watches.clear()
+        self._event_streams.clear()
+        self._status_streams.clear()
+
+    # --- used by robot and users -------------------------------------------------------
+
+    async def wait_until(
+        self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None
+    ) -> GalileoStatus:
+        """First status (the latest included) matching ``predicate``; GalileoTimeout on timeout."""
+        self._raise_if_unusable()
+        status = self.status
+        if status is not None and predicate(status):
+            return status
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[GalileoStatus] = loop.create_future()
+        waiter = _Waiter(predicate, future)
+        self._waiters.append(waiter)
+        timer = None if timeout is None else loop.call_later(timeout, _expire, future)
+        try:
+            return await future
+        except TimeoutError:
+            raise GalileoTimeout(
+                f"status did not match within {timeout} s", status=self.status
+            ) from None
+        finally:
+            if timer is not None:
+                timer.cancel()
+            if waiter in self._waiters:
+                self._waiters.remove(waiter)
+
+    def watch(self, *, maxlen: int = DEFAULT_WATCH_QUEUE) -> Watch:
+        """Register now (before sending) for every later status; a context manager."""
+        watch = self._subscribe(Watch(self, self._watches, maxlen))
+        if self._link_error is not None and not self.closed:
+            watch._fail(self._link_error)
+        return watch
+
+    def statuses(self) -> StatusStream:
+        """Newest-only async iterator (starts with the latest); survives reconnects."""
+        stream = self._subscribe(StatusStream(self, self._status_streams, 1))
+        if self.status is not None and not self.closed:
+            stream.buffer.append(self.status)
+        return stream
+
+    def events(self, *, maxlen: int = DEFAULT_EVENT_QUEUE) -> EventStream:
+        """Async iterator of events after now (bounded queue); ends when the store closes."""
+        return self._subscribe(EventStream(self, self._event_streams, maxlen))
+
+    # --- internals ---------------------------------------------------------------------
+
+    def _subscribe(self, subscription: _Sub) -> _Sub:
+        if self.closed:
+            subscription._close()
+        else:
+            subscription._registry.add(subscription)
+        return subscription
+
+    def _raise_if_unusable(self) -> None:
+        if self.closed:
+            raise ConnectionLost("the status store is closed")
+        if self._link_error is not None:
+            raise self._link_error
+
+    def _check_waiters(self, status: GalileoStatus) -> None:
+        keep: list[_Waiter] = []
+        for waiter in self._waiters:
+            future = waiter.future
+            if future.done():
+                continue
+            try:
+                matched = waiter.predicate(status)
+            except Exception as exc:  # a broken predicate fails its own waiter only
+                future.set_exception(exc)
+                continue
+            if matched:
+                future.set_result(status)
+            else:
+                keep.append(waiter)
+        self._waiters = keep
+
+    def _fail_all(self, exc: GalileoConnectionError) -> None:
+        self._fail_waiters(exc)
+        for watch in self._watches:
+            watch._fail(exc)
+
+    def _fail_waiters(self, exc: GalileoConnectionError) -> None:
+        waiters, self._waiters = self._waiters, []
+        for waiter in waiters:
+            if not waiter.future.done():
+                waiter.future.set_exception(exc)
+
+    def _emit(self, event: Event) -> None:
+        for stream in self._event_streams:
+            stream._push(event)
+        if _log.isEnabledFor(logging.DEBUG):
+            _log.debug("event %s", type(event).__name__)

@@ -1,0 +1,355 @@
+"""The galileo CLI against the embedded simulator (sim://), through typer's CliRunner."""
+
+from __future__ import annotations
+
+import json
+import socket
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner, Result
+
+from galileo_async.cli import ExitCode, app
+
+FAST = "sim://?speed=20"
+DOCUMENT = "sim://?speed=20&firmware=document"
+
+
+def invoke(*args: str, port: str | None = FAST, input: bytes | None = None) -> Result:
+    """Run ``galileo [--port port] args…`` in-process; GALILEO_PORT cleared."""
+    runner = CliRunner()
+    full = (["--port", port] if port is not None else []) + list(args)
+    return runner.invoke(app, full, input=input, env={"GALILEO_PORT": None, "COLUMNS": "120"})
+
+
+def json_lines(text: str) -> list[dict[str, object]]:
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+def test_help_lists_every_command() -> None:
+    result = invoke("--help", port=None)
+    assert result.exit_code == 0
+    for name in (
+        "status", "monitor", "nav", "goto", "goto-point", "pause", "resume", "cancel",
+        "rotate", "teleop", "patrol", "map", "charge", "shutdown", "send", "decode",
+        "record", "ports", "sim", "demo",
+    ):  # fmt: skip
+        assert f" {name} " in result.stdout
+
+
+def test_default_port_is_the_simulator() -> None:
+    result = invoke("--json", "status", port=None)
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["status"]["layout"] == "v2"
+    assert data["link"]["frames"] >= 1
+
+
+def test_status_table_shows_every_field() -> None:
+    result = invoke("status")
+    assert result.exit_code == 0, result.output
+    assert "nav_status" in result.stdout
+    assert "closed (0)" in result.stdout
+    assert "busy_status" in result.stdout
+
+
+def test_status_layout_option_pins_decoder_and_sim() -> None:
+    result = invoke("--layout", "v1", "status", "--json")
+    assert result.exit_code == 0, result.output
+    status = json.loads(result.stdout)["status"]
+    assert status["layout"] == "v1"
+    assert status["map_status"] is None  # v1 lacks it: unknown, never zero
+
+
+def test_bad_layout_is_a_usage_error() -> None:
+    result = invoke("--layout", "v9", "status")
+    assert result.exit_code == ExitCode.USAGE
+    assert "v9" in result.output
+
+
+def test_status_watch_prints_count_lines() -> None:
+    result = invoke("status", "--watch", "--count", "3", "--interval", "0.05", "--json")
+    assert result.exit_code == 0, result.output
+    lines = json_lines(result.stdout)
+    assert len(lines) == 3
+    assert lines[0]["time_stamp"] <= lines[-1]["time_stamp"]  # type: ignore[operator]
+
+
+def test_monitor_dashboard_runs_for_duration() -> None:
+    result = invoke("monitor", "--duration", "0.3")
+    assert result.exit_code == 0, result.output
+    for panel in ("galileo monitor", "states", "pose & speed", "goal", "link", "recent events"):
+        assert panel in result.stdout
+
+
+def test_monitor_json_reports_events_and_status() -> None:
+    # The simulator's first frames carry defaults; the JSON lines are status snapshots.
+    result = invoke("--json", "monitor", "--duration", "0.4")
+    assert result.exit_code == 0, result.output
+    snapshots = [line for line in json_lines(result.stdout) if "status" in line]
+    assert snapshots
+    assert "link" in snapshots[0]
+
+
+def test_nav_start_and_stop() -> None:
+    assert invoke("nav", "start").stdout.strip() == "navigation open, visual initialised"
+    result = invoke("nav", "stop")
+    assert result.exit_code == 0
+    assert "navigation closed" in result.stdout
+
+
+def test_goto_arrives_with_exit_code_zero() -> None:
+    result = invoke("goto", "0")
+    assert result.exit_code == ExitCode.OK, result.output
+    assert "arrived at target 0" in result.stdout
+    assert "starting navigation" in result.stderr  # sim:// opens navigation by itself
+
+
+def test_goto_json_result() -> None:
+    result = invoke("--json", "goto", "2")
+    assert result.exit_code == 0, result.output
+    (data,) = json_lines(result.stdout)
+    assert data["result"] == "arrived"
+    assert data["target_id"] == 2
+    assert isinstance(data["elapsed"], float)
+
+
+def test_goto_rejected_exit_code() -> None:
+    # Document firmware shows an invalid id as target_status 3 with the id updated.
+    result = invoke("goto", "42", "--json", port=DOCUMENT)
+    assert result.exit_code == ExitCode.REJECTED, result.output
+    assert json_lines(result.stdout)[0]["result"] == "rejected"
+
+
+def test_goto_aborted_exit_code() -> None:
+    result = invoke("goto", "1", port=FAST + "&planner_abort=next")
+    assert result.exit_code == ExitCode.ABORTED, result.output
+    assert "GoalAborted" in result.stderr
+
+
+def test_goto_timeout_exit_code_and_one_line() -> None:
+    result = invoke("goto", "1", "--timeout", "0.3", port="sim://?speed=2")
+    assert result.exit_code == ExitCode.TIMEOUT, result.output
+    assert "Traceback" not in result.output
+    assert len(result.stderr.strip().splitlines()) == 2  # "starting navigation…" + the error
+
+
+def test_goto_without_navigation_is_not_ready() -> None:
+    result = invoke("goto", "1", "--no-start-nav")
+    assert result.exit_code == ExitCode.NOT_READY
+    assert "nav start" in result.stderr
+
+
+def test_goto_bad_id_is_a_usage_error() -> None:
+    assert invoke("goto", "300").exit_code == ExitCode.USAGE
+
+
+def test_connection_error_exit_code() -> None:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]  # bound, not listening: connection refused
+        result = invoke("status", port=f"socket://127.0.0.1:{port}")
+    assert result.exit_code == ExitCode.CONNECTION
+    assert "GalileoConnectionError" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_verbose_shows_the_traceback() -> None:
+    result = invoke("-v", "goto", "1", "--no-start-nav")
+    assert result.exit_code == ExitCode.NOT_READY
+    assert "Traceback" in result.stderr
+
+
+def test_very_verbose_logs_raw_frames() -> None:
+    result = invoke("-vv", "send", "Stop")
+    assert result.exit_code == 0, result.output
+    assert "galileo_async.link.frames" in result.stderr
+    assert "cd eb d7" in result.stderr
+
+
+def test_goto_point_with_negative_coordinates() -> None:
+    result = invoke("goto-point", "-1.5", "-2")
+    assert result.exit_code == 0, result.output
+    assert "arrived at target 6" in result.stdout  # first dynamic id after six map targets
+
+
+def test_goal_commands_without_a_goal_are_not_ready() -> None:
+    for command in ("pause", "resume"):
+        result = invoke(command)
+        assert result.exit_code == ExitCode.NOT_READY, (command, result.output)
+
+
+def test_cancel_without_a_goal_is_fine() -> None:
+    result = invoke("cancel")
+    assert result.exit_code == 0
+    assert "goal cancelled" in result.stdout
+
+
+def test_rotate_ignored_by_real_firmware_times_out() -> None:
+    result = invoke("rotate", "90", "--timeout", "1")
+    assert result.exit_code == ExitCode.TIMEOUT
+    assert "ignore" in result.stderr
+
+
+def test_rotate_in_document_mode_with_negative_angle() -> None:
+    result = invoke("rotate", "-90", port=DOCUMENT)
+    assert result.exit_code == 0, result.output
+    assert "rotated to -90°" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (("patrol", "start", "--dwell", "2"), "patrol running"),
+        (("patrol", "stop"), "patrol stopped"),
+        (("map", "start"), "mapping"),
+        (("map", "save"), "map save sent"),
+        (("map", "update"), "map update sent"),
+        (("charge", "start"), "going to the dock"),
+        (("charge", "save-dock"), "dock position saved"),
+        (("shutdown", "--yes"), "shutdown sent"),
+    ],
+)
+def test_simple_commands(args: tuple[str, ...], expected: str) -> None:
+    result = invoke(*args)
+    assert result.exit_code == 0, result.output
+    assert result.stdout.strip() == expected
+
+
+def test_shutdown_needs_yes() -> None:
+    result = invoke("shutdown")
+    assert result.exit_code == ExitCode.USAGE
+    assert "--yes" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "wire"),
+    [
+        (("Goto", "3"), "cd eb d7 02 67 03"),
+        (("start-navigation",), "cd eb d7 02 6d 00"),
+        (("Stop",), "cd eb d7 02 73 64"),
+        (("Greeting", "off"), "cd eb d7 02 48 01"),
+        (("--hex", "6d06"), "cd eb d7 02 6d 06"),
+    ],
+)
+def test_send(args: tuple[str, ...], wire: str) -> None:
+    result = invoke("--json", "send", *args)
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["bytes"] == wire
+
+
+@pytest.mark.parametrize(
+    "args",
+    [("Foo",), ("Goto",), ("Goto", "x"), ("Goto", "300"), ("--hex", "zz"), ("--hex", "cdebd7"), ()],
+)
+def test_send_rejects_bad_commands(args: tuple[str, ...]) -> None:
+    result = invoke("send", *args)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "Traceback" not in result.output
+
+
+def test_record_then_decode(tmp_path: Path) -> None:
+    capture = tmp_path / "capture.glc"
+    recorded = invoke("record", str(capture), "--duration", "0.3")
+    assert recorded.exit_code == 0, recorded.output
+    assert capture.read_bytes().startswith(b"GALILEO-CAPTURE 1\n")
+    decoded = invoke("--json", "decode", str(capture))
+    assert decoded.exit_code == 0, decoded.output
+    lines = json_lines(decoded.stdout)
+    summary = lines[-1]["summary"]
+    statuses = lines[:-1]
+    assert isinstance(summary, dict)
+    assert summary["format"] == "recording"
+    assert summary["layout"] == "v2"
+    assert summary["frames"] == len(statuses) > 5
+    assert summary["bytes_discarded"] == 0
+    assert summary["lost_frames"] == 0
+    assert all("t" in line and "nav_status" in line for line in statuses)
+    stamps = [line["time_stamp"] for line in statuses]
+    assert stamps == sorted(stamps)
+
+
+def test_record_raw_and_decode_from_stdin(tmp_path: Path) -> None:
+    capture = tmp_path / "capture.bin"
+    assert invoke("record", str(capture), "--raw", "--duration", "0.2").exit_code == 0
+    data = capture.read_bytes()
+    assert data.startswith(b"\xcd\xeb\xd7")
+    decoded = invoke("decode", "-", "--summary-only", input=data)
+    assert decoded.exit_code == 0, decoded.output
+    assert decoded.stdout == ""
+    assert "format raw" in decoded.stderr
+    assert "layout v2" in decoded.stderr
+
+
+def test_decode_counts_garbage_and_lost_frames(tmp_path: Path) -> None:
+    capture = tmp_path / "faulty.glc"
+    port = "sim://?speed=20&garbage=0.3&drop=0.2&layout=v1&seed=3"
+    assert invoke("record", str(capture), "--duration", "0.3", port=port).exit_code == 0
+    decoded = invoke("decode", str(capture), "--json")
+    summary = json_lines(decoded.stdout)[-1]["summary"]
+    assert isinstance(summary, dict)
+    assert summary["layout"] == "v1"
+    assert summary["bytes_discarded"] > 0
+    assert summary["resyncs"] > 0
+    assert summary["lost_frames"] > 0
+
+
+def test_decode_missing_file_and_garbage(tmp_path: Path) -> None:
+    missing = invoke("decode", str(tmp_path / "nope"))
+    assert missing.exit_code == ExitCode.ERROR
+    assert "cannot read" in missing.stderr
+    junk = tmp_path / "junk"
+    junk.write_bytes(bytes(range(256)) * 4)
+    result = invoke("decode", str(junk))
+    assert result.exit_code == ExitCode.ERROR  # bytes but not one frame
+    assert "frames 0" in result.stderr
+
+
+def test_ports_json() -> None:
+    result = invoke("ports", "--json")
+    assert result.exit_code == 0
+    ports = json.loads(result.stdout)
+    assert isinstance(ports, list)
+    assert all({"device", "description", "hwid"} <= set(port) for port in ports)
+
+
+def test_demo_runs_the_tour() -> None:
+    result = invoke("demo", "--speed", "20", port=None)
+    assert result.exit_code == 0, result.output
+    for step in ("start navigation", "go to target 0", "pause and resume", "the point",
+                 "not on the map", "patrol", "stop navigation"):  # fmt: skip
+        assert step in result.stdout
+    assert "✘" not in result.stdout
+    assert result.stdout.count("✔") == 7
+
+
+def test_demo_refuses_a_real_robot() -> None:
+    result = invoke("demo", port="/dev/ttyUSB0")
+    assert result.exit_code == ExitCode.USAGE
+
+
+def test_teleop_needs_a_terminal() -> None:
+    result = invoke("teleop")
+    assert result.exit_code == ExitCode.ERROR
+    assert "tty" in result.stderr
+
+
+def test_version() -> None:
+    result = invoke("--version", port=None)
+    assert result.exit_code == 0
+    assert result.stdout.startswith("galileo ")
+
+
+@pytest.mark.parametrize(
+    ("port", "args", "message"),
+    [
+        ("sim://?bogus=1", ("status",), "unknown simulator option"),
+        ("sim://?speed=abc", ("demo",), "bad value for simulator option speed"),
+        ("socket://nohost", ("status",), "expected socket://host:port"),
+        (FAST, ("sim", "--tcp", "nonsense"), "HOST:PORT"),
+    ],
+)
+def test_bad_urls_are_usage_errors(port: str, args: tuple[str, ...], message: str) -> None:
+    result = invoke(*args, port=port)
+    assert result.exit_code == ExitCode.USAGE
+    assert message in result.stderr

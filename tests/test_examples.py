@@ -1,0 +1,67 @@
+"""Every example runs as is against the embedded simulator (sped up through GALILEO_PORT)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+FAST_SIM = "sim://?speed=20"
+#: Real seconds any example may take at 20x.
+TIMEOUT = 60
+
+
+def run_example(name: str, *args: str) -> str:
+    env = dict(os.environ, GALILEO_PORT=FAST_SIM)
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / name), *args],
+        capture_output=True, text=True, timeout=TIMEOUT, env=env, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+    return result.stdout
+
+
+def test_every_example_is_tested() -> None:
+    tested = {"goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py"}
+    assert {path.name for path in EXAMPLES.glob("*.py")} == tested
+
+
+def test_goto_example_handles_arrival_and_rejection() -> None:
+    out = run_example("goto.py")
+    assert "arrived at 1" in out
+    assert "arrived at 2" in out
+    assert "goal 42 rejected" in out
+
+
+def test_patrol_example_visits_three_targets_and_keeps_navigation() -> None:
+    out = run_example("patrol.py")
+    assert out.count("reached target") == 3
+    assert "navigation still open: True" in out
+
+
+def test_monitor_example_sees_statuses_and_events() -> None:
+    out = run_example("monitor.py", FAST_SIM, "30")
+    assert "target 0 working" in out
+    assert "target 0 free" in out
+    for event in ("NavigationOpened", "VisualInitialised", "GoalAccepted", "GoalReached"):
+        assert f"event: {event}" in out
+
+
+def test_teleop_example_drives_and_stops() -> None:
+    out = run_example("teleop.py")
+    assert "forward: +0.40 m/s" in out  # 50 % of 0.8 m/s
+    assert "turn on the spot: -0.90 rad/s" in out  # 60 % of 1.5 rad/s, to the right
+    assert "stopped at" in out
+
+
+@pytest.mark.parametrize("urls", [(), (FAST_SIM + "&layout=v1", FAST_SIM + "&layout=v2_truncated")])
+def test_fleet_example_drives_robots_concurrently(urls: tuple[str, ...]) -> None:
+    out = run_example("fleet.py", *urls)
+    robots = len(urls) or 3
+    assert out.count("finished its tour") == robots
+    assert out.count("arrived at") == 3 * robots

@@ -1,0 +1,421 @@
+"""StreamLink over a TCP loopback fake robot and an in-memory transport."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+import sys
+import types
+from collections.abc import AsyncIterator
+from typing import Any
+
+import pytest
+from fake_device import FakeDevice, MemoryConnector, status_frame
+
+from galileo_async import events as ev
+from galileo_async.errors import (
+    ConnectionLost,
+    GalileoConnectionError,
+    InvalidArgument,
+    LinkStale,
+)
+from galileo_async.link import BaseLink, StreamLink, open_link
+from galileo_async.models import StatusLayout
+from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
+from galileo_async.state import StatusStore
+
+STEP = 2.0  # upper bound for anything that should happen promptly
+FAST = {"reconnect_initial": 0.01, "reconnect_max": 0.05, "stale_timeout": 5.0}
+
+
+@pytest.fixture
+async def device() -> AsyncIterator[FakeDevice]:
+    fake = FakeDevice()
+    await fake.start()
+    yield fake
+    await fake.stop()
+
+
+@pytest.fixture
+async def links() -> AsyncIterator[list[BaseLink]]:
+    """Links a test opened; all closed at teardown, whatever the test did."""
+    opened: list[BaseLink] = []
+    yield opened
+    for link in opened:
+        await asyncio.wait_for(link.close(), STEP)
+
+
+async def connect(
+    device: FakeDevice, links: list[BaseLink], **options: Any
+) -> tuple[BaseLink, StatusStore]:
+    store = StatusStore()
+    link = open_link(device.url, store, **{**FAST, **options})
+    links.append(link)
+    await link.open()
+    await device.wait_for(lambda: len(device.clients) == 1)
+    return link, store
+
+
+async def in_memory(links: list[BaseLink], **options: Any) -> tuple[MemoryConnector, StreamLink]:
+    connector = MemoryConnector()
+    link = StreamLink(StatusStore(), connector, **options)
+    links.append(link)
+    await link.open()
+    return connector, link
+
+
+async def test_status_flows_and_is_counted(device: FakeDevice, links: list[BaseLink]) -> None:
+    link, store = await connect(device, links)
+    assert isinstance(link, StreamLink)
+    assert link.connected
+    assert link.stats.connected
+    assert link.stats.last_frame_age is None
+    device.push_raw(b"\x00garbage" + status_frame(1))
+    device.time_stamp = 1
+    device.push(nav_status=1)
+    device.time_stamp = 5  # frames 3 and 4 never sent
+    device.push()
+    status = await store.wait_until(lambda s: s.time_stamp == 6, timeout=STEP)
+    assert status.layout is StatusLayout.V2
+    stats = link.stats
+    assert stats.frames == 3
+    assert stats.bytes_received == 8 + 3 * 89
+    assert stats.bytes_discarded == 8
+    assert stats.resyncs == 1
+    assert stats.lost_frames == 3
+    assert stats.layout is StatusLayout.V2
+    age = stats.last_frame_age
+    assert age is not None
+    assert 0 <= age < STEP
+
+
+async def test_pacing_one_command_per_write_fifo_on_the_wire(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, _ = await connect(device, links)
+    commands = [Goto(i) for i in range(12)]
+    await asyncio.wait_for(asyncio.gather(*(link.send(c) for c in commands)), STEP)
+    await device.wait_for(lambda: len(device.commands) == 12)
+    assert device.commands == commands  # FIFO
+    assert link.stats.commands_sent == 12
+    for _, chunk in device.writes:
+        assert len(CommandDecoder().feed(chunk)) == 1  # never two commands in one write
+    times = [t for t, _ in device.writes]
+    gaps = [b - a for a, b in itertools.pairwise(times)]
+    # Loopback delivery adds jitter on the receiving side; the writer keeps ≥ 10 ms exactly
+    # (asserted on the transport in the next test).
+    assert min(gaps) >= 0.010 - 0.002, gaps
+
+
+async def test_pacing_measured_at_the_transport(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, min_command_interval=0.010)
+    commands = [Goto(1), Pause(), Stop(50), Goto(2), Goto(3)]
+    await asyncio.wait_for(asyncio.gather(*(link.send(c) for c in commands)), STEP)
+    writes = connector.transport.writes
+    assert [data for _, data in writes] == [encode(c) for c in commands]
+    times = [t for t, _ in writes]
+    assert all(b - a >= 0.010 for a, b in itertools.pairwise(times))
+    # The interval is between consecutive writes, not between calls: a later send waits too.
+    await link.send(Goto(4))
+    assert connector.transport.writes[-1][0] - times[-1] >= 0.010
+
+
+async def test_send_returns_once_written_and_cancelled_sends_are_skipped(
+    links: list[BaseLink],
+) -> None:
+    connector, link = await in_memory(links, min_command_interval=0.02)
+    await link.send(Goto(1))
+    assert connector.transport.writes[-1][1] == encode(Goto(1))
+    second = asyncio.create_task(link.send(Goto(2)))
+    third = asyncio.create_task(link.send(Goto(3)))
+    await asyncio.sleep(0)
+    second.cancel()
+    await asyncio.wait_for(third, STEP)
+    assert [d for _, d in connector.transport.writes] == [encode(Goto(1)), encode(Goto(3))]
+    assert second.cancelled()
+
+
+async def test_a_failing_write_fails_its_send_only(
+    caplog: pytest.LogCaptureFixture, links: list[BaseLink]
+) -> None:
+    connector, link = await in_memory(links)
+    connector.transport.write_error = RuntimeError("driver bug")
+    with pytest.raises(GalileoConnectionError, match="driver bug"):
+        await asyncio.wait_for(link.send(Goto(1)), STEP)
+    await asyncio.wait_for(link.send(Goto(2)), STEP)  # the writer survived
+    assert [d for _, d in connector.transport.writes] == [encode(Goto(2))]
+    assert link.stats.commands_sent == 1
+
+
+async def test_peer_close_fails_every_waiter_at_once(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links, reconnect=False)
+    events = store.events()
+    device.push()
+    await store.wait_until(lambda s: s.time_stamp == 1, timeout=STEP)
+    waiter = asyncio.create_task(store.wait_until(lambda s: s.navigating, timeout=60))
+    watch = store.watch()
+    reader = asyncio.create_task(watch.next(timeout=60))
+    await asyncio.sleep(0)
+    with watch:
+        await device.drop_clients()  # a clean close from the robot side counts as a drop
+        for task in (waiter, reader):
+            with pytest.raises(ConnectionLost):
+                await asyncio.wait_for(task, STEP)
+    assert not link.connected
+    event = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(event, ev.ConnectionLost)
+    with pytest.raises(ConnectionLost):
+        await link.send(Goto(1))
+    # Without reconnect nothing will feed the store again: its iterators end.
+    with pytest.raises(StopAsyncIteration):
+        await asyncio.wait_for(anext(store.statuses()), STEP)
+
+
+async def test_eof_counts_as_a_drop(device: FakeDevice, links: list[BaseLink]) -> None:
+    _link, store = await connect(device, links, reconnect=False)
+    waiter = asyncio.create_task(store.wait_until(lambda s: False, timeout=60))
+    await asyncio.sleep(0)
+    transport = device.clients[0].transport
+    assert transport is not None
+    transport.write_eof()
+    with pytest.raises(ConnectionLost):
+        await asyncio.wait_for(waiter, STEP)
+
+
+async def test_pending_sends_fail_on_loss(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, reconnect=False, min_command_interval=0.05)
+    await link.send(Goto(1))
+    pending = [asyncio.create_task(link.send(Goto(i))) for i in (2, 3)]
+    await asyncio.sleep(0)
+    connector.transport.lose(OSError("unplugged"))
+    for task in pending:
+        with pytest.raises(ConnectionLost, match="unplugged"):
+            await asyncio.wait_for(task, STEP)
+    assert len(connector.transport.writes) == 1
+
+
+async def test_reconnects_after_the_server_restarts(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links)
+    events = store.events()
+    device.push()
+    device.push()
+    await store.wait_until(lambda s: s.time_stamp == 2, timeout=STEP)
+    await device.stop()
+    lost = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(lost, ev.ConnectionLost)
+    assert not link.connected
+    with pytest.raises(ConnectionLost, match="reconnecting"):
+        await link.send(Goto(1))
+    await device.start()  # same port
+    restored = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(restored, ev.ConnectionRestored)
+    assert link.connected
+    assert link.stats.reconnects == 1
+    await device.wait_for(lambda: len(device.clients) == 1)
+    device.time_stamp = 0  # the serial node restarted: its counter starts again
+    device.push()
+    await store.wait_until(lambda s: s.time_stamp == 1, timeout=STEP)
+    assert link.stats.lost_frames == 0
+    await link.send(Goto(7))
+    await device.wait_for(lambda: Goto(7) in device.commands)
+
+
+async def test_reconnect_backs_off_exponentially_up_to_the_cap(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, reconnect_initial=0.01, reconnect_max=0.04)
+    store = link.store
+    events = store.events()
+    connector.failures = 5
+    connector.transport.lose(None)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionRestored)
+    assert link.connected
+    assert link.stats.reconnects == 1
+    attempts = connector.attempts[1:]  # the first entry is open()
+    assert len(attempts) == 6
+    gaps = [b - a for a, b in itertools.pairwise(attempts)]
+    for gap, expected in zip(gaps, [0.02, 0.04, 0.04, 0.04, 0.04], strict=True):
+        assert gap >= expected * 0.99
+    assert max(gaps[2:]) < 0.04 + 0.5  # capped: doubling would reach 0.32 s
+
+
+async def test_reconnect_can_be_switched_off(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, reconnect=False)
+    events = link.store.events()
+    connector.transport.lose(None)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    with pytest.raises(StopAsyncIteration):  # the store closes: nothing will feed it again
+        await asyncio.wait_for(anext(events), STEP)
+    assert len(connector.attempts) == 1
+    assert not link.connected
+    assert not [t for t in asyncio.all_tasks() if "reconnect" in t.get_name()]
+    await link.close()
+
+
+async def test_stale_watchdog_fails_waiters_and_recovers(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links, stale_timeout=0.1)
+    events = store.events()
+    device.start_stream(0.01)
+    await store.wait_until(lambda s: (s.time_stamp or 0) >= 3, timeout=STEP)
+    waiter = asyncio.create_task(store.wait_until(lambda s: s.navigating, timeout=60))
+    await asyncio.sleep(0)
+    await device.stop_stream()  # the robot goes quiet; the TCP connection stays up
+    with pytest.raises(LinkStale) as info:
+        await asyncio.wait_for(waiter, STEP)
+    assert info.value.silent_for >= 0.1
+    stale = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(stale, ev.LinkStale)
+    assert stale.silent_for >= 0.1
+    assert link.stats.stale
+    assert link.connected
+    device.push()
+    fresh = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(fresh, ev.LinkRestored)
+    assert not link.stats.stale
+    await store.wait_until(lambda s: s.time_stamp == device.time_stamp, timeout=STEP)
+
+
+async def test_stale_when_the_robot_never_sends(device: FakeDevice, links: list[BaseLink]) -> None:
+    _link, store = await connect(device, links, stale_timeout=0.05)
+    with pytest.raises(LinkStale):
+        await store.wait_until(lambda s: True, timeout=STEP)
+
+
+async def test_slow_subscriber_does_not_hold_back_others(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, stale_timeout=None)
+    store = link.store
+    never_read = store.statuses()
+    never_read_events = store.events(maxlen=4)
+    fast = store.statuses()
+    for stamp in range(1, 3001):
+        connector.feed(status_frame(stamp, busy_status=stamp % 2))
+        if stamp % 1000 == 0:
+            assert (await asyncio.wait_for(anext(fast), STEP)).time_stamp == stamp
+    assert link.stats.frames == 3000
+    assert never_read.buffer
+    assert never_read.buffer[0].time_stamp == 3000
+    assert len(never_read_events.buffer) == 4
+
+
+async def test_close_is_idempotent_bounded_and_clean(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links)
+    stream = store.statuses()
+    send = asyncio.create_task(link.send(Goto(1)))
+    await asyncio.wait_for(asyncio.gather(link.close(), link.close()), STEP)
+    await link.close()
+    await asyncio.gather(send, return_exceptions=True)
+    assert link.closed
+    assert not link.connected
+    with pytest.raises(StopAsyncIteration):
+        await anext(stream)
+    with pytest.raises(ConnectionLost):
+        await link.send(Goto(1))
+    await device.wait_for(lambda: not device.clients)
+
+
+async def test_open_is_idempotent_and_refused_after_close(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links)
+    await link.open()
+    assert len(connector.attempts) == 1
+    await link.close()
+    with pytest.raises(GalileoConnectionError, match="closed"):
+        await link.open()
+
+
+async def test_close_while_reconnecting(device: FakeDevice, links: list[BaseLink]) -> None:
+    link, store = await connect(device, links, reconnect_initial=0.001, reconnect_max=0.002)
+    events = store.events()
+    await device.stop()
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert not link.connected
+    await asyncio.sleep(0.02)  # let several refused attempts happen
+    await asyncio.wait_for(link.close(), STEP)
+    assert not link.connected
+    assert link.stats.reconnects == 0
+
+
+async def test_open_failure_is_translated() -> None:
+    probe = FakeDevice()
+    await probe.start()
+    await probe.stop()  # nothing listens on this port any more
+    store = StatusStore()
+    link = open_link(probe.url, store)
+    with pytest.raises(GalileoConnectionError) as info:
+        await link.open()
+    assert isinstance(info.value, ConnectionError)
+    assert isinstance(info.value.__cause__, OSError)
+    await link.close()
+
+
+async def test_raw_frames_are_logged_at_debug_only(
+    device: FakeDevice, links: list[BaseLink], caplog: pytest.LogCaptureFixture
+) -> None:
+    link, store = await connect(device, links)
+    with caplog.at_level(logging.INFO, logger="galileo_async"):
+        device.push()
+        await store.wait_until(lambda s: s.time_stamp == 1, timeout=STEP)
+    assert not [r for r in caplog.records if r.name == "galileo_async.link.frames"]
+    with caplog.at_level(logging.DEBUG, logger="galileo_async.link.frames"):
+        device.push()
+        await store.wait_until(lambda s: s.time_stamp == 2, timeout=STEP)
+        await link.send(Goto(3))
+    frames = [r.getMessage() for r in caplog.records if r.name == "galileo_async.link.frames"]
+    assert any(m.startswith("rx cd eb d7 55") for m in frames)
+    assert any(m.startswith("tx cd eb d7 02 67 03") for m in frames)
+
+
+def test_open_link_url_forms(monkeypatch: pytest.MonkeyPatch) -> None:
+    store = StatusStore()
+    assert isinstance(open_link("socket://[::1]:4000", store), StreamLink)
+    assert isinstance(open_link("/dev/ttyUSB0", store, baudrate=57600), StreamLink)
+    for bad in ("socket://host", "socket://:12", "socket://h:99999"):
+        with pytest.raises(InvalidArgument):
+            open_link(bad, store)
+    with pytest.raises(InvalidArgument):
+        open_link("/dev/ttyUSB0", store, baudrate=0)
+    with pytest.raises(InvalidArgument):
+        open_link("socket://h:1", store, stale_timeout=0)
+    monkeypatch.setitem(sys.modules, "galileo_async.link.ros", None)
+    with pytest.raises(GalileoConnectionError, match="ROS"):
+        open_link("ros://127.0.0.1:11311", store)
+
+
+async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> None:
+    connector = MemoryConnector()
+    made: list[Any] = []
+
+    class FakeSimulator:
+        def __init__(self, url: str) -> None:
+            self.url, self.closed = url, False
+
+        @classmethod
+        def from_url(cls, url: str) -> FakeSimulator:
+            made.append(cls(url))
+            return made[-1]  # type: ignore[no-any-return]
+
+        def connector(self) -> MemoryConnector:
+            return connector
+
+        async def close(self) -> None:
+            self.closed = True
+
+    module = types.ModuleType("galileo_async.sim")
+    module.Simulator = FakeSimulator  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "galileo_async.sim", module)
+    link = open_link("sim://?speed=20", StatusStore(), baudrate=115200)
+    assert isinstance(link, StreamLink)
+    assert link.simulator is made[0]
+    assert made[0].url == "sim://?speed=20"
+    await link.open()
+    connector.feed(status_frame(1))
+    assert link.store.status is not None
+    await link.close()
+    assert made[0].closed

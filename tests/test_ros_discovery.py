@@ -1,0 +1,87 @@
+"""Discovery: robots' UDP announcements (PROTOCOL.md §3), from a test broadcaster on loopback."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+from collections.abc import Iterable
+
+import pytest
+from ros_support import free_port
+
+from galileo_async.discovery import DiscoveredRobot, discover, parse_announcement
+from galileo_async.errors import GalileoConnectionError, InvalidArgument
+
+pytestmark = pytest.mark.timeout(20)
+
+ANNOUNCEMENT = {"id": "galileo-7", "port": 11311, "mac": "00:11:22:33:44:55", "version": "5.1"}
+
+
+async def broadcast(port: int, datagrams: Iterable[bytes], period: float = 0.02) -> None:
+    """Send the datagrams to 127.0.0.1:port over and over, like a robot at 10 Hz (faster)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.setblocking(False)
+        while True:
+            for datagram in datagrams:
+                sock.sendto(datagram, ("127.0.0.1", port))
+            await asyncio.sleep(period)
+
+
+@pytest.fixture
+def udp_port() -> int:
+    return free_port(socket.SOCK_DGRAM)
+
+
+async def discover_while_broadcasting(port: int, datagrams: list[bytes]) -> list[DiscoveredRobot]:
+    sender = asyncio.create_task(broadcast(port, datagrams))
+    try:
+        return await discover(0.3, bind="127.0.0.1", port=port)
+    finally:
+        sender.cancel()
+        await asyncio.gather(sender, return_exceptions=True)
+
+
+async def test_discovers_a_broadcasting_robot(udp_port: int) -> None:
+    robots = await discover_while_broadcasting(udp_port, [json.dumps(ANNOUNCEMENT).encode()])
+    assert robots == [
+        DiscoveredRobot(
+            id="galileo-7", address="127.0.0.1", port=11311, mac="00:11:22:33:44:55", version="5.1"
+        )
+    ]
+    assert robots[0].url == "ros://127.0.0.1:11311"
+
+
+async def test_garbage_is_ignored_and_robots_are_deduplicated(udp_port: int) -> None:
+    other = dict(ANNOUNCEMENT, id="galileo-2", port=11312)
+    datagrams = [
+        b"\xff\xfe not json",
+        b"[1, 2]",
+        json.dumps({"port": 1}).encode(),
+        json.dumps(dict(ANNOUNCEMENT, port="nope")).encode(),
+        json.dumps(ANNOUNCEMENT).encode(),
+        json.dumps(other).encode(),
+    ]
+    robots = await discover_while_broadcasting(udp_port, datagrams)
+    assert [(r.id, r.port) for r in robots] == [("galileo-2", 11312), ("galileo-7", 11311)]
+
+
+async def test_nothing_heard_is_an_empty_list(udp_port: int) -> None:
+    assert await discover(0.05, bind="127.0.0.1", port=udp_port) == []
+
+
+async def test_bad_arguments() -> None:
+    with pytest.raises(InvalidArgument):
+        await discover(0)
+    with pytest.raises(GalileoConnectionError):
+        await discover(0.05, bind="192.0.2.1", port=free_port(socket.SOCK_DGRAM))
+
+
+def test_parse_announcement_fields() -> None:
+    robot = parse_announcement(b'{"id": 5, "port": "11311"}', "10.0.0.8")
+    assert robot == DiscoveredRobot(id="5", address="10.0.0.8", port=11311)
+    assert parse_announcement(b'{"id": "x", "port": 0}', "h") is None
+    assert parse_announcement(b'{"id": "x", "port": true}', "h") is None
+    assert parse_announcement(b'{"id": "x"}', "::1") == DiscoveredRobot("x", "::1", 11311)
+    assert DiscoveredRobot("x", "fe80::1", 11311).url == "ros://[fe80::1]:11311"
+    assert parse_announcement(b"x" * 5000, "h") is None

@@ -1,0 +1,325 @@
+"""StatusStore: waiters, watches, newest-only streams, events and link errors (no I/O)."""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+from typing import Any
+
+import pytest
+
+from galileo_async import events as ev
+from galileo_async.errors import ConnectionLost, GalileoTimeout, LinkStale
+from galileo_async.models import GalileoStatus
+from galileo_async.protocol import V2_DEFAULTS
+from galileo_async.state import StatusStore
+
+STEP = 2.0  # upper bound for anything that should happen at once
+
+
+def st(time_stamp: int, **fields: Any) -> GalileoStatus:
+    return GalileoStatus(**{**V2_DEFAULTS, "time_stamp": time_stamp, **fields})
+
+
+async def test_latest_status_and_clock() -> None:
+    now = [10.0]
+    store = StatusStore(clock=lambda: now[0])
+    assert store.status is None
+    assert store.last_update is None
+    store.update(st(1))
+    now[0] = 11.5
+    store.update(st(2))
+    assert store.status is not None
+    assert store.status.time_stamp == 2
+    assert store.last_update == 11.5
+
+
+async def test_wait_until_is_level_triggered() -> None:
+    store = StatusStore()
+    store.update(st(1, nav_status=1))
+    status = await store.wait_until(lambda s: s.navigating, timeout=0)
+    assert status.time_stamp == 1
+
+
+async def test_wait_until_wakes_on_the_matching_update() -> None:
+    store = StatusStore()
+    store.update(st(1))
+    task = asyncio.create_task(store.wait_until(lambda s: s.navigating, timeout=STEP))
+    await asyncio.sleep(0)
+    store.update(st(2))
+    await asyncio.sleep(0)
+    assert not task.done()
+    store.update(st(3, nav_status=1))
+    assert (await asyncio.wait_for(task, STEP)).time_stamp == 3
+    assert store._waiters == []
+
+
+async def test_wait_until_timeout_carries_latest_status() -> None:
+    store = StatusStore()
+    store.update(st(7))
+    with pytest.raises(GalileoTimeout) as info:
+        await store.wait_until(lambda s: s.navigating, timeout=0.01)
+    assert isinstance(info.value, TimeoutError)
+    assert info.value.status is not None
+    assert info.value.status.time_stamp == 7
+    assert store._waiters == []
+
+
+async def test_cancelled_wait_until_unregisters() -> None:
+    store = StatusStore()
+    task = asyncio.create_task(store.wait_until(lambda s: False))
+    await asyncio.sleep(0)
+    assert len(store._waiters) == 1
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert store._waiters == []
+
+
+async def test_broken_predicate_fails_only_its_waiter() -> None:
+    store = StatusStore()
+
+    def broken(status: GalileoStatus) -> bool:
+        raise KeyError("boom")
+
+    bad = asyncio.create_task(store.wait_until(broken, timeout=STEP))
+    good = asyncio.create_task(store.wait_until(lambda s: s.time_stamp == 1, timeout=STEP))
+    await asyncio.sleep(0)
+    store.update(st(1))  # must not raise into the link
+    with pytest.raises(KeyError):
+        await bad
+    assert (await good).time_stamp == 1
+
+
+@pytest.mark.parametrize("kind", ["lost", "stale"])
+async def test_link_error_fails_waiters_at_once(kind: str) -> None:
+    store = StatusStore()
+    store.update(st(1))
+    waiter = asyncio.create_task(store.wait_until(lambda s: False, timeout=60))
+    with store.watch() as watch:
+        reader = asyncio.create_task(watch.next(timeout=60))
+        await asyncio.sleep(0)
+        error: ConnectionLost | LinkStale
+        if kind == "lost":
+            error = ConnectionLost("unplugged")
+            store.connection_lost(error)
+        else:
+            error = LinkStale("silent", silent_for=1.2)
+            store.link_stale(error)
+        for task in (waiter, reader):
+            with pytest.raises(type(error)):
+                await asyncio.wait_for(task, STEP)
+    assert store.link_error is error
+
+
+async def test_wait_until_fails_fast_while_the_link_is_down_then_recovers() -> None:
+    store = StatusStore()
+    store.connection_lost(ConnectionLost("down"))
+    with pytest.raises(ConnectionLost):
+        await store.wait_until(lambda s: True, timeout=STEP)
+    store.connection_restored()
+    assert store.link_error is None
+    store.update(st(1))
+    assert (await store.wait_until(lambda s: True, timeout=STEP)).time_stamp == 1
+
+
+async def test_stale_then_fresh() -> None:
+    store = StatusStore()
+    store.link_stale(LinkStale("silent", silent_for=1.0))
+    with pytest.raises(LinkStale):
+        await store.wait_until(lambda s: True)
+    store.link_fresh()
+    store.update(st(1))
+    assert (await store.wait_until(lambda s: True)).time_stamp == 1
+
+
+async def test_watch_registers_before_send_and_sees_every_later_status() -> None:
+    store = StatusStore()
+    store.update(st(1))
+    with store.watch() as watch:
+        store.update(st(2))
+        store.update(st(3))
+        assert [(await watch.next(timeout=STEP)).time_stamp for _ in range(2)] == [2, 3]
+        with pytest.raises(GalileoTimeout):
+            await watch.next(timeout=0.01)
+    store.update(st(4))
+    assert not store._watches
+
+
+async def test_watch_is_bounded_and_drops_oldest() -> None:
+    store = StatusStore()
+    with store.watch(maxlen=4) as watch:
+        for stamp in range(1, 11):
+            store.update(st(stamp))
+        assert len(watch.buffer) == 4
+        assert watch.dropped == 6
+        assert [(await watch.next()).time_stamp for _ in range(4)] == [7, 8, 9, 10]
+
+
+async def test_watch_delivers_buffered_statuses_before_the_error_then_continues() -> None:
+    store = StatusStore()
+    with store.watch() as watch:
+        store.update(st(1))
+        store.connection_lost(ConnectionLost("unplugged"))
+        assert (await watch.next()).time_stamp == 1
+        with pytest.raises(ConnectionLost):
+            await watch.next()
+        store.connection_restored()
+        store.update(st(2))
+        assert (await watch.next(timeout=STEP)).time_stamp == 2
+
+
+async def test_watch_created_while_down_fails_on_first_next() -> None:
+    store = StatusStore()
+    store.connection_lost(ConnectionLost("down"))
+    with store.watch() as watch, pytest.raises(ConnectionLost):
+        await watch.next(timeout=STEP)
+
+
+async def test_watch_iteration_ends_on_store_close() -> None:
+    store = StatusStore()
+    watch = store.watch()
+    received: list[int | None] = []
+
+    async def consume() -> None:
+        async for status in watch:
+            received.append(status.time_stamp)
+
+    task = asyncio.create_task(consume())
+    store.update(st(1))
+    store.update(st(2))
+    await asyncio.sleep(0)
+    store.close()
+    await asyncio.wait_for(task, STEP)
+    assert received == [1, 2]
+    with pytest.raises(ConnectionLost):
+        await watch.next()
+
+
+async def test_statuses_newest_only_and_starts_with_latest() -> None:
+    store = StatusStore()
+    store.update(st(1))
+    stream = store.statuses()
+    assert (await anext(stream)).time_stamp == 1
+    for stamp in range(2, 1000):
+        store.update(st(stamp))
+    # A consumer that fell behind gets the newest status, not a backlog.
+    assert (await anext(stream)).time_stamp == 999
+    waiting = asyncio.create_task(anext(stream))
+    await asyncio.sleep(0)
+    assert not waiting.done()
+    store.update(st(1000))
+    assert (await asyncio.wait_for(waiting, STEP)).time_stamp == 1000
+    await stream.aclose()
+    assert stream not in store._status_streams
+    assert stream.dropped == 997  # skipped, never queued
+
+
+async def test_statuses_survive_reconnects_and_end_on_close() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    store.update(st(1))
+    assert (await anext(stream)).time_stamp == 1
+    store.connection_lost(ConnectionLost("unplugged"))
+    store.connection_restored()
+    store.update(st(1))  # the counter restarts after a reconnect
+    assert (await anext(stream)).time_stamp == 1
+    ending = asyncio.create_task(anext(stream))
+    await asyncio.sleep(0)
+    store.close()
+    with pytest.raises(StopAsyncIteration):
+        await asyncio.wait_for(ending, STEP)
+
+
+async def test_many_independent_consumers() -> None:
+    store = StatusStore()
+    streams = [store.statuses() for _ in range(200)]
+    slow = store.statuses()  # never read
+    tasks = [asyncio.create_task(anext(s)) for s in streams]
+    await asyncio.sleep(0)
+    store.update(st(5))
+    results = await asyncio.wait_for(asyncio.gather(*tasks), STEP)
+    assert {r.time_stamp for r in results} == {5}
+    store.update(st(6))
+    assert (await anext(streams[0])).time_stamp == 6
+    assert (await anext(slow)).time_stamp == 6
+
+
+async def test_dropped_stream_unregisters_itself() -> None:
+    store = StatusStore()
+    stream, events, watch = store.statuses(), store.events(), store.watch()
+    assert len(store._status_streams) == len(store._event_streams) == len(store._watches) == 1
+    del stream, events, watch
+    gc.collect()
+    assert len(store._status_streams) == len(store._event_streams) == len(store._watches) == 0
+
+
+async def test_slow_consumers_stay_bounded() -> None:
+    store = StatusStore()
+    never_read_stream = store.statuses()
+    never_read_events = store.events(maxlen=8)
+    with store.watch(maxlen=16) as never_read_watch:
+        for stamp in range(1, 5001):
+            store.update(st(stamp, busy_status=stamp % 2))
+        assert len(never_read_watch.buffer) == 16
+        assert len(never_read_events.buffer) == 8
+        assert never_read_events.dropped == 4999 - 8
+        assert never_read_stream.buffer
+        assert never_read_stream.buffer[0].time_stamp == 5000
+
+
+async def test_events_from_updates_and_link() -> None:
+    store = StatusStore()
+    stream = store.events()
+    store.update(st(1, nav_status=0))
+    store.update(st(2, nav_status=0))
+    store.update(st(3, nav_status=1))
+    store.link_stale(LinkStale("quiet", silent_for=1.5))
+    store.link_fresh()
+    store.connection_lost(ConnectionLost("unplugged"))
+    store.connection_lost(ConnectionLost("still down"))  # no second event
+    store.connection_restored()
+    got = [await asyncio.wait_for(anext(stream), STEP) for _ in range(5)]
+    assert [type(e) for e in got] == [
+        ev.NavigationOpened,
+        ev.LinkStale,
+        ev.LinkRestored,
+        ev.ConnectionLost,
+        ev.ConnectionRestored,
+    ]
+    stale, lost = got[1], got[3]
+    assert isinstance(stale, ev.LinkStale)
+    assert stale.silent_for == 1.5
+    assert isinstance(lost, ev.ConnectionLost)
+    assert "unplugged" in lost.reason
+    assert got[0].status is not None
+    assert got[0].status.time_stamp == 3
+    store.close()
+    with pytest.raises(StopAsyncIteration):
+        await anext(stream)
+
+
+async def test_events_with_custom_arrive_tolerance() -> None:
+    store = StatusStore(arrive_tolerance=1.0)
+    stream = store.events()
+    store.update(st(1, target_num_id=2, target_status=1, target_distance=3.0))
+    store.update(st(2, target_num_id=2, target_status=0, target_distance=0.8))
+    event = await anext(stream)
+    assert isinstance(event, ev.GoalReached)
+
+
+async def test_close_is_idempotent_and_fails_everything() -> None:
+    store = StatusStore()
+    waiter = asyncio.create_task(store.wait_until(lambda s: False))
+    await asyncio.sleep(0)
+    store.close()
+    store.close()
+    with pytest.raises(ConnectionLost):
+        await waiter
+    with pytest.raises(ConnectionLost):
+        await store.wait_until(lambda s: True)
+    with pytest.raises(StopAsyncIteration):
+        await anext(store.statuses())
+    with pytest.raises(StopAsyncIteration):
+        await anext(store.events())
+    store.update(st(1))  # a late frame after close is harmless
