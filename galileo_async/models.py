@@ -215,9 +215,30 @@ class GalileoStatus(BaseModel):
 
     @classmethod
     def trusted(cls, values: dict[str, Any]) -> GalileoStatus:
-        """Build from already-typed decoder values without re-validating them."""
-        return cls.model_construct(**values)
+        """Build from already-typed decoder values without validation; adopts ``values``.
 
+        Keys must be field names; missing fields take their defaults. When every field is
+        given the dict becomes the instance's storage, so the caller must not reuse it.
+        """
+        status = _new_status(cls)
+        fields_set = set(values)
+        if len(values) != _FIELD_COUNT:
+            values = {**_FIELD_DEFAULTS, **values}
+        # What model_construct sets, without its per-field alias and default handling
+        # (about 8x faster; the decoder calls this 30 times a second per robot).
+        _set(status, "__dict__", values)
+        _set(status, "__pydantic_fields_set__", fields_set)
+        _set(status, "__pydantic_extra__", None)
+        _set(status, "__pydantic_private__", None)
+        return status
+
+
+_new_status = object.__new__
+_set = object.__setattr__
+_FIELD_DEFAULTS: dict[str, Any] = {
+    name: field.default for name, field in GalileoStatus.model_fields.items()
+}
+_FIELD_COUNT = len(_FIELD_DEFAULTS)
 
 #: Names of the wire fields, in the order of the current (v2) struct.
 STATUS_FIELDS: tuple[str, ...] = tuple(n for n in GalileoStatus.model_fields if n != "layout")

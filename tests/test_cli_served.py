@@ -342,3 +342,15 @@ def test_teleop_sends_stop_when_interrupted(served: ServedSim) -> None:
         served.wait_for(lambda state: state.status.current_speed_x == 0.0)
     finally:
         terminal.close()
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pty")
+def test_goto_shows_live_progress_on_a_terminal() -> None:
+    terminal = Terminal([*GALILEO, "--port", "sim://?speed=4", "goto", "1"])
+    try:
+        terminal.expect(b"goto 1 \xc2\xb7")  # the live line: label · elapsed · goal state
+        terminal.expect(b"m to go")
+        terminal.expect(b"arrived at target 1")
+        assert terminal.process.wait(WAIT) == 0
+    finally:
+        terminal.close()

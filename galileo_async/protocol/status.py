@@ -42,33 +42,46 @@ class DecoderStats:
     layout: StatusLayout | None = None
 
 
+class _EnumMap(dict[int, Any]):
+    """Raw wire int → enum member; an unknown value becomes a pseudo-member, not cached."""
+
+    __slots__ = ("enum_type",)
+
+    def __init__(self, enum_type: type[enum.IntEnum]) -> None:
+        super().__init__(enum_type._value2member_map_)
+        self.enum_type = enum_type
+
+    def __missing__(self, raw: int) -> Any:
+        return self.enum_type(raw)
+
+
 class _Converter:
     """Precomputed per-layout decode path: unpack, then map enum fields."""
 
-    __slots__ = ("enums", "fields", "layout", "unpack_from")
+    __slots__ = ("enums", "fields", "layout", "name", "stamp_index", "unpack_from")
 
     def __init__(self, layout: Layout) -> None:
         self.layout = layout
+        self.name = layout.name
         self.fields = layout.fields
         self.unpack_from = layout.struct.unpack_from
-        self.enums: list[tuple[int, type[enum.IntEnum], dict[Any, Any]]] = [
-            (i, ENUM_FIELDS[f], ENUM_FIELDS[f]._value2member_map_)
-            for i, f in enumerate(layout.fields)
-            if f in ENUM_FIELDS
-        ]
+        self.enums: tuple[tuple[str, _EnumMap], ...] = tuple(
+            (f, _EnumMap(ENUM_FIELDS[f])) for f in layout.fields if f in ENUM_FIELDS
+        )
+        fields = layout.fields
+        self.stamp_index = fields.index("time_stamp") if "time_stamp" in fields else None
 
     def __call__(self, buf: bytearray, pos: int) -> dict[str, Any]:
-        values: list[Any] = list(self.unpack_from(buf, pos + _HEADER_SIZE))
-        for index, enum_type, members in self.enums:
-            raw = values[index]
-            member = members.get(raw)
-            values[index] = member if member is not None else enum_type(raw)
-        result = dict(zip(self.fields, values, strict=True))
-        result["layout"] = self.layout.name
+        result = dict(zip(self.fields, self.unpack_from(buf, pos + _HEADER_SIZE)))
+        for name, members in self.enums:
+            result[name] = members[result[name]]
+        result["layout"] = self.name
         return result
 
 
 _CONVERTERS = {name: _Converter(layout) for name, layout in LAYOUTS.items()}
+_V2 = _CONVERTERS[StatusLayout.V2]
+_V2_SIZE = LAYOUTS[StatusLayout.V2].frame_size
 
 
 class StatusDecoder:
@@ -106,6 +119,7 @@ class StatusDecoder:
         size = len(buf)
         out: list[GalileoStatus] = []
         pos = 0
+        v2_first = self._v2_first()
         while True:
             start = buf.find(HEADER, pos)
             if start < 0:
@@ -113,8 +127,22 @@ class StatusDecoder:
                 self._discard(size - keep - pos)
                 pos = size - keep
                 break
-            self._discard(start - pos)
-            pos = start
+            if start != pos:
+                self._discard(start - pos)
+                pos = start
+            end = pos + _V2_SIZE
+            # The common case, decided exactly as _frame_at would: a terminated v2 frame
+            # holding nothing that looks like a header.
+            if (
+                v2_first
+                and end <= size
+                and buf[pos + 3] == LENGTH_V2
+                and buf[end - 1] == 0
+                and buf.find(HEADER, pos + _HEADER_SIZE, end) < 0
+            ):
+                out.append(self._decode(buf, pos, _V2))
+                pos = end
+                continue
             verdict, layout = self._frame_at(buf, pos, size)
             if verdict == _NEED_MORE:
                 break
@@ -123,13 +151,20 @@ class StatusDecoder:
                 pos += len(HEADER)
                 continue
             assert layout is not None
-            out.append(self._decode(buf, pos, layout))
+            out.append(self._decode(buf, pos, _CONVERTERS[layout.name]))
             pos += layout.frame_size
+            v2_first = self._v2_first()
         del buf[:pos]
         if len(buf) > MAX_BUFFER:  # unreachable with valid lengths; kept as a hard bound
             self._discard(len(buf) - MAX_BUFFER)
             del buf[: len(buf) - MAX_BUFFER]
         return out
+
+    def _v2_first(self) -> bool:
+        """Whether _frame_at would try the v2 layout first for a 0x55 length byte."""
+        if self._pinned is not None:
+            return self._pinned is StatusLayout.V2
+        return self._detected is not StatusLayout.V2_TRUNCATED
 
     def _discard(self, count: int) -> None:
         if count <= 0:
@@ -203,24 +238,25 @@ class StatusDecoder:
     def _trusted(self) -> bool:
         return self._pinned is not None or self._run >= TRUST_AFTER
 
-    def _decode(self, buf: bytearray, pos: int, layout: Layout) -> GalileoStatus:
-        values = _CONVERTERS[layout.name](buf, pos)
+    def _decode(self, buf: bytearray, pos: int, converter: _Converter) -> GalileoStatus:
+        values = converter(buf, pos)
         stats = self.stats
         stats.frames += 1
         self._in_sync = True
-        if self._detected is not layout.name:
-            self._detected = layout.name
-            stats.layout = layout.name
+        name = converter.name
+        if self._detected is not name:
+            self._detected = name
+            stats.layout = name
             self._run = 0
         self._run += 1
-        time_stamp = values.get("time_stamp")
-        if time_stamp is not None:
+        if converter.stamp_index is not None:
+            time_stamp = values["time_stamp"]
             last = self._last_time_stamp
             if last is not None:
                 gap = time_stamp - last - 1
                 if 0 < gap <= MAX_COUNTED_GAP:
                     stats.lost_frames += gap
-                elif gap < 0 or gap > MAX_COUNTED_GAP:
+                elif gap:
                     stats.counter_resets += 1
             self._last_time_stamp = time_stamp
         return GalileoStatus.trusted(values)

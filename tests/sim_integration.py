@@ -1,0 +1,149 @@
+"""A real Robot connected to a real Simulator over TCP loopback or a pty: the shared harness.
+
+The integration tests (``test_integration_*.py``) run every operation against this pair.
+Their matrix is ``MODES``: the 8 (firmware, layout) pairs, each served over one transport
+so that every layout and every firmware mode is seen over both TCP and the pty::
+
+    firmware  layout        transport
+    real      v2            tcp
+    real      v2_truncated  pty
+    real      v1            tcp
+    real      v1_charge     pty
+    document  v2            pty
+    document  v2_truncated  tcp
+    document  v1            pty
+    document  v1_charge     tcp
+
+Every operation test runs over all 8 pairs (16 → 8 by pairing the transport with the
+layout and firmware instead of crossing it), and asserts what the pair can show: the
+effect in the robot's status where the layout has the field, else the documented
+``UnconfirmedOperation`` or None, with the simulator's own state as the witness that the
+command did reach the robot. The simulator runs ``SPEED`` times faster than real time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
+from typing import Any
+
+import pytest
+
+import galileo_async as galileo
+from galileo_async.models import GalileoStatus, StatusLayout
+from galileo_async.protocol import LAYOUTS
+from galileo_async.sim import SimState, Simulator
+
+__all__ = [
+    "MAP_TARGETS",
+    "MODES",
+    "SPEED",
+    "TARGETS",
+    "WAIT",
+    "Mode",
+    "modes",
+    "robot_on_sim",
+    "sim_reaches",
+    "sim_seconds",
+]
+
+#: Simulated seconds per real second.
+SPEED = 40.0
+#: Bound, in real seconds, on every wait that is expected to succeed.
+WAIT = 10.0
+#: The map: a target 1.5 m straight ahead, one 30 m ahead (a long trip to interrupt), and
+#: one 2 m to the right (the robot turns first).
+TARGETS: tuple[tuple[float, float], ...] = ((1.5, 0.0), (30.0, 0.0), (0.0, -2.0))
+NEAR, FAR, RIGHT = 0, 1, 2
+MAP_TARGETS = len(TARGETS)
+#: A goal id the map does not have.
+INVALID_ID = 77
+
+
+def sim_seconds(seconds: float) -> float:
+    """Real seconds that ``seconds`` of simulated time take."""
+    return seconds / SPEED
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One cell of the matrix: firmware mode, status layout and transport."""
+
+    firmware: str
+    layout: StatusLayout
+    transport: str
+
+    @property
+    def id(self) -> str:
+        """pytest id."""
+        return f"{self.firmware}-{self.layout.value}-{self.transport}"
+
+    @property
+    def real(self) -> bool:
+        """True for the published firmware's behaviour."""
+        return self.firmware == "real"
+
+    def has(self, field: str) -> bool:
+        """Whether this layout's frames carry ``field``."""
+        return field in LAYOUTS[self.layout].fields
+
+
+MODES: tuple[Mode, ...] = (
+    Mode("real", StatusLayout.V2, "tcp"),
+    Mode("real", StatusLayout.V2_TRUNCATED, "pty"),
+    Mode("real", StatusLayout.V1, "tcp"),
+    Mode("real", StatusLayout.V1_CHARGE, "pty"),
+    Mode("document", StatusLayout.V2, "pty"),
+    Mode("document", StatusLayout.V2_TRUNCATED, "tcp"),
+    Mode("document", StatusLayout.V1, "pty"),
+    Mode("document", StatusLayout.V1_CHARGE, "tcp"),
+)
+
+
+def modes(where: Callable[[Mode], bool] = lambda mode: True) -> Any:
+    """``pytest.mark.parametrize`` over the MODES for which ``where`` holds."""
+    chosen = [pytest.param(mode, id=mode.id) for mode in MODES if where(mode)]
+    return pytest.mark.parametrize("mode", chosen)
+
+
+@contextlib.asynccontextmanager
+async def robot_on_sim(
+    mode: Mode,
+    *,
+    navigate: bool = True,
+    robot_options: dict[str, Any] | None = None,
+    **sim_options: Any,
+) -> AsyncIterator[tuple[Simulator, galileo.Robot]]:
+    """A Simulator served over ``mode.transport`` and a Robot connected to it by URL.
+
+    With ``navigate`` the robot has navigation open and the visual system initialised.
+    """
+    options: dict[str, Any] = {"speed": SPEED, "targets": TARGETS, **sim_options}
+    async with Simulator(layout=mode.layout, firmware=mode.firmware, **options) as sim:
+        if mode.transport == "tcp":
+            server = await sim.serve_tcp()
+            url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        else:
+            url = sim.open_pty()
+        connect_options: dict[str, Any] = {"map_targets": MAP_TARGETS, **(robot_options or {})}
+        async with galileo.connect(url, **connect_options) as robot:
+            # Auto-detection must find the simulator's layout (PROTOCOL.md §1).
+            assert robot.link.layout is mode.layout
+            if navigate:
+                await robot.start_navigation(timeout=WAIT)
+            yield sim, robot
+
+
+async def sim_reaches(
+    robot: galileo.Robot, sim: Simulator, predicate: Callable[[SimState], bool]
+) -> GalileoStatus:
+    """Wait, frame by frame, until ``predicate`` holds for the simulator's own state."""
+    state = sim.state
+    return await robot.wait_until(lambda _status: predicate(state), timeout=WAIT)
+
+
+def near(value: float | None, expected: float, tolerance: float = 1e-3) -> bool:
+    """``value`` is a number within ``tolerance`` of ``expected``."""
+    return value is not None and math.isclose(value, expected, abs_tol=tolerance)
