@@ -33,17 +33,23 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.models import GalileoStatus, StatusLayout
-from galileo_async.protocol import LAYOUTS
+from galileo_async.protocol import LAYOUTS, Command
 from galileo_async.sim import SimState, Simulator
 
 __all__ = [
+    "FAR",
+    "INVALID_ID",
     "MAP_TARGETS",
     "MODES",
+    "NEAR",
+    "RIGHT",
     "SPEED",
     "TARGETS",
     "WAIT",
     "Mode",
     "modes",
+    "near",
+    "record_commands",
     "robot_on_sim",
     "sim_reaches",
     "sim_seconds",
@@ -147,3 +153,17 @@ async def sim_reaches(
 def near(value: float | None, expected: float, tolerance: float = 1e-3) -> bool:
     """``value`` is a number within ``tolerance`` of ``expected``."""
     return value is not None and math.isclose(value, expected, abs_tol=tolerance)
+
+
+def record_commands(sim: Simulator) -> list[tuple[Command, bool]]:
+    """Log every command the simulated robot receives, with whether it was busy then."""
+    log: list[tuple[Command, bool]] = []
+    model = sim.model
+    submit = model.submit
+
+    def recording(command: Command) -> None:
+        log.append((command, model.busy))
+        submit(command)
+
+    model.submit = recording  # type: ignore[method-assign]
+    return log

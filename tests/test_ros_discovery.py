@@ -85,3 +85,50 @@ def test_parse_announcement_fields() -> None:
     assert parse_announcement(b'{"id": "x"}', "::1") == DiscoveredRobot("x", "::1", 11311)
     assert DiscoveredRobot("x", "fe80::1", 11311).url == "ros://[fe80::1]:11311"
     assert parse_announcement(b"x" * 5000, "h") is None
+
+
+def test_cli_discover_lists_the_robot_with_its_url(udp_port: int) -> None:
+    import threading
+
+    from typer.testing import CliRunner
+
+    from galileo_async.cli import app
+
+    stop = threading.Event()
+
+    def announce() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            while not stop.wait(0.02):
+                sock.sendto(json.dumps(ANNOUNCEMENT).encode(), ("127.0.0.1", udp_port))
+
+    sender = threading.Thread(target=announce, daemon=True)
+    sender.start()
+    try:
+        args = ["discover", "--bind", "127.0.0.1", "--udp-port", str(udp_port), "-t", "0.3"]
+        result = CliRunner().invoke(app, [*args, "--json"])
+        plain = CliRunner().invoke(app, args)
+    finally:
+        stop.set()
+        sender.join(timeout=5)
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout) == [
+        {
+            "id": "galileo-7",
+            "url": "ros://127.0.0.1:11311",
+            "mac": ANNOUNCEMENT["mac"],
+            "version": "5.1",
+        }
+    ]
+    assert plain.exit_code == 0
+    assert "ros://127.0.0.1:11311" in plain.stdout
+
+
+def test_cli_discover_says_when_nothing_is_heard(udp_port: int) -> None:
+    from typer.testing import CliRunner
+
+    from galileo_async.cli import app
+
+    args = ["discover", "--bind", "127.0.0.1", "--udp-port", str(udp_port), "-t", "0.1"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0
+    assert "no robot announced itself" in result.stderr

@@ -108,6 +108,7 @@ app.command("send", context_settings=_NUMBERS)(ops.send)
 app.command("decode")(capture.decode)
 app.command("record")(capture.record)
 app.command("ports")(serve.ports)
+app.command("discover")(serve.discover)
 app.command("sim")(serve.sim)
 app.command("demo")(demo.demo)
 

@@ -1,4 +1,4 @@
-"""``galileo sim`` (serve the simulator over TCP or a pty) and ``galileo ports``."""
+"""``galileo sim`` (serve the simulator), ``galileo ports`` and ``galileo discover``."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from ..errors import InvalidArgument
 from .capture import stop_requested
 from .runner import ExitCode, err_console, fail, out_console, run, settings_of
 
-__all__ = ["ports", "sim"]
+__all__ = ["discover", "ports", "sim"]
 
 #: Where ``galileo sim`` listens by default: loopback only.
 DEFAULT_TCP = "127.0.0.1:7000"
@@ -103,3 +103,35 @@ def ports(
     for row in rows:
         table.add_row(row["device"], row["description"], row["hwid"])
     out_console().print(table)
+
+
+def discover(
+    ctx: typer.Context,
+    timeout: Annotated[float, typer.Option("--timeout", "-t", help="Seconds to listen.")] = 1.5,
+    port: Annotated[int, typer.Option("--udp-port", help="UDP port robots announce on.")] = 22002,
+    bind: Annotated[str, typer.Option("--bind", help="Local address to listen on.")] = "",
+    json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
+) -> None:
+    """List robots announcing themselves on the LAN, with the ros:// URL to use."""
+    from ..discovery import discover as listen
+
+    settings = settings_of(ctx)
+
+    async def main() -> int:
+        robots = await listen(timeout, bind=bind, port=port)
+        rows = [{"id": r.id, "url": r.url, "mac": r.mac, "version": r.version} for r in robots]
+        if settings.json or json_output:
+            out_console().print(json.dumps(rows), markup=False)
+            return int(ExitCode.OK)
+        if not rows:
+            err_console().print(f"no robot announced itself on UDP {port} within {timeout} s")
+            return int(ExitCode.OK)
+        from rich.table import Table
+
+        table = Table("id", "url", "mac", "version", box=None)
+        for row in rows:
+            table.add_row(*(str(row[key] or "-") for key in ("id", "url", "mac", "version")))
+        out_console().print(table)
+        return int(ExitCode.OK)
+
+    run(settings, main)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,6 +14,7 @@ __all__ = [
     "MAX_BUFFER",
     "MAX_COUNTED_GAP",
     "DecoderStats",
+    "RawFrame",
     "StatusDecoder",
     "encode_status",
 ]
@@ -24,6 +26,11 @@ MAX_COUNTED_GAP = 30 * 60
 #: Frames of an unpinned unterminated layout seen in a row before one is accepted without
 #: waiting for the next header: a single frame that lost its tail must not establish it.
 TRUST_AFTER = 3
+
+#: Raw field values of one frame, in the layout's wire order (ints and floats).
+Values = tuple[Any, ...]
+#: One frame as StatusDecoder.feed_raw returns it: its layout and its raw field values.
+RawFrame = tuple[StatusLayout, Values]
 
 _VALID_LENGTHS = frozenset((LENGTH_V1, LENGTH_V2))
 _ACCEPT, _REJECT, _NEED_MORE = 0, 1, 2
@@ -56,27 +63,30 @@ class _EnumMap(dict[int, Any]):
 
 
 class _Converter:
-    """Precomputed per-layout decode path: unpack, then map enum fields."""
+    """Precomputed per-layout decode path: unpack, map enum fields, build the field dict."""
 
-    __slots__ = ("enums", "fields", "layout", "name", "stamp_index", "unpack_from")
+    __slots__ = ("convert", "fields", "layout", "name", "stamp_index", "unpack_from")
 
     def __init__(self, layout: Layout) -> None:
         self.layout = layout
         self.name = layout.name
-        self.fields = layout.fields
+        self.fields = fields = layout.fields
         self.unpack_from = layout.struct.unpack_from
-        self.enums: tuple[tuple[str, _EnumMap], ...] = tuple(
-            (f, _EnumMap(ENUM_FIELDS[f])) for f in layout.fields if f in ENUM_FIELDS
-        )
-        fields = layout.fields
         self.stamp_index = fields.index("time_stamp") if "time_stamp" in fields else None
-
-    def __call__(self, buf: bytearray, pos: int) -> dict[str, Any]:
-        result = dict(zip(self.fields, self.unpack_from(buf, pos + _HEADER_SIZE)))
-        for name, members in self.enums:
-            result[name] = members[result[name]]
-        result["layout"] = self.name
-        return result
+        # One dict display per layout, generated like dataclasses generates __init__: it
+        # builds the 22-entry dict about twice as fast as dict(zip(...)) plus fix-ups.
+        namespace: dict[str, Any] = {"layout": layout.name}
+        items = []
+        for index, field in enumerate(fields):
+            if field in ENUM_FIELDS:
+                namespace[f"map_{field}"] = _EnumMap(ENUM_FIELDS[field])
+                items.append(f"{field!r}: map_{field}[values[{index}]]")
+            else:
+                items.append(f"{field!r}: values[{index}]")
+        body = ", ".join(items)
+        source = f"def convert(values):\n    return {{{body}, 'layout': layout}}\n"
+        exec(source, namespace)
+        self.convert: Callable[[tuple[Any, ...]], dict[str, Any]] = namespace["convert"]
 
 
 _CONVERTERS = {name: _Converter(layout) for name, layout in LAYOUTS.items()}
@@ -114,13 +124,21 @@ class StatusDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
+        trusted = GalileoStatus.trusted
+        return [trusted(converter.convert(values)) for converter, values in self._frames(data)]
+
+    def feed_raw(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
+        """Like feed, but return (layout, raw field values in wire order) per frame."""
+        return [(converter.name, values) for converter, values in self._frames(data)]
+
+    def _frames(self, data: bytes | bytearray | memoryview) -> list[tuple[_Converter, Values]]:
         buf = self._buffer
         buf += data
         size = len(buf)
-        out: list[GalileoStatus] = []
+        out: list[tuple[_Converter, Values]] = []
         pos = 0
         v2_first = self._v2_first()
-        while True:
+        while pos < size:
             start = buf.find(HEADER, pos)
             if start < 0:
                 keep = _header_prefix_length(buf, max(pos, size - 2), size)
@@ -140,25 +158,51 @@ class StatusDecoder:
                 and buf[end - 1] == 0
                 and buf.find(HEADER, pos + _HEADER_SIZE, end) < 0
             ):
-                out.append(self._decode(buf, pos, _V2))
-                pos = end
-                continue
-            verdict, layout = self._frame_at(buf, pos, size)
-            if verdict == _NEED_MORE:
-                break
-            if verdict == _REJECT:
-                self._discard(len(HEADER))
-                pos += len(HEADER)
-                continue
-            assert layout is not None
-            out.append(self._decode(buf, pos, _CONVERTERS[layout.name]))
-            pos += layout.frame_size
-            v2_first = self._v2_first()
+                converter = _V2
+            else:
+                verdict, layout = self._frame_at(buf, pos, size)
+                if verdict == _NEED_MORE:
+                    break
+                if verdict == _REJECT:
+                    self._discard(len(HEADER))
+                    pos += len(HEADER)
+                    continue
+                assert layout is not None
+                converter = _CONVERTERS[layout.name]
+                end = pos + layout.frame_size
+            values = converter.unpack_from(buf, pos + _HEADER_SIZE)
+            out.append((converter, values))
+            self._count(converter, values)
+            if converter is not _V2:
+                v2_first = self._v2_first()
+            pos = end
         del buf[:pos]
         if len(buf) > MAX_BUFFER:  # unreachable with valid lengths; kept as a hard bound
             self._discard(len(buf) - MAX_BUFFER)
             del buf[: len(buf) - MAX_BUFFER]
         return out
+
+    def _count(self, converter: _Converter, values: Values) -> None:
+        """Account for one accepted frame: layout run and time_stamp gaps."""
+        stats = self.stats
+        stats.frames += 1
+        self._in_sync = True
+        name = converter.name
+        if self._detected is not name:
+            self._detected = name
+            stats.layout = name
+            self._run = 0
+        self._run += 1
+        if converter.stamp_index is not None:
+            time_stamp = values[converter.stamp_index]
+            last = self._last_time_stamp
+            if last is not None:
+                gap = time_stamp - last - 1
+                if 0 < gap <= MAX_COUNTED_GAP:
+                    stats.lost_frames += gap
+                elif gap:
+                    stats.counter_resets += 1
+            self._last_time_stamp = time_stamp
 
     def _v2_first(self) -> bool:
         """Whether _frame_at would try the v2 layout first for a 0x55 length byte."""
@@ -237,29 +281,6 @@ class StatusDecoder:
 
     def _trusted(self) -> bool:
         return self._pinned is not None or self._run >= TRUST_AFTER
-
-    def _decode(self, buf: bytearray, pos: int, converter: _Converter) -> GalileoStatus:
-        values = converter(buf, pos)
-        stats = self.stats
-        stats.frames += 1
-        self._in_sync = True
-        name = converter.name
-        if self._detected is not name:
-            self._detected = name
-            stats.layout = name
-            self._run = 0
-        self._run += 1
-        if converter.stamp_index is not None:
-            time_stamp = values["time_stamp"]
-            last = self._last_time_stamp
-            if last is not None:
-                gap = time_stamp - last - 1
-                if 0 < gap <= MAX_COUNTED_GAP:
-                    stats.lost_frames += gap
-                elif gap:
-                    stats.counter_resets += 1
-            self._last_time_stamp = time_stamp
-        return GalileoStatus.trusted(values)
 
 
 def _header_prefix_length(buf: bytearray, start: int, end: int) -> int:
