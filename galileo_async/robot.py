@@ -354,6 +354,10 @@ class Connection:
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
         )
         link = open_link(self.url, store, **options)
+        simulator = getattr(link, "simulator", None)
+        if simulator is not None and "map_targets" not in robot_options:
+            # An in-process simulator knows its map: sim:// needs no map_targets option.
+            robot_options["map_targets"] = len(simulator.config.targets)
         try:
             robot = Robot(link, store, **robot_options)
         except BaseException:

@@ -386,3 +386,12 @@ async def test_shutdown_host_needs_confirm() -> None:
         await nothing_was_sent_before_marker(robot, fake)
         await robot.shutdown_host(confirm=True)
         await fake.command(ShutdownHost)
+
+
+async def test_sim_url_knows_its_map_targets() -> None:
+    import galileo_async as galileo
+
+    async with galileo.connect("sim://?speed=20&targets=0,0;1,0;2,0") as robot:
+        assert robot.map_targets == 3
+    async with galileo.connect("sim://?speed=20", map_targets=9) as robot:
+        assert robot.map_targets == 9

@@ -1,0 +1,56 @@
+"""The public surface is a contract: pin it, and check every name resolves."""
+
+from __future__ import annotations
+
+import inspect
+
+import galileo_async as galileo
+
+PUBLIC = {
+    "AcceptTimeout", "AngleGoalStatus", "ChargeStatus", "Connection", "ConnectionLost",
+    "DiscoveredRobot", "GalileoConnectionError", "GalileoError", "GalileoStatus",
+    "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",
+    "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
+    "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
+    "UnconfirmedOperation", "VisualStatus", "__version__", "connect", "discover", "errors",
+    "protocol",
+}  # fmt: skip
+
+#: DESIGN.md's Robot contract: these names are kept.
+ROBOT_COROUTINES = {
+    "start_navigation", "stop_navigation", "goto", "goto_point", "add_target",
+    "reset_targets", "pause", "resume", "cancel", "rotate_to", "forward", "backward",
+    "turn_left", "turn_right", "stop", "start_patrol", "stop_patrol", "set_patrol_dwell",
+    "start_mapping", "stop_mapping", "save_map", "update_map", "start_charging",
+    "stop_charging", "save_dock", "shutdown_host", "send", "wait_until", "close",
+}  # fmt: skip
+
+
+def test_all_is_pinned() -> None:
+    assert set(galileo.__all__) == PUBLIC
+    assert len(galileo.__all__) == len(PUBLIC)
+
+
+def test_every_public_name_resolves() -> None:
+    for name in galileo.__all__:
+        assert getattr(galileo, name) is not None, name
+
+
+def test_robot_keeps_the_design_contract() -> None:
+    robot = galileo.Robot
+    for name in ROBOT_COROUTINES:
+        assert inspect.iscoroutinefunction(getattr(robot, name)), name
+    for name in ("statuses", "events"):
+        assert callable(getattr(robot, name)), name
+    for name in ("status", "link"):
+        assert isinstance(inspect.getattr_static(robot, name), property), name
+
+
+def test_errors_are_grouped_under_one_root() -> None:
+    for name in galileo.errors.__all__:
+        error = getattr(galileo.errors, name)
+        assert issubclass(error, galileo.GalileoError), name
+    assert issubclass(galileo.InvalidArgument, ValueError)
+    assert issubclass(galileo.GalileoTimeout, TimeoutError)
+    assert issubclass(galileo.AcceptTimeout, TimeoutError)
+    assert issubclass(galileo.GalileoConnectionError, ConnectionError)
