@@ -37,11 +37,13 @@ class GoalResult:
 class GoalHandle:
     """One running ``goto`` of a Robot; a newer goal of the same Robot preempts it."""
 
-    __slots__ = ("preempted", "target_id")
+    __slots__ = ("cancelled", "preempted", "target_id")
 
     def __init__(self, target_id: int) -> None:
         self.target_id = target_id
         self.preempted = False
+        #: Robot.cancel() was called while this goal ran.
+        self.cancelled = False
 
     def check(self, status: GalileoStatus | None) -> None:
         """Raise GoalCancelled(preempted=True) once a newer goal of this Robot was started."""
@@ -129,8 +131,9 @@ class GoalTracker:
     def _track(self, status: GalileoStatus) -> bool:
         state = status.target_status
         ours = status.target_num_id == self.target_id
-        if self._restarting and not (ours and status.goal_active):
-            # The first end seen is the restart's own cancel, not the end of the new goal.
+        if self._restarting and not (ours and (status.goal_active or self._near(status))):
+            # The first end seen is the restart's own cancel, not the end of the new goal;
+            # free at the target is an arrival either way (the restart may show no cancel).
             self._restarting = False
             self.accepted = False
             return self._accept(status)
@@ -175,6 +178,14 @@ class GoalTracker:
     def settle(self) -> None:
         """Stop treating the first end as a restart's cancel (the restart window is over)."""
         self._restarting = False
+
+    def _near(self, status: GalileoStatus) -> bool:
+        distance = status.target_distance
+        return (
+            status.target_status == TargetStatus.FREE
+            and distance is not None
+            and 0 <= distance <= self.arrive_tolerance
+        )
 
     def _note_distance(self, status: GalileoStatus) -> None:
         distance = status.target_distance
@@ -225,7 +236,7 @@ async def run_goal(
                     ) from None
                 handle.check(status)
                 was_accepted = tracker.accepted
-                if tracker.feed(status):
+                if _feed(tracker, handle, status):
                     _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
                     return GoalResult(target_id, tracker.distance, loop.time() - sent_at, status)
                 if tracker.accepted and not was_accepted:
@@ -237,6 +248,22 @@ async def run_goal(
                 _log.info("goal %d left before its end: sending cancel", target_id)
                 await ops.send_cancel_shielded()
             raise
+
+
+def _feed(tracker: GoalTracker, handle: GoalHandle, status: GalileoStatus) -> bool:
+    """tracker.feed, where an end after Robot.cancel() is a cancel, not a planner abort."""
+    try:
+        return tracker.feed(status)
+    except GoalAborted:
+        if not handle.cancelled:
+            raise
+        # The document's cancel leaves target_num_id alone (only real firmware sets -1,
+        # PROTOCOL.md §2.c): free far from the target is then our own cancel.
+        raise GoalCancelled(
+            f"goal {handle.target_id} was cancelled",
+            target_id=handle.target_id,
+            status=status,
+        ) from None
 
 
 def _timeout(

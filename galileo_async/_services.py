@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from ._goal import GoalHandle
 from ._operations import DEFAULT_TIMEOUT, ROTATE_TIMEOUT, Deadline, Operations, check_timeout
 from .errors import (
     GalileoConnectionError,
@@ -49,6 +50,7 @@ class RobotServices:
 
     _ops: Operations
     _closed: bool
+    _goal: GoalHandle | None
 
     # --- goal control ---------------------------------------------------------------
 
@@ -64,6 +66,8 @@ class RobotServices:
         """Cancel the goal (sent at once, even while busy); return once no goal is active."""
         check_timeout("timeout", timeout)
         self._ensure_open()
+        if self._goal is not None:
+            self._goal.cancelled = True  # its end is then reported as cancelled
         await self._ops.link.send(Cancel())
         try:
             await self._ops.store.wait_until(lambda s: not s.goal_active, timeout=timeout)

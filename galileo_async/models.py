@@ -227,14 +227,18 @@ class GalileoStatus(BaseModel):
         # What model_construct sets, without its per-field alias and default handling
         # (about 8x faster; the decoder calls this 30 times a second per robot).
         _set(status, "__dict__", values)
-        _set(status, "__pydantic_fields_set__", fields_set)
-        _set(status, "__pydantic_extra__", None)
-        _set(status, "__pydantic_private__", None)
+        _set_fields_set(status, fields_set)
+        _set_extra(status, None)
+        _set_private(status, None)
         return status
 
 
 _new_status = object.__new__
 _set = object.__setattr__
+# BaseModel keeps these in __slots__: their descriptors set them a little faster.
+_set_fields_set = vars(BaseModel)["__pydantic_fields_set__"].__set__
+_set_extra = vars(BaseModel)["__pydantic_extra__"].__set__
+_set_private = vars(BaseModel)["__pydantic_private__"].__set__
 _FIELD_DEFAULTS: dict[str, Any] = {
     name: field.default for name, field in GalileoStatus.model_fields.items()
 }

@@ -23,12 +23,15 @@ command did reach the robot. The simulator runs ``SPEED`` times faster than real
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
+import sys
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Any
 
+import anyio
 import pytest
 
 import galileo_async as galileo
@@ -53,10 +56,11 @@ __all__ = [
     "robot_on_sim",
     "sim_reaches",
     "sim_seconds",
+    "time_limit",
 ]
 
 #: Simulated seconds per real second.
-SPEED = 40.0
+SPEED = 80.0
 #: Bound, in real seconds, on every wait that is expected to succeed.
 WAIT = 10.0
 #: The map: a target 1.5 m straight ahead, one 30 m ahead (a long trip to interrupt), and
@@ -108,7 +112,7 @@ MODES: tuple[Mode, ...] = (
 )
 
 
-def modes(where: Callable[[Mode], bool] = lambda mode: True) -> Any:
+def modes(where: Callable[[Mode], bool] = lambda mode: True) -> pytest.MarkDecorator:
     """``pytest.mark.parametrize`` over the MODES for which ``where`` holds."""
     chosen = [pytest.param(mode, id=mode.id) for mode in MODES if where(mode)]
     return pytest.mark.parametrize("mode", chosen)
@@ -153,6 +157,19 @@ async def sim_reaches(
 def near(value: float | None, expected: float, tolerance: float = 1e-3) -> bool:
     """``value`` is a number within ``tolerance`` of ``expected``."""
     return value is not None and math.isclose(value, expected, abs_tol=tolerance)
+
+
+def time_limit(seconds: float) -> contextlib.AbstractAsyncContextManager[object]:
+    """``asyncio.timeout`` (Python 3.11+), else the same behaviour from anyio."""
+    if sys.version_info >= (3, 11):
+        return asyncio.timeout(seconds)
+    return _anyio_time_limit(seconds)
+
+
+@contextlib.asynccontextmanager
+async def _anyio_time_limit(seconds: float) -> AsyncIterator[None]:
+    with anyio.fail_after(seconds):
+        yield
 
 
 def record_commands(sim: Simulator) -> list[tuple[Command, bool]]:

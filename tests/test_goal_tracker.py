@@ -54,3 +54,21 @@ def test_tracker_navigation_closing_before_acceptance_cancels() -> None:
     tracker.feed(status(target_num_id=-1))  # stale
     with pytest.raises(GoalCancelled, match="navigation"):
         tracker.feed(status(nav_status=0, visual_status=-1, target_num_id=-1))
+
+
+def test_tracker_restart_that_arrives_without_a_cancel_frame_is_an_arrival() -> None:
+    # Re-sending the running goal: the firmware's restart may show no cancelled frame,
+    # and a goal near its target then simply arrives.
+    before = status(target_num_id=3, target_status=1, target_distance=0.6)
+    tracker = GoalTracker(3, before=before, arrive_tolerance=0.3)
+    assert not tracker.feed(status(target_num_id=3, target_status=1, target_distance=0.4))
+    assert tracker.feed(status(target_num_id=3, target_status=0, target_distance=0.0))
+
+
+def test_tracker_restart_cancel_frame_far_from_the_target_is_not_an_end() -> None:
+    before = status(target_num_id=3, target_status=1, target_distance=5.0)
+    tracker = GoalTracker(3, before=before, arrive_tolerance=0.3)
+    tracker.feed(status(target_num_id=3, target_status=1, target_distance=5.0))  # stale
+    assert not tracker.feed(status(target_num_id=3, target_status=0, target_distance=5.0))
+    assert not tracker.feed(status(target_num_id=3, target_status=1, target_distance=4.9))
+    assert tracker.feed(status(target_num_id=3, target_status=0, target_distance=0.0))

@@ -23,6 +23,7 @@ from sim_integration import (
     robot_on_sim,
     sim_reaches,
     sim_seconds,
+    time_limit,
 )
 
 import galileo_async as galileo
@@ -44,6 +45,10 @@ async def _working(robot: galileo.Robot, target_id: int) -> None:
         lambda s: s.target_num_id == target_id and s.target_status == TargetStatus.WORKING,
         timeout=WAIT,
     )
+
+
+def _target_status(robot: galileo.Robot) -> TargetStatus | None:
+    return None if robot.status is None else robot.status.target_status
 
 
 def _no_goal(state: SimState) -> bool:
@@ -72,12 +77,24 @@ async def test_goto_arrives(mode: Mode) -> None:
         assert _at(sim, TARGETS[RIGHT])
 
 
+@modes()
+async def test_goto_the_goal_that_is_already_running(mode: Mode) -> None:
+    async with robot_on_sim(mode) as (sim, robot):
+        await robot.send(Goto(NEAR))  # e.g. from another host: the robot is on its way
+        await _working(robot, NEAR)
+        # The firmware restarts it; the restart's arrival is ours.
+        result = await robot.goto(NEAR, timeout=WAIT)
+        assert (result.target_id, result.distance) == (NEAR, 0.0)
+        assert _at(sim, TARGETS[NEAR])
+
+
 @modes(lambda mode: mode.real)
 async def test_goto_invalid_id_on_real_firmware(mode: Mode) -> None:
     async with robot_on_sim(mode) as (sim, robot):
         # A fresh robot already shows -1 (the firmware default), so a rejection, also
         # reported as -1 with the id unchanged, shows no change at all (PROTOCOL.md §2.b).
-        assert robot.status is not None and robot.status.target_status == TargetStatus.INVALID
+        assert robot.status is not None
+        assert robot.status.target_status == TargetStatus.INVALID
         with pytest.raises(AcceptTimeout, match="real firmware reports errors as -1"):
             await robot.goto(INVALID_ID, accept_timeout=sim_seconds(10))
         assert sim.state.status.target_num_id == -1
@@ -89,6 +106,7 @@ async def test_goto_invalid_id_on_real_firmware(mode: Mode) -> None:
         assert caught.value.status.target_status == TargetStatus.INVALID
         assert caught.value.status.target_num_id == NEAR  # not updated by the firmware
         assert _at(sim, TARGETS[NEAR])  # the robot stayed
+        await _invalid_goal_ends_the_running_one(robot, sim)
 
 
 @modes(lambda mode: not mode.real)
@@ -103,6 +121,23 @@ async def test_goto_invalid_id_on_document_firmware(mode: Mode) -> None:
         # After an error the next goal works.
         result = await robot.goto(NEAR, timeout=WAIT)
         assert result.target_id == NEAR
+        await _invalid_goal_ends_the_running_one(robot, sim)
+
+
+async def _invalid_goal_ends_the_running_one(robot: galileo.Robot, sim: Simulator) -> None:
+    """An invalid id cancels the running goal first (PROTOCOL.md §2.b), then fails."""
+    running = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
+    try:
+        await _working(robot, FAR)
+        with pytest.raises(GoalRejected):
+            await robot.goto(INVALID_ID, timeout=WAIT)
+        with pytest.raises(GoalCancelled):
+            await asyncio.wait_for(running, WAIT)
+    finally:
+        running.cancel()
+    status = sim.state.status
+    assert status.goal_failed  # the robot stands, showing the error
+    assert status.control_speed_x == 0.0
 
 
 @modes()
@@ -141,7 +176,8 @@ async def test_goto_point_nudges_a_header_inside_a_float(mode: Mode) -> None:
         result = await robot.goto_point(x, 0.0, timeout=WAIT)
         assert result.target_id == MAP_TARGETS
         sent_x = sim.state.targets[MAP_TARGETS][0]
-        assert sent_x != x and math.isclose(sent_x, x, rel_tol=1e-6)
+        assert sent_x != x
+        assert math.isclose(sent_x, x, rel_tol=1e-6)
         assert near(sim.state.pose.x, sent_x)
         assert [type(command).__name__ for command, _ in log] == [
             "ResetTargets", "AddTarget", "Goto",
@@ -157,7 +193,7 @@ async def test_pause_resume_cancel(mode: Mode) -> None:
         try:
             await _working(robot, FAR)
             await robot.pause()
-            assert robot.status is not None and robot.status.target_status == TargetStatus.PAUSED
+            assert _target_status(robot) == TargetStatus.PAUSED
             assert sim.state.status.control_speed_x == 0.0
             paused_at, since = sim.state.pose.x, sim.state.time
             await sim_reaches(robot, sim, lambda s: s.time > since + 2.0)
@@ -165,7 +201,7 @@ async def test_pause_resume_cancel(mode: Mode) -> None:
             assert not goal.done()  # paused is not an end
 
             await robot.resume()
-            assert robot.status is not None and robot.status.target_status == TargetStatus.WORKING
+            assert _target_status(robot) == TargetStatus.WORKING
             await sim_reaches(robot, sim, lambda s: s.pose.x > paused_at + 0.1)
 
             await robot.cancel()
@@ -213,11 +249,11 @@ async def test_a_second_goto_preempts_the_first(mode: Mode) -> None:
 async def test_leaving_a_goto_early_stops_the_robot(mode: Mode) -> None:
     async with robot_on_sim(mode) as (sim, robot):
         with pytest.raises(TimeoutError):
-            async with asyncio.timeout(sim_seconds(5)):
+            async with time_limit(sim_seconds(5)):
                 await robot.goto(FAR)
         # Cancel (i 2) was written before the exception left goto.
         await sim_reaches(robot, sim, _no_goal)
-        assert 0.0 < sim.state.pose.x < TARGETS[FAR][0] / 2
+        assert 0.0 < sim.state.pose.x < TARGETS[FAR][0] / 2  # stopped on the way
 
         with pytest.raises(TimeoutError):
             with anyio.fail_after(sim_seconds(5)):
@@ -229,9 +265,9 @@ async def test_leaving_a_goto_early_stops_the_robot(mode: Mode) -> None:
         await sim_reaches(robot, sim, _no_goal)
 
         with pytest.raises(TimeoutError):
-            async with asyncio.timeout(sim_seconds(5)):
+            async with time_limit(sim_seconds(5)):
                 await robot.goto(FAR, cancel_on_exit=False)
-        await sim_reaches(robot, sim, lambda s: s.status.current_speed_x > 0.0)
+        await sim_reaches(robot, sim, lambda s: (s.status.current_speed_x or 0.0) > 0.0)
         assert sim.state.status.target_status == TargetStatus.WORKING  # still driving
         await robot.cancel()
         await sim_reaches(robot, sim, _no_goal)
@@ -243,7 +279,8 @@ async def test_planner_abort_is_a_goal_aborted(mode: Mode) -> None:
         with pytest.raises(GoalAborted) as caught:
             await robot.goto(NEAR, timeout=WAIT)
         distance = caught.value.distance
-        assert distance is not None and distance > robot.arrive_tolerance
+        assert distance is not None
+        assert distance > robot.arrive_tolerance
         assert near(distance, TARGETS[NEAR][0] - sim.state.pose.x, 0.01)
         assert caught.value.status is not None
         assert caught.value.status.target_status == TargetStatus.FREE

@@ -310,6 +310,15 @@ def test_teleop_does_not_change_goal_state() -> None:
     assert model.target_num_id == 1
 
 
+def test_document_mode_rotation_to_the_current_heading_shows_not_done_first() -> None:
+    model = navigating("document")
+    model.submit(c.RotateTo(0))  # already facing 0°
+    model.tick()
+    assert status(model).angle_goal_status == 0  # a host can see the new rotation start
+    model.tick()
+    assert status(model).angle_goal_status == 1
+
+
 def test_real_firmware_ignores_rotate() -> None:
     model = navigating("real")
     model.submit(c.RotateTo(90))
@@ -597,8 +606,11 @@ def test_lands_within_arrival_distance_even_facing_away() -> None:
     model = navigating(targets=((-0.004, 0.0), (-0.5, 0.0)), arrival_distance=0.005)
     model.submit(c.Goto(0))
     model.tick()
-    assert model.target_status == 0
     assert (model.x, model.y) == (-0.004, 0.0)
+    # Landed at once, but the goal shows as working in one frame before it ends.
+    assert (model.target_status, model.target_distance) == (1, 0.0)
+    model.tick()
+    assert (model.target_status, model.target_distance) == (0, 0.0)
     model.submit(c.Goto(1))  # behind the robot: turns in place first, then drives
     model.tick()
     assert model.current_v == 0.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -91,6 +92,15 @@ class _Converter:
 
 _CONVERTERS = {name: _Converter(layout) for name, layout in LAYOUTS.items()}
 _V2 = _CONVERTERS[StatusLayout.V2]
+_V2_NAME = StatusLayout.V2
+_V2_UNPACK = _V2.unpack_from
+_V2_STAMP = LAYOUTS[StatusLayout.V2].fields.index("time_stamp")
+# Runs of whole v2 frames (several frames per read: high simulator speed, a loop that
+# fell behind, a capture) are checked and unpacked in one pass; the struct pads over
+# header, length byte and terminator, so it yields exactly the 21 field values.
+_RUN_MIN, _RUN_MAX = 4, 64
+_V2_PADDED = struct.Struct("<4x" + LAYOUTS[StatusLayout.V2].struct.format.lstrip("<") + "x")
+_RUN_BYTES = tuple(bytes((value,)) * _RUN_MAX for value in (*HEADER, LENGTH_V2, 0))
 _V2_SIZE = LAYOUTS[StatusLayout.V2].frame_size
 
 
@@ -124,22 +134,73 @@ class StatusDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
-        trusted = GalileoStatus.trusted
-        return [trusted(converter.convert(values)) for converter, values in self._frames(data)]
+        values = self._single_v2(data)
+        if values is not None:
+            return [GalileoStatus.trusted(_V2.convert(values))]
+        trusted, v2, convert_v2 = GalileoStatus.trusted, _V2_NAME, _V2.convert
+        return [
+            trusted(convert_v2(values) if name is v2 else _CONVERTERS[name].convert(values))
+            for name, values in self._frames(data)
+        ]
 
     def feed_raw(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
         """Like feed, but return (layout, raw field values in wire order) per frame."""
-        return [(converter.name, values) for converter, values in self._frames(data)]
+        values = self._single_v2(data)
+        if values is not None:
+            return [(_V2_NAME, values)]
+        return self._frames(data)
 
-    def _frames(self, data: bytes | bytearray | memoryview) -> list[tuple[_Converter, Values]]:
-        buf = self._buffer
-        buf += data
+    def _single_v2(self, data: bytes | bytearray | memoryview) -> Values | None:
+        """The commonest read of all, one whole clean v2 frame and nothing held: decode it.
+
+        None (and nothing consumed) for anything else. Same verdict as _frames.
+        """
+        if (
+            len(data) != _V2_SIZE
+            or self._buffer
+            or type(data) is not bytes
+            or data[3] != LENGTH_V2
+            or data[_V2_SIZE - 1] != 0
+            or not data.startswith(HEADER)
+            or data.find(HEADER, _HEADER_SIZE) >= 0
+            or not self._v2_first()
+        ):
+            return None
+        values = _V2_UNPACK(data, _HEADER_SIZE)
+        stats = self.stats
+        stats.frames += 1
+        self._in_sync = True
+        if self._detected is not _V2_NAME:
+            self._detected = stats.layout = _V2_NAME
+            self._run = 0
+        self._run += 1
+        time_stamp = values[_V2_STAMP]
+        last, self._last_time_stamp = self._last_time_stamp, time_stamp
+        if last is not None and time_stamp != last + 1:
+            self._count_gap(time_stamp - last - 1)
+        return values
+
+    def _frames(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
+        held = self._buffer
+        buf: bytes | bytearray
+        if held or type(data) is not bytes:
+            held += data
+            buf = held
+        else:
+            buf = data  # nothing held back: scan the chunk itself, no copy
         size = len(buf)
-        out: list[tuple[_Converter, Values]] = []
-        pos = 0
+        out: list[RawFrame] = []
+        append, find = out.append, buf.find
+        pos = run_from = 0
         v2_first = self._v2_first()
         while pos < size:
-            start = buf.find(HEADER, pos)
+            if v2_first and pos >= run_from and size - pos >= _RUN_MIN * _V2_SIZE:
+                count = self._v2_run(buf, pos, size, out)
+                if count:
+                    pos += count * _V2_SIZE
+                    continue
+                run_from = pos + _RUN_MAX * _V2_SIZE  # not a clean run: go frame by frame
+            start = find(HEADER, pos)
             if start < 0:
                 keep = _header_prefix_length(buf, max(pos, size - 2), size)
                 self._discard(size - keep - pos)
@@ -150,59 +211,113 @@ class StatusDecoder:
                 pos = start
             end = pos + _V2_SIZE
             # The common case, decided exactly as _frame_at would: a terminated v2 frame
-            # holding nothing that looks like a header.
+            # holding nothing that looks like a header. Accounted inline (as in _count).
             if (
                 v2_first
                 and end <= size
                 and buf[pos + 3] == LENGTH_V2
                 and buf[end - 1] == 0
-                and buf.find(HEADER, pos + _HEADER_SIZE, end) < 0
+                and find(HEADER, pos + _HEADER_SIZE, end) < 0
             ):
-                converter = _V2
-            else:
-                verdict, layout = self._frame_at(buf, pos, size)
-                if verdict == _NEED_MORE:
-                    break
-                if verdict == _REJECT:
-                    self._discard(len(HEADER))
-                    pos += len(HEADER)
-                    continue
-                assert layout is not None
-                converter = _CONVERTERS[layout.name]
-                end = pos + layout.frame_size
+                values = _V2_UNPACK(buf, pos + _HEADER_SIZE)
+                append((_V2_NAME, values))
+                pos = end
+                self._in_sync = True
+                if self._detected is not _V2_NAME:
+                    self._detected = self.stats.layout = _V2_NAME
+                    self._run = 0
+                self._run += 1
+                time_stamp = values[_V2_STAMP]
+                last, self._last_time_stamp = self._last_time_stamp, time_stamp
+                if last is not None and time_stamp != last + 1:
+                    self._count_gap(time_stamp - last - 1)
+                continue
+            verdict, layout = self._frame_at(buf, pos, size)
+            if verdict == _NEED_MORE:
+                break
+            if verdict == _REJECT:
+                self._discard(len(HEADER))
+                pos += len(HEADER)
+                continue
+            assert layout is not None
+            converter = _CONVERTERS[layout.name]
             values = converter.unpack_from(buf, pos + _HEADER_SIZE)
-            out.append((converter, values))
+            append((layout.name, values))
             self._count(converter, values)
-            if converter is not _V2:
-                v2_first = self._v2_first()
-            pos = end
-        del buf[:pos]
-        if len(buf) > MAX_BUFFER:  # unreachable with valid lengths; kept as a hard bound
-            self._discard(len(buf) - MAX_BUFFER)
-            del buf[: len(buf) - MAX_BUFFER]
+            v2_first = self._v2_first()
+            pos += layout.frame_size
+        self.stats.frames += len(out)
+        if buf is held:
+            del held[:pos]
+        elif pos < size:
+            held += buf[pos:]
+        if len(held) > MAX_BUFFER:  # unreachable with valid lengths; kept as a hard bound
+            self._discard(len(held) - MAX_BUFFER)
+            del held[: len(held) - MAX_BUFFER]
         return out
 
+    def _v2_run(self, buf: bytes | bytearray, pos: int, size: int, out: list[RawFrame]) -> int:
+        """Accept a run of clean v2 frames at ``pos`` in one go; 0 when it is not one.
+
+        Clean means what the per-frame path accepts: a header at every frame start, length
+        0x55, a 00 terminator, and no other header inside (exactly one header per frame).
+        """
+        count = min((size - pos) // _V2_SIZE, _RUN_MAX)
+        region = buf[pos : pos + count * _V2_SIZE]
+        step = _V2_SIZE
+        if (
+            region.count(HEADER) != count
+            or region[0::step] != _RUN_BYTES[0][:count]
+            or region[1::step] != _RUN_BYTES[1][:count]
+            or region[2::step] != _RUN_BYTES[2][:count]
+            or region[3::step] != _RUN_BYTES[3][:count]
+            or region[step - 1 :: step] != _RUN_BYTES[4][:count]
+        ):
+            return 0
+        rows = list(_V2_PADDED.iter_unpack(region))
+        name = _V2_NAME
+        out += [(name, row) for row in rows]
+        self._in_sync = True
+        if self._detected is not name:
+            self._detected = self.stats.layout = name
+            self._run = 0
+        self._run += count
+        last = self._last_time_stamp
+        first = rows[0][_V2_STAMP]
+        final = rows[-1][_V2_STAMP]
+        if (last is None or first == last + 1) and final - first == count - 1:
+            stamps = [row[_V2_STAMP] for row in rows]
+            if stamps == list(range(first, final + 1)):
+                self._last_time_stamp = final
+                return count
+        for row in rows:
+            time_stamp = row[_V2_STAMP]
+            if last is not None and time_stamp != last + 1:
+                self._count_gap(time_stamp - last - 1)
+            last = time_stamp
+        self._last_time_stamp = last
+        return count
+
     def _count(self, converter: _Converter, values: Values) -> None:
-        """Account for one accepted frame: layout run and time_stamp gaps."""
-        stats = self.stats
-        stats.frames += 1
+        """Account for one accepted frame (v2 frames on the fast path are counted inline)."""
         self._in_sync = True
         name = converter.name
         if self._detected is not name:
-            self._detected = name
-            stats.layout = name
+            self._detected = self.stats.layout = name
             self._run = 0
         self._run += 1
         if converter.stamp_index is not None:
             time_stamp = values[converter.stamp_index]
-            last = self._last_time_stamp
-            if last is not None:
-                gap = time_stamp - last - 1
-                if 0 < gap <= MAX_COUNTED_GAP:
-                    stats.lost_frames += gap
-                elif gap:
-                    stats.counter_resets += 1
-            self._last_time_stamp = time_stamp
+            last, self._last_time_stamp = self._last_time_stamp, time_stamp
+            if last is not None and time_stamp != last + 1:
+                self._count_gap(time_stamp - last - 1)
+
+    def _count_gap(self, gap: int) -> None:
+        """Frames missing between two time_stamps; a backwards or huge jump is a reset."""
+        if 0 < gap <= MAX_COUNTED_GAP:
+            self.stats.lost_frames += gap
+        else:
+            self.stats.counter_resets += 1
 
     def _v2_first(self) -> bool:
         """Whether _frame_at would try the v2 layout first for a 0x55 length byte."""
@@ -218,7 +333,7 @@ class StatusDecoder:
             self.stats.resyncs += 1
             self._in_sync = False
 
-    def _frame_at(self, buf: bytearray, pos: int, size: int) -> tuple[int, Layout | None]:
+    def _frame_at(self, buf: bytes | bytearray, pos: int, size: int) -> tuple[int, Layout | None]:
         if pos + _HEADER_SIZE > size:
             return _NEED_MORE, None
         length_byte = buf[pos + 3]
@@ -241,7 +356,7 @@ class StatusDecoder:
                 return verdict, layout
         return _REJECT, None
 
-    def _v1_variant(self, buf: bytearray, pos: int) -> StatusLayout:
+    def _v1_variant(self, buf: bytes | bytearray, pos: int) -> StatusLayout:
         # Field 3 is a float voltage in v1 (huge int32 bits) and a small int in v1_charge;
         # a stale 0.0 V reading looks like charge 0, so an established v1 stream wins then.
         raw = int.from_bytes(buf[pos + 12 : pos + 16], "little", signed=True)
@@ -249,7 +364,7 @@ class StatusDecoder:
             return StatusLayout.V1_CHARGE
         return StatusLayout.V1
 
-    def _check(self, buf: bytearray, pos: int, size: int, layout: Layout) -> int:
+    def _check(self, buf: bytes | bytearray, pos: int, size: int, layout: Layout) -> int:
         end = pos + layout.frame_size
         if end > size:
             return _NEED_MORE
@@ -283,7 +398,7 @@ class StatusDecoder:
         return self._pinned is not None or self._run >= TRUST_AFTER
 
 
-def _header_prefix_length(buf: bytearray, start: int, end: int) -> int:
+def _header_prefix_length(buf: bytes | bytearray, start: int, end: int) -> int:
     """Length of the longest suffix of buf[start:end] that is a proper prefix of HEADER."""
     for keep in range(min(len(HEADER) - 1, end - start), 0, -1):
         if buf[end - keep : end] == HEADER[:keep]:

@@ -64,6 +64,9 @@ class RobotModel(Body):
         self._abort_within: float | None = None
         self._abort_next = config.faults.planner_abort == "next"
         self._goal_issued = False
+        # A goal or rotation accepted since the last frame: it shows as running in at
+        # least one frame (the planner needs a cycle), so a host can see it start.
+        self._fresh = False
         self._rotate_goal: float | None = None
         self._patrol_next = 0
         self._patrol_resume_at: float | None = None
@@ -200,7 +203,8 @@ class RobotModel(Body):
             self.control_w, done = turn_toward(
                 self.theta, self._rotate_goal, config.max_turn_rate, dt
             )
-            if done:
+            fresh, self._fresh = self._fresh, False
+            if done and not fresh:
                 self.theta, self.control_w, self.current_w = self._rotate_goal, 0.0, 0.0
                 self._rotate_goal, self.rotate_status = None, 1
         elif self.charge_status == FINDING and self.drive_to(self.dock, dt):
@@ -215,8 +219,12 @@ class RobotModel(Body):
 
     def _drive_goal(self, dt: float) -> None:
         assert self._goal is not None
+        fresh, self._fresh = self._fresh, False
         if self.drive_to(self._goal, dt, land=self._abort_within is None):
-            self._end_goal(0.0)
+            if fresh:  # even a goal the robot stands on shows as working once
+                self.target_distance = 0.0
+            else:
+                self._end_goal(0.0)
             return
         self.target_distance = self.distance_to(self._goal)
         if self._abort_within is not None and self.target_distance <= self._abort_within:
@@ -304,6 +312,7 @@ class RobotModel(Body):
         self.target_num_id, self.target_status, self._goal = target_id, WORKING, goal
         self.target_distance = self.distance_to(goal)
         self._abort_within = None
+        self._fresh = True
         abort = self.config.faults.planner_abort
         if self._abort_next or (abort != "next" and abort > 0 and self.rng.random() < abort):
             self._abort_next = False
@@ -349,6 +358,7 @@ class RobotModel(Body):
             return
         self._rotate_goal = wrap_angle(math.radians(command.degrees))
         self.rotate_status = 0
+        self._fresh = True
 
     # ------------------------------------------------------------------ patrol
     def _start_patrol(self, _: object) -> None:

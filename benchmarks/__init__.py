@@ -1,0 +1,1 @@
+"""Benchmarks for galileo_async: every figure is printed next to a baseline from the same run."""

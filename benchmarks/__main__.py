@@ -1,0 +1,74 @@
+"""``python -m benchmarks [--quick] [ingest|fleet|latency ...] [--fleet 10,100,1000]``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+import time
+from pathlib import Path
+
+from .common import Row, machine, render_table
+
+BENCHMARKS = ("ingest", "latency", "fleet")
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the selected benchmarks, print the table, write JSON; 1 if a target failed."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    parser.add_argument(
+        "names",
+        nargs="*",
+        choices=[*BENCHMARKS, []],
+        metavar="NAME",
+        help=f"benchmarks to run (default: all of {', '.join(BENCHMARKS)})",
+    )
+    parser.add_argument("--quick", action="store_true", help="fewer samples, shorter windows")
+    parser.add_argument(
+        "--fleet",
+        default=None,
+        metavar="N,N,…",
+        help="fleet sizes (default 10,100,1000; --quick: 10,100)",
+    )
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="fleet measurement window per phase (default 10, --quick 4)",
+    )
+    parser.add_argument("--json", type=Path, default=None, help="where to write the results")
+    args = parser.parse_args(argv)  # fmt: skip
+    names = args.names or list(BENCHMARKS)
+    info = machine()
+    print(f"{info['date']}  {info['cpu']}  nproc={info['nproc']}  Python {info['python']}  "
+          f"load {info['loadavg']}", flush=True)  # fmt: skip
+    rows: list[Row] = []
+    started = time.monotonic()
+    for name in names:
+        module = importlib.import_module(f".{name}", __package__)
+        print(f"running {name} …", flush=True)
+        options: dict[str, object] = {"quick": args.quick}
+        if name == "fleet":
+            sizes = args.fleet or ("10,100" if args.quick else "10,100,1000")
+            options["sizes"] = [int(n) for n in sizes.split(",")]
+            options["seconds"] = args.seconds or (4.0 if args.quick else 10.0)
+        rows += module.run(**options)
+    print()
+    print(render_table(rows))
+    path = args.json or RESULTS / time.strftime("%Y%m%d-%H%M%S.json", time.gmtime())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    result = {
+        "machine": info,
+        "quick": args.quick,
+        "seconds": round(time.monotonic() - started, 1),
+        "rows": [row.as_dict() for row in rows],
+    }
+    path.write_text(json.dumps(result, indent=2, default=str) + "\n")
+    print(f"\nwritten to {path}")
+    return 0 if all(row.ok is not False for row in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,307 @@
+"""Fleet: N robots at 30 Hz from another process over loopback TCP, one driver event loop.
+
+Per N, phases on the same server and the same kind of streams:
+
+* **bare**: N ``asyncio.Protocol`` connections that only count bytes (the baseline), half
+  its window before the driver phases and half after;
+* **driver**: N ``Robot`` objects (``galileo_async.connect("socket://…")``), each with a
+  task iterating ``robot.statuses()``;
+* **driver, sampled**: the same robots without those tasks; one task reads every robot's
+  ``status`` ten times a second (a dashboard), so only the driver itself runs per frame.
+
+Each phase warms up, then measures over a window: process CPU seconds (time.process_time),
+frames kept (link counters: frames / (frames + time_stamp gaps)), and status age.
+
+Status age: the server starts every robot in one loop iteration and reports that
+instant (``origin``) on CLOCK_MONOTONIC, which all processes on the host share; frame
+``t`` of every robot is due at ``origin + t/30``. A consumer that receives a status
+computes ``time.monotonic() - (origin + time_stamp/30)``: the time from the frame's
+scheduled send to the application holding it. That includes any lateness of the server
+process (it shares the two cores), so it is an upper bound of what the driver adds.
+
+Memory per robot: RSS growth from before the robots connected to after the warm-up,
+divided by N; and, in a separate pass with tracemalloc on, the Python heap it traced.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import gc
+import json
+import subprocess
+import sys
+import time
+import tracemalloc
+from dataclasses import dataclass, field
+from typing import Any
+
+import galileo_async
+from galileo_async import GalileoStatus, Robot
+
+from .common import Row, percentile, raise_fd_limit, rss_bytes
+
+__all__ = ["run"]
+
+CONNECT_BATCH = 100
+WARMUP = 1.5
+FRAME_SIZE = 89
+#: How often the task-less variant samples every robot's latest status.
+SAMPLE_RATE = 10
+
+
+class _Server:
+    """The fleet server process and its control pipe."""
+
+    def __init__(self, count: int) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "benchmarks.fleet_server", str(count)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        assert self.process.stdout is not None
+        self.info: dict[str, Any] = json.loads(self.process.stdout.readline())
+        self.ports: list[int] = self.info["ports"]
+        self.origin: float = self.info["origin"]
+        self.period: float = self.info["period"]
+
+    def cpu(self) -> dict[str, Any]:
+        """The server's CPU seconds and counters (blocks briefly: call between windows)."""
+        assert self.process.stdin is not None
+        assert self.process.stdout is not None
+        self.process.stdin.write("cpu\n")
+        self.process.stdin.flush()
+        reply: dict[str, Any] = json.loads(self.process.stdout.readline())
+        return reply
+
+    def close(self) -> None:
+        """End the server process."""
+        with contextlib.suppress(OSError):
+            assert self.process.stdin is not None
+            self.process.stdin.close()
+        try:
+            self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+
+
+class _Counter(asyncio.Protocol):
+    """The baseline: counts bytes, nothing else."""
+
+    def __init__(self) -> None:
+        self.bytes = 0
+        self.lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+    def data_received(self, data: bytes) -> None:
+        self.bytes += len(data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if not self.lost.done():
+            self.lost.set_result(None)
+
+
+@dataclass
+class _Phase:
+    cpu: float = 0.0
+    wall: float = 0.0
+    server_cpu: float = 0.0
+    frames: int = 0
+    lost: int = 0
+    ages: list[float] = field(default_factory=list)
+    seen: int = 0
+    rss_per_robot: float = 0.0
+    traced_per_robot: float = 0.0
+
+
+async def _window(seconds: float, server: _Server) -> tuple[float, float, float]:
+    """Sleep through the measurement window; (driver CPU s, wall s, server CPU s)."""
+    loop = asyncio.get_running_loop()
+    server_before = await loop.run_in_executor(None, server.cpu)
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    await asyncio.sleep(seconds)
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    server_after = await loop.run_in_executor(None, server.cpu)
+    return cpu, wall, server_after["cpu"] - server_before["cpu"]
+
+
+async def _bare(server: _Server, seconds: float) -> _Phase:
+    loop = asyncio.get_running_loop()
+    counters: list[_Counter] = []
+    transports: list[asyncio.BaseTransport] = []
+    for start in range(0, len(server.ports), CONNECT_BATCH):
+        batch = server.ports[start : start + CONNECT_BATCH]
+        made = await asyncio.gather(
+            *(loop.create_connection(_Counter, "127.0.0.1", port) for port in batch)
+        )
+        for made_transport, protocol in made:
+            transports.append(made_transport)
+            counters.append(protocol)
+    await asyncio.sleep(WARMUP)
+    before = sum(c.bytes for c in counters)
+    phase = _Phase()
+    phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)
+    phase.frames = (sum(c.bytes for c in counters) - before) // FRAME_SIZE
+    for each in transports:
+        each.close()
+    await asyncio.wait_for(asyncio.gather(*(c.lost for c in counters)), 10)
+    return phase
+
+
+async def _connect(server: _Server) -> list[Robot]:
+    robots: list[Robot] = []
+    try:
+        for start in range(0, len(server.ports), CONNECT_BATCH):
+            batch = server.ports[start : start + CONNECT_BATCH]
+            robots += await asyncio.gather(
+                *(galileo_async.connect(f"socket://127.0.0.1:{port}") for port in batch)
+            )
+    except BaseException:
+        await asyncio.gather(*(robot.close() for robot in robots), return_exceptions=True)
+        raise
+    return robots
+
+
+async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase:
+    """Robots with a statuses() task each, or (consumers=False) sampled at SAMPLE_RATE."""
+    phase = _Phase()
+    origin, period = server.origin, server.period
+    recording = False
+    ages = phase.ages
+    monotonic = time.monotonic
+
+    async def consume(robot: Robot) -> None:
+        status: GalileoStatus
+        async for status in robot.statuses():
+            if recording:
+                assert status.time_stamp is not None
+                ages.append(monotonic() - (origin + status.time_stamp * period))
+
+    async def sample(robots: list[Robot]) -> None:
+        # The age a status had when it reached the store: link.last_frame_at is set with it.
+        seen: dict[int, int] = {}
+        while True:
+            await asyncio.sleep(1 / SAMPLE_RATE)
+            if not recording:
+                continue
+            for index, robot in enumerate(robots):
+                status, arrived = robot.status, robot.link.last_frame_at
+                if status is None or arrived is None or status.time_stamp is None:
+                    continue
+                if seen.get(index) != status.time_stamp:
+                    seen[index] = status.time_stamp
+                    ages.append(arrived - (origin + status.time_stamp * period))
+
+    gc.collect()
+    rss0 = rss_bytes()
+    robots = await _connect(server)
+    if consumers:
+        tasks = [asyncio.create_task(consume(robot)) for robot in robots]
+    else:
+        tasks = [asyncio.create_task(sample(robots))]
+    try:
+        await asyncio.sleep(WARMUP)
+        gc.collect()
+        phase.rss_per_robot = (rss_bytes() - rss0) / len(robots)
+        frames0 = sum(robot.link.frames for robot in robots)
+        lost0 = sum(robot.link.lost_frames for robot in robots)
+        reconnects0 = sum(robot.link.reconnects for robot in robots)
+        recording = True
+        phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)
+        recording = False
+        phase.frames = sum(robot.link.frames for robot in robots) - frames0
+        phase.lost = sum(robot.link.lost_frames for robot in robots) - lost0
+        reconnects = sum(robot.link.reconnects for robot in robots) - reconnects0
+        assert reconnects == 0, f"{reconnects} reconnects during the window"
+        phase.seen = len(ages)
+    finally:
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        await asyncio.gather(*(robot.close() for robot in robots))
+    return phase
+
+
+async def _traced(server: _Server) -> float:
+    """Python heap per robot (tracemalloc) for connected robots with one consumer each."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        robots = await _connect(server)
+
+        async def consume(robot: Robot) -> None:
+            async for _status in robot.statuses():
+                pass
+
+        tasks = [asyncio.create_task(consume(robot)) for robot in robots]
+        await asyncio.sleep(WARMUP)
+        gc.collect()
+        traced = (tracemalloc.get_traced_memory()[0] - base) / len(robots)
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        await asyncio.gather(*(robot.close() for robot in robots))
+    finally:
+        tracemalloc.stop()
+    return traced
+
+
+async def _measure(count: int, seconds: float) -> tuple[_Phase, _Phase, _Phase]:
+    server = _Server(count)
+    try:
+        # The bare phase runs before and after the driver phases, so drift of the shared
+        # machine over the run shows in both sides of the ratio.
+        before = await _bare(server, seconds / 2)
+        driver = await _driver(server, seconds, consumers=True)
+        sampled = await _driver(server, seconds, consumers=False)
+        after = await _bare(server, seconds / 2)
+        bare = _Phase(cpu=before.cpu + after.cpu, wall=before.wall + after.wall,
+                      server_cpu=before.server_cpu + after.server_cpu,
+                      frames=before.frames + after.frames)  # fmt: skip
+        driver.traced_per_robot = await _traced(server)
+    finally:
+        await asyncio.get_running_loop().run_in_executor(None, server.close)
+    return bare, driver, sampled
+
+
+def run(*, quick: bool = False, sizes: list[int] | None = None, seconds: float = 10.0) -> list[Row]:
+    """Measure the fleet for each N in ``sizes``."""
+    raise_fd_limit()
+    rows: list[Row] = []
+    for count in sizes or [10, 100, 1000]:
+        print(f"  fleet N={count} …", flush=True)
+        bare, driver, sampled = asyncio.run(_measure(count, seconds))
+        rows += _rows(f"fleet N={count}", count, bare, driver, "statuses() task per robot")
+        rows += _rows(f"fleet N={count}", count, bare, sampled, "no task, app samples status",
+                      memory=False)  # fmt: skip
+    return rows
+
+
+def _rows(name: str, count: int, bare: _Phase, driver: _Phase, how: str, *, memory: bool = True
+          ) -> list[Row]:  # fmt: skip
+    expected = count * 30 * driver.wall
+    kept = driver.frames / max(1, driver.frames + driver.lost)
+    p50, p99 = percentile(driver.ages, 50), percentile(driver.ages, 99)
+    ratio = driver.cpu / bare.cpu if bare.cpu > 0 else float("inf")
+    common = {"how": how, "window_s": round(driver.wall, 2),
+              "server_cpu_s": round(driver.server_cpu, 2)}  # fmt: skip
+    rows = [
+        Row(name, f"frames kept ({how})", 100 * kept, "%",
+            100 * bare.frames / (count * 30 * bare.wall), "bare: bytes/89 vs 30 Hz", "≥ 99.9 %",
+            kept >= 0.999, {"frames": driver.frames, "lost": driver.lost,
+                            "received_vs_30Hz": driver.frames / expected, **common}),
+        Row(name, f"driver CPU ({how})", 100 * driver.cpu / driver.wall, "% of a core",
+            100 * bare.cpu / bare.wall, "bare Protocol", "≤ 1.5× bare", ratio <= 1.5,
+            {"ratio": ratio, "bare_server_cpu_s": round(bare.server_cpu, 2), **common}),
+        Row(name, f"status age p99 ({how})", 1000 * p99, "ms", 1000 * p50, "p50", "≤ 100 ms",
+            p99 <= 0.100, {"max_ms": 1000 * max(driver.ages, default=float("nan")),
+                           "samples": driver.seen, **common}),
+    ]  # fmt: skip
+    if memory:
+        worst = max(driver.rss_per_robot, driver.traced_per_robot)
+        rows.append(
+            Row(name, "memory per robot: RSS growth", driver.rss_per_robot / 1024, "KiB",
+                driver.traced_per_robot / 1024, "tracemalloc", "≤ 64 KiB (both)",
+                worst <= 64 * 1024)
+        )  # fmt: skip
+    return rows

@@ -1,0 +1,218 @@
+"""Latency: device write → wait_until woken, and command call → bytes at the device.
+
+A device-side TCP server on 127.0.0.1 runs in the same process and event loop as the
+host, so both sides read one clock (time.perf_counter) and every figure includes the
+same loop turns for the driver and its baseline:
+
+* **status → waiter**: the device writes frame ``k`` (t0 just before ``transport.write``);
+  t1 is when ``await robot.wait_until(lambda s: s.time_stamp == k)`` returns in its task.
+  Baseline: a bare ``asyncio.Protocol`` that finds the header, unpacks the frame and
+  resolves a future the same kind of task awaits.
+* **command → bytes**: t0 just before ``await robot.forward(20)``; t1 when the device's
+  ``data_received`` gets the bytes. Baseline: ``transport.write(encode(Forward(20)))``.
+  Samples are spaced beyond the driver's 10 ms command pacing, so pacing never delays one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+from typing import Any
+
+import galileo_async
+from galileo_async import GalileoStatus, StatusLayout
+from galileo_async.protocol import HEADER, LAYOUTS, encode, encode_status
+from galileo_async.protocol.commands import Forward
+
+from .common import Row, percentile
+
+__all__ = ["run"]
+
+_UNPACK = LAYOUTS[StatusLayout.V2].struct.unpack_from
+_STAMP = LAYOUTS[StatusLayout.V2].fields.index("time_stamp")
+COMMAND_GAP = 0.012  # above the 10 ms pacing
+
+
+def _frame(time_stamp: int) -> bytes:
+    return encode_status(GalileoStatus(nav_status=1, visual_status=1, time_stamp=time_stamp))
+
+
+class _Device(asyncio.Protocol):
+    """The device end: writes frames on demand, timestamps what the host sends."""
+
+    def __init__(self, on_bytes: Callable[[float], None]) -> None:
+        self.transport: asyncio.WriteTransport | None = None
+        self.connected: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._on_bytes = on_bytes
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.WriteTransport)
+        self.transport = transport
+        transport.write(_frame(1))  # the host's connect waits for a first status
+        if not self.connected.done():
+            self.connected.set_result(None)
+
+    def data_received(self, data: bytes) -> None:
+        self._on_bytes(time.perf_counter())
+
+
+class _Bare(asyncio.Protocol):
+    """Baseline host: header search + unpack, then resolve the awaited future."""
+
+    def __init__(self) -> None:
+        self.waiting: tuple[int, asyncio.Future[None]] | None = None
+        self.transport: asyncio.WriteTransport | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.WriteTransport)
+        self.transport = transport
+
+    def data_received(self, data: bytes) -> None:
+        pos = data.find(HEADER)
+        if pos < 0 or self.waiting is None:
+            return
+        stamp = _UNPACK(data, pos + 4)[_STAMP]
+        wanted, future = self.waiting
+        if stamp == wanted and not future.done():
+            future.set_result(None)
+
+
+async def _serve(on_bytes: Callable[[float], None]) -> tuple[asyncio.Server, list[_Device]]:
+    devices: list[_Device] = []
+
+    def factory() -> _Device:
+        device = _Device(on_bytes)
+        devices.append(device)
+        return device
+
+    server = await asyncio.get_running_loop().create_server(factory, "127.0.0.1", 0)
+    return server, devices
+
+
+async def _status_latency(samples: int) -> tuple[list[float], list[float]]:
+    arrivals: list[float] = []
+    server, devices = await _serve(arrivals.append)
+    port = server.sockets[0].getsockname()[1]
+    driver: list[float] = []
+    bare: list[float] = []
+    perf = time.perf_counter
+    try:
+        robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
+        try:
+            device = devices[-1]
+            assert device.transport is not None
+            for k in range(2, samples + 2):
+                frame = _frame(k)
+
+                def wanted(status: GalileoStatus, k: int = k) -> bool:
+                    return status.time_stamp == k
+
+                waiter = asyncio.create_task(robot.wait_until(wanted, timeout=5))
+                await asyncio.sleep(0)  # registered before the frame is written
+                t0 = perf()
+                device.transport.write(frame)
+                await waiter
+                driver.append(perf() - t0)
+        finally:
+            await robot.close()
+        loop = asyncio.get_running_loop()
+        transport, bare_host = await loop.create_connection(_Bare, "127.0.0.1", port)
+        try:
+            await devices[-1].connected
+            device = devices[-1]
+            assert device.transport is not None
+            for k in range(2, samples + 2):
+                frame = _frame(k)
+                future: asyncio.Future[None] = loop.create_future()
+                bare_host.waiting = (k, future)
+
+                async def wait(future: asyncio.Future[None] = future) -> None:
+                    await asyncio.wait_for(future, 5)
+
+                bare_waiter = asyncio.create_task(wait())
+                await asyncio.sleep(0)
+                t0 = perf()
+                device.transport.write(frame)
+                await bare_waiter
+                bare.append(perf() - t0)
+        finally:
+            transport.close()
+    finally:
+        server.close()
+        await server.wait_closed()
+    return driver, bare
+
+
+async def _command_latency(samples: int) -> tuple[list[float], list[float]]:
+    arrivals: list[float] = []
+    arrived = asyncio.Event()
+
+    def on_bytes(when: float) -> None:
+        arrivals.append(when)
+        arrived.set()
+
+    server, _devices = await _serve(on_bytes)
+    port = server.sockets[0].getsockname()[1]
+    perf = time.perf_counter
+    driver: list[float] = []
+    bare: list[float] = []
+
+    async def arrival(before: int) -> float:
+        while len(arrivals) == before:
+            arrived.clear()
+            await arrived.wait()
+        return arrivals[before]
+
+    try:
+        robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
+        try:
+            for _ in range(samples):
+                await asyncio.sleep(COMMAND_GAP)
+                before = len(arrivals)
+                t0 = perf()
+                await robot.forward(20)
+                t1 = await asyncio.wait_for(arrival(before), 5)
+                driver.append(t1 - t0)
+        finally:
+            await robot.close()
+        loop = asyncio.get_running_loop()
+        transport, _host = await loop.create_connection(asyncio.Protocol, "127.0.0.1", port)
+        assert isinstance(transport, asyncio.WriteTransport)
+        try:
+            data = encode(Forward(20))
+            for _ in range(samples):
+                await asyncio.sleep(COMMAND_GAP)
+                before = len(arrivals)
+                t0 = perf()
+                transport.write(data)
+                t1 = await asyncio.wait_for(arrival(before), 5)
+                bare.append(t1 - t0)
+        finally:
+            transport.close()
+    finally:
+        server.close()
+        await server.wait_closed()
+    return driver, bare
+
+
+def _rows(name: str, driver: list[float], bare: list[float]) -> list[Row]:
+    ms = 1000
+    added = percentile(driver, 99) - percentile(bare, 99)
+    extra: dict[str, Any] = {"samples": len(driver), "added_p99_ms": added * ms}
+    return [
+        Row("latency", f"{name} p50", percentile(driver, 50) * ms, "ms",
+            percentile(bare, 50) * ms, "bare protocol", "", None, extra),
+        Row("latency", f"{name} p99", percentile(driver, 99) * ms, "ms",
+            percentile(bare, 99) * ms, "bare protocol", "≤ bare + 1 ms", added <= 0.001, extra),
+    ]  # fmt: skip
+
+
+def run(*, quick: bool = False) -> list[Row]:
+    """Measure both latencies."""
+    samples = 300 if quick else 2000
+    status_driver, status_bare = asyncio.run(_status_latency(samples))
+    command_driver, command_bare = asyncio.run(_command_latency(samples // 4))
+    return _rows("status frame → wait_until woken", status_driver, status_bare) + _rows(
+        "robot.forward() call → bytes at device", command_driver, command_bare
+    )
