@@ -1,4 +1,4 @@
-"""``python -m benchmarks [--quick] [ingest|fleet|latency ...] [--fleet 10,100,1000]``."""
+"""``python -m benchmarks [--quick] [ingest latency fleet] [--fleet 10,100,1000] [--rounds R]``."""
 
 from __future__ import annotations
 
@@ -36,7 +36,13 @@ def main(argv: list[str] | None = None) -> int:
         "--seconds",
         type=float,
         default=None,
-        help="fleet measurement window per phase (default 10, --quick 4)",
+        help="fleet measurement window per phase (default 6, --quick 3)",
+    )
+    parser.add_argument(
+        "--rounds",
+        type=int,
+        default=None,
+        help="fleet rounds of bare/driver phases (default 3 below N=1000, else 2; --quick 1)",
     )
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
@@ -53,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
         if name == "fleet":
             sizes = args.fleet or ("10,100" if args.quick else "10,100,1000")
             options["sizes"] = [int(n) for n in sizes.split(",")]
-            options["seconds"] = args.seconds or (4.0 if args.quick else 10.0)
+            options["seconds"] = args.seconds or (3.0 if args.quick else 6.0)
+            options["repeats"] = args.rounds
         rows += module.run(**options)
     print()
     print(render_table(rows))

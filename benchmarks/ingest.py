@@ -115,7 +115,12 @@ class _NullTransport(asyncio.WriteTransport):
 
 
 async def _full_path(
-    frames: list[bytes], repeats: int, *, subscribers: bool = True
+    frames: list[bytes],
+    repeats: int,
+    *,
+    streams: int = STREAMS,
+    watches: int = WATCHES,
+    waiters: int = WAITERS,
 ) -> tuple[float, float]:
     """(s in data_received per frame, s per frame including the consumers' wake-ups)."""
     protocols: list[asyncio.Protocol] = []
@@ -132,7 +137,7 @@ async def _full_path(
     store = StatusStore()
     link = StreamLink(store, connector, stale_timeout=None, reconnect=False)
     await link.open()
-    received = [0] * (STREAMS + WATCHES)
+    received = [0] * (streams + watches)
 
     async def consume_stream(index: int) -> None:
         async for _status in store.statuses():
@@ -147,11 +152,10 @@ async def _full_path(
         return status.target_status == TargetStatus.ERROR
 
     tasks: list[asyncio.Task[Any]] = []
-    if subscribers:
-        tasks += [asyncio.create_task(consume_stream(i)) for i in range(STREAMS)]
-        tasks += [asyncio.create_task(consume_watch(STREAMS + i)) for i in range(WATCHES)]
-        tasks += [asyncio.create_task(store.wait_until(never)) for _ in range(WAITERS)]
-    else:
+    tasks += [asyncio.create_task(consume_stream(i)) for i in range(streams)]
+    tasks += [asyncio.create_task(consume_watch(streams + i)) for i in range(watches)]
+    tasks += [asyncio.create_task(store.wait_until(never)) for _ in range(waiters)]
+    if not received:
         received = [1]
     await asyncio.sleep(0)
     protocol = protocols[0]
@@ -193,7 +197,9 @@ def run(*, quick: bool = False) -> list[Row]:
     raw_buffer = _best(lambda: _time_raw_buffer(buffer, count), repeats)
     framing_buffer = _best(lambda: _time_decoder_buffer(buffer, count), repeats)
     full_sync, full_total = asyncio.run(_full_path(frames, max(2, repeats // 2)))
-    bare_sync, _ = asyncio.run(_full_path(frames, max(2, repeats // 2), subscribers=False))
+    rounds = max(2, repeats // 2)
+    bare_sync, _ = asyncio.run(_full_path(frames, rounds, streams=0, watches=0, waiters=0))
+    one_sync, _ = asyncio.run(_full_path(frames, rounds, streams=1, watches=0, waiters=1))
     us = 1e6
     ratio = raw_buffer / framing_buffer
     rows = [
@@ -204,10 +210,12 @@ def run(*, quick: bool = False) -> list[Row]:
             raw * us, "find+unpack_from", "", None, {"rate_vs_baseline": raw / framing}),
         Row("ingest", "decode → GalileoStatus", decode * us, "µs/frame",
             raw * us, "find+unpack_from"),
-        Row("ingest", "full path: decode → store → subscribers notified", full_sync * us,
+        Row("ingest", "full path, 3 statuses() + 1 watch + 1 wait_until", full_sync * us,
             "µs/frame", raw * us, "find+unpack_from", "≤ 5 µs/frame", full_sync * us <= 5.0,
             {"streams": STREAMS, "watches": WATCHES, "waiters": WAITERS}),
         Row("ingest", "full path, nobody subscribed", bare_sync * us, "µs/frame",
+            raw * us, "find+unpack_from"),
+        Row("ingest", "full path, 1 statuses() + 1 wait_until", one_sync * us, "µs/frame",
             raw * us, "find+unpack_from"),
         Row("ingest", "full path + consumers run (loop turn)", full_total * us, "µs/frame",
             raw * us, "find+unpack_from"),

@@ -221,8 +221,10 @@ class GalileoStatus(BaseModel):
         given the dict becomes the instance's storage, so the caller must not reuse it.
         """
         status = _new_status(cls)
-        fields_set = set(values)
-        if len(values) != _FIELD_COUNT:
+        if len(values) == _FIELD_COUNT:  # every field given (the keys are field names)
+            fields_set = _ALL_FIELDS.copy()
+        else:
+            fields_set = set(values)
             values = {**_FIELD_DEFAULTS, **values}
         # What model_construct sets, without its per-field alias and default handling
         # (about 8x faster; the decoder calls this 30 times a second per robot).
@@ -243,6 +245,7 @@ _FIELD_DEFAULTS: dict[str, Any] = {
     name: field.default for name, field in GalileoStatus.model_fields.items()
 }
 _FIELD_COUNT = len(_FIELD_DEFAULTS)
+_ALL_FIELDS = set(_FIELD_DEFAULTS)
 
 #: Names of the wire fields, in the order of the current (v2) struct.
 STATUS_FIELDS: tuple[str, ...] = tuple(n for n in GalileoStatus.model_fields if n != "layout")

@@ -11,6 +11,7 @@ import random
 import statistics
 import struct
 import sys
+import time
 import tracemalloc
 import tty
 from collections import Counter
@@ -118,6 +119,26 @@ async def _connected(robot: galileo.Robot, timeout: float) -> None:
         await events.aclose()  # type: ignore[attr-defined]
 
 
+async def _patrol_goal(robot: galileo.Robot, target: int) -> str:
+    """One goal of the patrol: "reached" or the name of the GalileoError it raised."""
+    loop = asyncio.get_running_loop()
+    started = loop.time()
+    # Bounded from outside: a hang shows up as a plain TimeoutError, not a GalileoError,
+    # and fails the test.
+    async with time_limit(3 * GOAL_TIMEOUT + 1):
+        try:
+            await _connected(robot, GOAL_TIMEOUT)
+            status = robot.status
+            if not (status and status.navigating and status.visual_initialised):
+                await robot.start_navigation(timeout=GOAL_TIMEOUT)
+            await robot.goto(target, timeout=GOAL_TIMEOUT)
+            outcome = "reached"
+        except GalileoError as exc:
+            outcome = type(exc).__name__
+    assert loop.time() - started <= 3 * GOAL_TIMEOUT
+    return outcome
+
+
 @pytest.mark.slow
 async def test_fault_injected_patrol_of_fifty_goals() -> None:
     faults: dict[str, Any] = {"garbage": 0.05, "drop": 0.05, "bitflip": 0.01}
@@ -125,31 +146,19 @@ async def test_fault_injected_patrol_of_fifty_goals() -> None:
         server = await sim.serve_tcp()
         url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
         outcomes: Counter[str] = Counter()
-        loop = asyncio.get_running_loop()
+        memory: list[int] = []
         async with galileo.connect(url, reconnect_initial=0.02, reconnect_max=0.2) as robot:
-            memory: list[int] = []
-            for goal in range(50):
-                if goal == 10:
-                    tracemalloc.start()
-                started = loop.time()
-                # Bounded from outside: a hang shows up as a plain TimeoutError, not a
-                # GalileoError, and fails the test.
-                async with time_limit(3 * GOAL_TIMEOUT + 1):
-                    try:
-                        await _connected(robot, GOAL_TIMEOUT)
-                        if not (robot.status and robot.status.navigating
-                                and robot.status.visual_initialised):  # fmt: skip
-                            await robot.start_navigation(timeout=GOAL_TIMEOUT)
-                        await robot.goto(goal % len(SQUARE), timeout=GOAL_TIMEOUT)
-                        outcomes["reached"] += 1
-                    except GalileoError as exc:
-                        outcomes[type(exc).__name__] += 1
-                assert loop.time() - started <= 3 * GOAL_TIMEOUT
-                if goal in (10, 49):
-                    memory.append(tracemalloc.get_traced_memory()[0])
-            tracemalloc.stop()
+            try:
+                for goal in range(50):
+                    if goal == 5:
+                        tracemalloc.start()
+                    outcomes[await _patrol_goal(robot, goal % len(SQUARE))] += 1
+                    if goal in (25, 49):  # once the working set is built up, and at the end
+                        memory.append(tracemalloc.get_traced_memory()[0])
+            finally:
+                tracemalloc.stop()
             stats = robot.link
-        print(f"patrol outcomes {dict(outcomes)}; link {stats}")
+        print(f"patrol outcomes {dict(outcomes)}; link {stats}; traced memory {memory}")
         assert sum(outcomes.values()) == 50
         assert outcomes["reached"] >= 10, outcomes
         assert stats.reconnects >= 2, stats
@@ -160,7 +169,7 @@ async def test_fault_injected_patrol_of_fifty_goals() -> None:
         assert device.frames_dropped > 0
         assert device.bit_flips > 0
         assert device.disconnects >= 2
-        assert memory[1] - memory[0] < 512 * 1024, memory
+        assert memory[1] - memory[0] < 192 * 1024, memory
 
 
 # --- flood ----------------------------------------------------------------------------------
@@ -379,8 +388,8 @@ async def test_soak_keeps_tasks_memory_and_latency_flat() -> None:
     first, last = windows[1], windows[-1]  # window 0 warms caches and the allocator
     assert last["tasks"] <= first["tasks"], windows
     assert last["memory"] - first["memory"] < 256 * 1024, windows
-    assert last["frame_latency"] <= 2 * first["frame_latency"] + 0.005, windows
-    assert last["goal_time"] <= 1.25 * first["goal_time"], windows
+    assert last["frame_latency"] <= 2 * first["frame_latency"] + 0.001, windows
+    assert last["goal_time"] <= 1.5 * first["goal_time"], windows
     assert all(w["goals"] >= 5 for w in windows), windows
     assert seen["statuses"] > 0
     assert seen["events"] > 0
@@ -403,13 +412,13 @@ async def _soak_window(
         await robot.goto(target, timeout=GOAL_TIMEOUT)
         goal_times.append(loop.time() - started)
         target = (target + 1) % len(SQUARE)
-        for _ in range(5):  # how long until the next frame reaches a waiter
+        for _ in range(5):  # from a frame reaching the link to its waiter running
             current = robot.status
             assert current is not None
-            stamp = current.time_stamp
-            started = loop.time()
-            await robot.wait_until(_other_frame(stamp), timeout=1)
-            frame_latencies.append(loop.time() - started)
+            await robot.wait_until(_other_frame(current.time_stamp), timeout=1)
+            arrived = robot.link.last_frame_at
+            assert arrived is not None
+            frame_latencies.append(time.monotonic() - arrived)
     return {
         "goals": len(goal_times),
         "goal_time": statistics.median(goal_times),

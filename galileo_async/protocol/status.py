@@ -151,10 +151,7 @@ class StatusDecoder:
         return self._frames(data)
 
     def _single_v2(self, data: bytes | bytearray | memoryview) -> Values | None:
-        """The commonest read of all, one whole clean v2 frame and nothing held: decode it.
-
-        None (and nothing consumed) for anything else. Same verdict as _frames.
-        """
+        """Values of the commonest read, one whole clean v2 frame; None (nothing consumed) else."""
         if (
             len(data) != _V2_SIZE
             or self._buffer
@@ -211,7 +208,7 @@ class StatusDecoder:
                 pos = start
             end = pos + _V2_SIZE
             # The common case, decided exactly as _frame_at would: a terminated v2 frame
-            # holding nothing that looks like a header. Accounted inline (as in _count).
+            # holding nothing that looks like a header.
             if (
                 v2_first
                 and end <= size
@@ -221,16 +218,8 @@ class StatusDecoder:
             ):
                 values = _V2_UNPACK(buf, pos + _HEADER_SIZE)
                 append((_V2_NAME, values))
+                self._count(_V2, values)
                 pos = end
-                self._in_sync = True
-                if self._detected is not _V2_NAME:
-                    self._detected = self.stats.layout = _V2_NAME
-                    self._run = 0
-                self._run += 1
-                time_stamp = values[_V2_STAMP]
-                last, self._last_time_stamp = self._last_time_stamp, time_stamp
-                if last is not None and time_stamp != last + 1:
-                    self._count_gap(time_stamp - last - 1)
                 continue
             verdict, layout = self._frame_at(buf, pos, size)
             if verdict == _NEED_MORE:
@@ -257,10 +246,9 @@ class StatusDecoder:
         return out
 
     def _v2_run(self, buf: bytes | bytearray, pos: int, size: int, out: list[RawFrame]) -> int:
-        """Accept a run of clean v2 frames at ``pos`` in one go; 0 when it is not one.
+        """Accept a run of clean v2 frames at ``pos`` in one go (their count), else 0.
 
-        Clean means what the per-frame path accepts: a header at every frame start, length
-        0x55, a 00 terminator, and no other header inside (exactly one header per frame).
+        Clean as the per-frame path means it: a header at every frame start and no other.
         """
         count = min((size - pos) // _V2_SIZE, _RUN_MAX)
         region = buf[pos : pos + count * _V2_SIZE]
@@ -299,7 +287,7 @@ class StatusDecoder:
         return count
 
     def _count(self, converter: _Converter, values: Values) -> None:
-        """Account for one accepted frame (v2 frames on the fast path are counted inline)."""
+        """Account for one accepted frame (_single_v2 does the same inline)."""
         self._in_sync = True
         name = converter.name
         if self._detected is not name:
