@@ -14,6 +14,7 @@ from .errors import (
     GoalAborted,
     GoalCancelled,
     GoalRejected,
+    LinkStale,
     OperationTimeout,
 )
 from .models import GalileoStatus, TargetStatus
@@ -211,6 +212,7 @@ async def run_goal(
     target_id = handle.target_id
     with ops.store.watch() as watch:
         tracker = GoalTracker(target_id, before=ops.store.status, arrive_tolerance=arrive_tolerance)
+        ops.check_link(f"goto({target_id})")  # below, LinkStale means the goal was sent
         try:
             await ops.link.send(Goto(target_id))
             sent_at = loop.time()
@@ -241,9 +243,10 @@ async def run_goal(
                     return GoalResult(target_id, tracker.distance, loop.time() - sent_at, status)
                 if tracker.accepted and not was_accepted:
                     _log.debug("goal %d accepted", target_id)
-        except (asyncio.CancelledError, GalileoTimeout):
+        except (asyncio.CancelledError, GalileoTimeout, LinkStale):
             # Leaving while the robot may still drive: stop it, unless a newer goal of
             # this Robot already replaced this one (a cancel would stop the new goal).
+            # A stale link may still transmit; a lost one cannot (ConnectionLost: no cancel).
             if cancel_on_exit and not handle.preempted:
                 _log.info("goal %d left before its end: sending cancel", target_id)
                 await ops.send_cancel_shielded()

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
+import enum
+import logging
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final, TypeVar
 
 import anyio
 
 from .errors import (
+    ConnectionLost,
     GalileoError,
     GalileoTimeout,
     InvalidArgument,
+    LinkStale,
     NotReady,
     OperationFailed,
     OperationTimeout,
@@ -29,11 +32,17 @@ if TYPE_CHECKING:
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
     "DEFAULT_TIMEOUT",
+    "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
     "Deadline",
+    "DynamicTargets",
     "Operations",
+    "RobotDefault",
     "check_timeout",
+    "or_default",
 ]
+
+_log = logging.getLogger(__name__)
 
 #: Seconds for the status to confirm a simple command (patrol, mapping, pause …).
 DEFAULT_TIMEOUT = 10.0
@@ -43,6 +52,25 @@ ROTATE_TIMEOUT = 20.0
 CANCEL_SEND_TIMEOUT = 1.0
 
 Predicate = Callable[[GalileoStatus], bool]
+_T = TypeVar("_T")
+
+
+class RobotDefault(enum.Enum):
+    """The type of ROBOT_DEFAULT: an argument left out, so the Robot's own setting applies."""
+
+    ROBOT_DEFAULT = "ROBOT_DEFAULT"
+
+    def __repr__(self) -> str:
+        return self.value
+
+
+#: A timeout left out: the Robot's ``goal_timeout`` or ``wait_timeout`` applies (None: no limit).
+ROBOT_DEFAULT: Final = RobotDefault.ROBOT_DEFAULT
+
+
+def or_default(value: _T | RobotDefault, default: _T) -> _T:
+    """``default`` when ``value`` is ROBOT_DEFAULT, else ``value``."""
+    return default if isinstance(value, RobotDefault) else value
 
 
 def check_timeout(name: str, value: float | None, *, allow_none: bool = True) -> None:
@@ -82,9 +110,27 @@ class Operations:
     def __init__(self, link: BaseLink, store: StatusStore) -> None:
         self.link = link
         self.store = store
+        # Exit cancels still being written; held here so they finish and close() awaits them.
+        self._cancels: set[asyncio.Future[None]] = set()
+
+    def check_link(self, what: str) -> None:
+        """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
+        error = self.store.link_error
+        if error is None:
+            return
+        message = f"{what}: nothing was sent: {error}"
+        if isinstance(error, LinkStale):
+            raise LinkStale(message, silent_for=error.silent_for)
+        raise ConnectionLost(message)
+
+    async def transmit(self, command: Command, what: str) -> None:
+        """Send ``command`` once, unless the link is lost or stale (the robot unwatched)."""
+        self.check_link(what)
+        await self.link.send(command)
 
     def require(self, ok: Predicate, message: str) -> GalileoStatus:
-        """Return the latest status if ``ok`` holds for it; else raise NotReady carrying it."""
+        """Check the link, then return the latest status if ``ok`` holds; else raise NotReady."""
+        self.check_link(message.partition(":")[0])
         status = self.store.status
         if status is None:
             raise NotReady(f"{message}: no status has been received from the robot yet", None)
@@ -108,7 +154,7 @@ class Operations:
     async def send(self, command: Command, deadline: Deadline, what: str) -> None:
         """Wait out busy_status, then send ``command`` once."""
         await self.wait_not_busy(deadline, what)
-        await self.link.send(command)
+        await self.transmit(command, what)
 
     async def send_confirmed(
         self,
@@ -127,7 +173,7 @@ class Operations:
         """
         await self.wait_not_busy(deadline, what)
         with self.store.watch() as watch:
-            await self.link.send(command)
+            await self.transmit(command, what)
             latest = self.store.status
             if latest is not None and getattr(latest, field) is None:
                 raise UnconfirmedOperation(
@@ -150,10 +196,67 @@ class Operations:
 
     async def send_cancel_shielded(self) -> None:
         """Send Cancel (``i 2``) even while the calling task is being cancelled; bounded."""
-        # A link that is gone cannot carry it: nothing more can be done from here.
-        with (
-            anyio.CancelScope(shield=True),
-            anyio.move_on_after(CANCEL_SEND_TIMEOUT),
-            contextlib.suppress(GalileoError),
-        ):
-            await self.link.send(Cancel())
+        if self.link.closed:
+            return  # a closed link cannot carry it
+        # Its own task: asyncio's task.cancel() (even twice) cannot stop the send, which an
+        # anyio shield alone does not prevent; the task bounds itself by CANCEL_SEND_TIMEOUT.
+        task = asyncio.ensure_future(self._send_cancel())
+        self._cancels.add(task)
+        task.add_done_callback(self._cancels.discard)
+        with anyio.CancelScope(shield=True):
+            await asyncio.shield(task)
+
+    async def _send_cancel(self) -> None:
+        try:
+            await asyncio.wait_for(self.link.send(Cancel()), CANCEL_SEND_TIMEOUT)
+        except (GalileoError, TimeoutError) as exc:
+            _log.warning("the cancel (i 2) could not be sent: %r", exc)
+
+    async def aclose(self) -> None:
+        """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
+        if self._cancels:
+            await asyncio.wait(set(self._cancels), timeout=CANCEL_SEND_TIMEOUT)
+
+
+class DynamicTargets:
+    """The driver's count of dynamic targets on the robot (no status field shows it)."""
+
+    def __init__(self, link: BaseLink) -> None:
+        self._link = link
+        self._count: int | None = None  # unknown until reset_targets in this session
+        self._reconnects = 0  # link.stats.reconnects when the count was last reset
+
+    def resetting(self) -> None:
+        """Forget the count until ``reset_done``: the reset may or may not reach the robot."""
+        self._count = None
+        self._reconnects = self._link.stats.reconnects
+
+    def reset_done(self) -> None:
+        """The reset was written: the robot now has no dynamic targets."""
+        self._count = 0
+
+    def forget(self) -> None:
+        """An add may or may not have reached the robot: the count is unknown."""
+        self._count = None
+
+    def reserve(self, map_targets: int, status: GalileoStatus | None, limit: int) -> int:
+        """Return the goal id of the next dynamic target and count it; NotReady if unknown."""
+        if self._count is not None and self._reconnects != self._link.stats.reconnects:
+            # A reconnect may mean a restarted robot, which keeps no dynamic targets.
+            self._count = None
+            raise NotReady(
+                "add_target: the link reconnected since reset_targets() (the robot may have "
+                "restarted and lost its dynamic targets); call reset_targets() again",
+                status,
+            )
+        if self._count is None:
+            raise NotReady(
+                "add_target: the number of dynamic targets on the robot is unknown; "
+                "call reset_targets() first (goto_point does)",
+                status,
+            )
+        target_id = map_targets + self._count
+        if target_id > limit:
+            raise NotReady(f"add_target: goal ids stop at {limit}; call reset_targets()", status)
+        self._count += 1  # reserved now: concurrent calls get distinct ids
+        return target_id

@@ -6,20 +6,31 @@ import math
 from collections.abc import Callable
 
 from ._goal import GoalHandle
-from ._operations import DEFAULT_TIMEOUT, ROTATE_TIMEOUT, Deadline, Operations, check_timeout
+from ._operations import (
+    DEFAULT_TIMEOUT,
+    ROTATE_TIMEOUT,
+    Deadline,
+    DynamicTargets,
+    Operations,
+    check_timeout,
+)
 from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
     InvalidArgument,
+    LinkStale,
+    NotReady,
     UnconfirmedOperation,
 )
 from .models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
 from .protocol import (
+    AddTarget,
     Backward,
     Cancel,
     Command,
     Forward,
     Pause,
+    ResetTargets,
     Resume,
     RotateTo,
     SaveDock,
@@ -38,7 +49,10 @@ from .protocol import (
     UpdateMap,
 )
 
-__all__ = ["RobotServices"]
+__all__ = ["MAX_TARGET_ID", "RobotServices"]
+
+#: Highest goal id the ``g`` command can carry.
+MAX_TARGET_ID = 255
 
 
 def _navigating(status: GalileoStatus) -> bool:
@@ -51,6 +65,8 @@ class RobotServices:
     _ops: Operations
     _closed: bool
     _goal: GoalHandle | None
+    _targets: DynamicTargets
+    map_targets: int | None
 
     # --- goal control ---------------------------------------------------------------
 
@@ -63,12 +79,22 @@ class RobotServices:
         await self._goal_command(Resume(), TargetStatus.PAUSED, TargetStatus.WORKING, timeout)
 
     async def cancel(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Cancel the goal (sent at once, even while busy); return once no goal is active."""
+        """Cancel the goal (sent at once, even while busy or stale); return once none is active.
+
+        On a stale link ``i 2`` is still sent (the transmit side may work), then LinkStale
+        is raised: the status cannot confirm it.
+        """
         check_timeout("timeout", timeout)
         self._ensure_open()
         if self._goal is not None:
             self._goal.cancelled = True  # its end is then reported as cancelled
         await self._ops.link.send(Cancel())
+        stale = self._ops.store.link_error
+        if isinstance(stale, LinkStale):
+            raise LinkStale(
+                f"cancel: sent, but the status cannot confirm it: {stale}",
+                silent_for=stale.silent_for,
+            )
         try:
             await self._ops.store.wait_until(lambda s: not s.goal_active, timeout=timeout)
         except GalileoTimeout as exc:
@@ -110,6 +136,21 @@ class RobotServices:
                 exc.status,
             ) from None
 
+    # --- dynamic targets -------------------------------------------------------------
+
+    async def add_target(
+        self, x: float, y: float, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> int:
+        """Append a dynamic target at (x, y) metres in the map frame; return its goal id."""
+        command = AddTarget(x, y)
+        check_timeout("timeout", timeout)
+        return await self._add_target(command, Deadline(timeout))
+
+    async def reset_targets(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Drop every dynamic target (the map's own stay); not confirmable by status."""
+        check_timeout("timeout", timeout)
+        await self._reset_targets(Deadline(timeout))
+
     # --- teleoperation ---------------------------------------------------------------
 
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -129,7 +170,7 @@ class RobotServices:
         await self._send(TurnRight(percent), timeout, "turn_right")
 
     async def stop(self, brake: int = 100) -> None:
-        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy."""
+        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale."""
         command = Stop(brake)
         self._ensure_open()
         await self._ops.link.send(command)
@@ -220,9 +261,40 @@ class RobotServices:
                 "shutdown_host powers the robot's computer off: pass confirm=True"
             )
         self._ensure_open()
-        await self._ops.link.send(ShutdownHost())
+        await self._ops.transmit(ShutdownHost(), "shutdown_host")
 
     # --- helpers -----------------------------------------------------------------------
+
+    async def _add_target(self, command: AddTarget, deadline: Deadline) -> int:
+        map_targets = self._require_map_targets("add_target")
+        self._require(_navigating, "add_target: navigation must be open")
+        await self._ops.wait_not_busy(deadline, "add_target")
+        self._ops.check_link("add_target")
+        target_id = self._targets.reserve(map_targets, self._ops.store.status, MAX_TARGET_ID)
+        try:
+            await self._ops.link.send(command)
+        except BaseException:
+            self._targets.forget()  # it may or may not have reached the robot
+            raise
+        return target_id
+
+    async def _reset_targets(self, deadline: Deadline) -> None:
+        self._require(_navigating, "reset_targets: navigation must be open")
+        await self._ops.wait_not_busy(deadline, "reset_targets")
+        self._ops.check_link("reset_targets")
+        self._targets.resetting()
+        await self._ops.link.send(ResetTargets())
+        self._targets.reset_done()
+
+    def _require_map_targets(self, what: str) -> int:
+        if self.map_targets is None:
+            raise NotReady(
+                f"{what}: the number of targets in the robot's map is unknown (the serial "
+                "link cannot read it); pass map_targets=N to connect() "
+                "(galileo CLI: --map-targets N or GALILEO_MAP_TARGETS)",
+                self._ops.store.status,
+            )
+        return self.map_targets
 
     def _ensure_open(self) -> None:
         if self._closed:

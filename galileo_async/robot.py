@@ -12,18 +12,21 @@ from typing import Any
 from ._goal import GoalHandle, GoalResult, run_goal
 from ._operations import (
     DEFAULT_TIMEOUT,
+    ROBOT_DEFAULT,
     ROTATE_TIMEOUT,
     Deadline,
+    DynamicTargets,
     Operations,
+    RobotDefault,
     check_timeout,
+    or_default,
 )
-from ._services import RobotServices
+from ._services import MAX_TARGET_ID, RobotServices
 from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
-    NotReady,
     UnconfirmedOperation,
 )
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event
@@ -33,7 +36,6 @@ from .protocol import (
     AddTarget,
     Command,
     Goto,
-    ResetTargets,
     StartNavigation,
     StopNavigation,
 )
@@ -42,13 +44,17 @@ from .state import StatusStore
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
     "DEFAULT_ARRIVE_TOLERANCE",
+    "DEFAULT_GOAL_TIMEOUT",
     "DEFAULT_TIMEOUT",
+    "DEFAULT_WAIT_TIMEOUT",
     "FIRST_STATUS_TIMEOUT",
     "NAVIGATION_TIMEOUT",
+    "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
     "Connection",
     "GoalResult",
     "Robot",
+    "RobotDefault",
     "connect",
 ]
 
@@ -56,12 +62,21 @@ _log = logging.getLogger(__name__)
 
 #: Seconds for the robot to show a goal as working after ``g N``.
 DEFAULT_ACCEPT_TIMEOUT = 5.0
+#: Seconds a goto/goto_point may take by default (the Robot's ``goal_timeout``).
+DEFAULT_GOAL_TIMEOUT = 600.0
+#: Seconds wait_until waits by default (the Robot's ``wait_timeout``).
+DEFAULT_WAIT_TIMEOUT = 30.0
 #: Seconds for navigation to open and the visual system to initialise.
 NAVIGATION_TIMEOUT = 60.0
 #: Seconds ``connect`` waits for the first status frame.
 FIRST_STATUS_TIMEOUT = 3.0
-#: Highest goal id the ``g`` command can carry.
-_MAX_TARGET_ID = 255
+_ROBOT_OPTIONS = (
+    "map_targets",
+    "accept_timeout",
+    "arrive_tolerance",
+    "goal_timeout",
+    "wait_timeout",
+)
 
 
 def _navigating(status: GalileoStatus) -> bool:
@@ -86,14 +101,18 @@ class Robot(RobotServices):
         map_targets: int | None = None,
         accept_timeout: float = DEFAULT_ACCEPT_TIMEOUT,
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+        goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
+        wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         if map_targets is not None and (
             not isinstance(map_targets, int)
             or isinstance(map_targets, bool)
-            or not 0 <= map_targets <= _MAX_TARGET_ID
+            or not 0 <= map_targets <= MAX_TARGET_ID
         ):
             raise InvalidArgument(f"map_targets must be an int in 0..255, got {map_targets!r}")
         check_timeout("accept_timeout", accept_timeout, allow_none=False)
+        check_timeout("goal_timeout", goal_timeout)
+        check_timeout("wait_timeout", wait_timeout)
         if isinstance(arrive_tolerance, bool) or not isinstance(arrive_tolerance, (int, float)):
             raise InvalidArgument(f"arrive_tolerance must be metres, got {arrive_tolerance!r}")
         if not math.isfinite(arrive_tolerance) or arrive_tolerance < 0:
@@ -104,7 +123,10 @@ class Robot(RobotServices):
         self.map_targets = map_targets
         self.accept_timeout = float(accept_timeout)
         self.arrive_tolerance = float(arrive_tolerance)
-        self._dynamic_targets: int | None = None  # unknown until reset_targets in this session
+        #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
+        self.goal_timeout = goal_timeout
+        self.wait_timeout = wait_timeout
+        self._targets = DynamicTargets(link)
         self._goal: GoalHandle | None = None
         self._closed = False
         self._closing: asyncio.Future[None] | None = None
@@ -127,11 +149,17 @@ class Robot(RobotServices):
         return self._closed
 
     async def wait_until(
-        self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None
+        self,
+        predicate: Callable[[GalileoStatus], bool],
+        timeout: float | RobotDefault | None = ROBOT_DEFAULT,
     ) -> GalileoStatus:
-        """Return the first status (the latest included) for which ``predicate`` is true."""
-        check_timeout("timeout", timeout)
-        return await self._store.wait_until(predicate, timeout)
+        """First status (the latest included) where ``predicate`` holds; within ``wait_timeout``.
+
+        Left out, ``timeout`` is the Robot's ``wait_timeout`` (30 s unless set); None: no limit.
+        """
+        seconds = or_default(timeout, self.wait_timeout)
+        check_timeout("timeout", seconds)
+        return await self._store.wait_until(predicate, seconds)
 
     def statuses(self) -> AsyncIterator[GalileoStatus]:
         """Iterate over statuses, newest only: a slow consumer skips to the latest."""
@@ -184,48 +212,44 @@ class Robot(RobotServices):
         self,
         target_id: int,
         *,
-        timeout: float | None = None,
+        timeout: float | RobotDefault | None = ROBOT_DEFAULT,
         accept_timeout: float | None = None,
         cancel_on_exit: bool = True,
     ) -> GoalResult:
         """Go to map target ``target_id``; return a GoalResult on arrival, else raise.
 
         GoalRejected, GoalAborted (stopped short), GoalCancelled (cancelled or preempted),
-        AcceptTimeout, OperationTimeout (after ``timeout`` s), ConnectionLost or LinkStale.
-        When the call is cancelled or times out, Cancel (``i 2``) is sent first unless
+        AcceptTimeout, OperationTimeout (after ``timeout`` s: left out, the Robot's
+        ``goal_timeout``, 600 s unless set; None: no limit), ConnectionLost or LinkStale
+        (on a lost or stale link before the send: nothing is sent). When the call is
+        cancelled, times out or the link goes stale, Cancel (``i 2``) is sent first unless
         ``cancel_on_exit`` is False.
         """
         Goto(target_id)  # validate before anything is sent
-        check_timeout("timeout", timeout)
+        seconds = or_default(timeout, self.goal_timeout)
+        check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
-        return await self._goto(target_id, Deadline(timeout), accept, cancel_on_exit)
+        return await self._goto(target_id, Deadline(seconds), accept, cancel_on_exit)
 
     async def goto_point(
-        self, x: float, y: float, *, timeout: float | None = None, cancel_on_exit: bool = True
+        self,
+        x: float,
+        y: float,
+        *,
+        timeout: float | RobotDefault | None = ROBOT_DEFAULT,
+        cancel_on_exit: bool = True,
     ) -> GoalResult:
         """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there."""
         command = AddTarget(x, y)  # validate before anything is sent
-        check_timeout("timeout", timeout)
+        seconds = or_default(timeout, self.goal_timeout)
+        check_timeout("timeout", seconds)
         self._require_map_targets("goto_point")
         self._require(_goal_ready, "goto_point: " + _GOAL_READY)
-        deadline = Deadline(timeout)
+        deadline = Deadline(seconds)
         await self._reset_targets(deadline)
         target_id = await self._add_target(command, deadline)
         return await self._goto(target_id, deadline, self.accept_timeout, cancel_on_exit)
-
-    async def add_target(
-        self, x: float, y: float, *, timeout: float | None = DEFAULT_TIMEOUT
-    ) -> int:
-        """Append a dynamic target at (x, y) metres in the map frame; return its goal id."""
-        command = AddTarget(x, y)
-        check_timeout("timeout", timeout)
-        return await self._add_target(command, Deadline(timeout))
-
-    async def reset_targets(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Drop every dynamic target (the map's own stay); not confirmable by status."""
-        check_timeout("timeout", timeout)
-        await self._reset_targets(Deadline(timeout))
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -238,6 +262,7 @@ class Robot(RobotServices):
         self._closing = asyncio.get_running_loop().create_future()
         try:
             await self._link.close()
+            await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:
             self._store.close()
             self._closing.set_result(None)
@@ -275,47 +300,6 @@ class Robot(RobotServices):
             if self._goal is handle:
                 self._goal = None
 
-    async def _add_target(self, command: AddTarget, deadline: Deadline) -> int:
-        map_targets = self._require_map_targets("add_target")
-        self._require(_navigating, "add_target: navigation must be open")
-        await self._ops.wait_not_busy(deadline, "add_target")
-        count = self._dynamic_targets
-        if count is None:
-            raise NotReady(
-                "add_target: the number of dynamic targets on the robot is unknown; "
-                "call reset_targets() first (goto_point does)",
-                self.status,
-            )
-        target_id = map_targets + count
-        if target_id > _MAX_TARGET_ID:
-            raise NotReady(
-                f"add_target: goal ids stop at {_MAX_TARGET_ID}; call reset_targets()",
-                self.status,
-            )
-        self._dynamic_targets = count + 1  # reserved now: concurrent calls get distinct ids
-        try:
-            await self._link.send(command)
-        except BaseException:
-            self._dynamic_targets = None  # it may or may not have reached the robot
-            raise
-        return target_id
-
-    async def _reset_targets(self, deadline: Deadline) -> None:
-        self._require(_navigating, "reset_targets: navigation must be open")
-        await self._ops.wait_not_busy(deadline, "reset_targets")
-        self._dynamic_targets = None  # unknown until the command is written
-        await self._link.send(ResetTargets())
-        self._dynamic_targets = 0
-
-    def _require_map_targets(self, what: str) -> int:
-        if self.map_targets is None:
-            raise NotReady(
-                f"{what}: the number of targets in the robot's map is unknown (the serial "
-                "link cannot read it); pass map_targets=N to connect()",
-                self.status,
-            )
-        return self.map_targets
-
 
 class Connection:
     """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
@@ -343,11 +327,7 @@ class Connection:
 
     async def _open(self) -> Robot:
         options = dict(self._options)
-        robot_options = {
-            name: options.pop(name)
-            for name in ("map_targets", "accept_timeout", "arrive_tolerance")
-            if name in options
-        }
+        robot_options = {name: options.pop(name) for name in _ROBOT_OPTIONS if name in options}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
         check_timeout("first_status_timeout", first_status_timeout)
         store = StatusStore(
@@ -389,6 +369,7 @@ def connect(url: str, **options: Any) -> Connection:
 
     ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
     Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
+    ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
     ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
     ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``, ``connect_timeout``.

@@ -27,6 +27,7 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+_running_loop = asyncio.get_running_loop
 
 #: Statuses a Watch keeps before it drops the oldest.
 DEFAULT_WATCH_QUEUE = 256
@@ -115,11 +116,10 @@ class _Queue(Generic[_T]):
             if self.closed:
                 raise StopAsyncIteration
             # _wait(None) inlined: one coroutine frame less on every status of every stream.
-            wakeup = self._wakeup = asyncio.get_running_loop().create_future()
-            try:
-                await wakeup
-            finally:
-                self._wakeup = None
+            # No clean-up needed: whoever wakes it clears _wakeup, and a cancelled future
+            # left behind is done, which every waker checks.
+            self._wakeup = wakeup = _running_loop().create_future()
+            await wakeup
 
     def close(self) -> None:
         """Stop receiving (idempotent); what is buffered can still be read."""
@@ -274,17 +274,32 @@ class StatusStore:
             self._event_key = None
         if self._waiters:
             self._check_waiters(status)
-        # _Queue._push inlined: this loop runs for every subscriber on every frame.
-        for ref in self._watches.refs + self._status_streams.refs:
-            queue = ref()
-            if queue is not None:
-                buffer = queue.buffer
-                if len(buffer) == buffer.maxlen:
-                    queue.dropped += 1
+        # _Queue._push inlined: these loops run for every subscriber on every frame.
+        for ref in self._status_streams.refs:
+            stream = ref()
+            if stream is not None:
+                buffer = stream.buffer  # maxlen 1: newest only
+                if buffer:
+                    stream.dropped += 1
                 buffer.append(status)
-                wakeup = queue._wakeup
-                if wakeup is not None and not wakeup.done():
-                    wakeup.set_result(None)
+                wakeup = stream._wakeup
+                if wakeup is not None:
+                    # Woken once: later frames before it runs only replace the status.
+                    stream._wakeup = None
+                    if not wakeup.done():
+                        wakeup.set_result(None)
+        for ref in self._watches.refs:
+            watch = ref()
+            if watch is not None:
+                buffer = watch.buffer
+                if len(buffer) == buffer.maxlen:
+                    watch.dropped += 1
+                buffer.append(status)
+                wakeup = watch._wakeup
+                if wakeup is not None:
+                    watch._wakeup = None
+                    if not wakeup.done():
+                        wakeup.set_result(None)
 
     def connection_lost(self, exc: GalileoConnectionError) -> None:
         """The transport dropped: fail every waiter and watch at once with ``exc``."""

@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
+from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
+import anyio
 import pytest
+from test_cli_served import WAIT, ServedSim
 from typer.testing import CliRunner, Result
 
-from galileo_async.cli import ExitCode, app
+from galileo_async import connect
+from galileo_async.cli import ExitCode, app, connectors
 
 FAST = "sim://?speed=20"
 DOCUMENT = "sim://?speed=20&firmware=document"
+#: A simulator whose every connection drops after one simulated second (50 ms real).
+DROPPING = FAST + "&disconnect_after=1"
 
 
 def invoke(*args: str, port: str | None = FAST, input: bytes | None = None) -> Result:
@@ -24,6 +31,15 @@ def invoke(*args: str, port: str | None = FAST, input: bytes | None = None) -> R
 
 def json_lines(text: str) -> list[dict[str, object]]:
     return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+@pytest.fixture
+def served() -> Iterator[ServedSim]:
+    sim = ServedSim(speed=20.0)
+    try:
+        yield sim
+    finally:
+        sim.close()
 
 
 def test_help_lists_every_command() -> None:
@@ -82,13 +98,76 @@ def test_monitor_dashboard_runs_for_duration() -> None:
         assert panel in result.stdout
 
 
-def test_monitor_json_reports_events_and_status() -> None:
-    # The simulator's first frames carry defaults; the JSON lines are status snapshots.
-    result = invoke("--json", "monitor", "--duration", "0.4")
+def test_monitor_json_reports_events_and_status(served: ServedSim) -> None:
+    # A goal runs on the served robot (driven from the simulator's thread) while the
+    # monitor watches it: its goal events must come out as JSON lines.
+    driving = served.run_soon(_drive_goal(served, target_id=0))
+    result = invoke("--json", "monitor", "--duration", "2", port=served.url)
+    driving.result(WAIT)
     assert result.exit_code == 0, result.output
-    snapshots = [line for line in json_lines(result.stdout) if "status" in line]
+    lines = json_lines(result.stdout)
+    snapshots = [line for line in lines if "status" in line]
     assert snapshots
     assert "link" in snapshots[0]
+    events = [(line["event"], line.get("target_id")) for line in lines if "event" in line]
+    assert ("GoalAccepted", 0) in events
+    assert ("GoalReached", 0) in events
+    assert events.index(("GoalAccepted", 0)) < events.index(("GoalReached", 0))
+    reached = next(line for line in lines if line.get("event") == "GoalReached")
+    assert isinstance(reached["distance"], float)
+    assert abs(reached["distance"]) <= 0.3
+    assert isinstance(reached["t"], float)
+
+
+async def _drive_goal(served: ServedSim, target_id: int) -> None:
+    """Once the monitor is connected, open navigation and go to ``target_id`` (sim's loop)."""
+    with anyio.fail_after(WAIT):
+        while served.state.connections < 1:  # noqa: ASYNC110 - the simulator has no notification
+            await anyio.sleep(0.005)
+        async with connect(served.url) as robot:
+            await robot.start_navigation()
+            await robot.goto(target_id)
+
+
+def test_monitor_json_reports_a_dropping_link() -> None:
+    # Every connection of this simulator drops after one simulated second; monitor reconnects.
+    result = invoke("--json", "monitor", "--duration", "0.5", port=DROPPING)
+    assert result.exit_code == 0, result.output
+    events = [line["event"] for line in json_lines(result.stdout) if "event" in line]
+    assert "ConnectionLost" in events
+    assert "ConnectionRestored" in events
+    assert events.index("ConnectionLost") < events.index("ConnectionRestored")
+
+
+def test_status_watch_reports_link_loss_and_reconnects() -> None:
+    result = invoke("status", "--watch", "--count", "10", "--interval", "0.05", port=DROPPING)
+    assert result.exit_code == 0, result.output
+    lost = next(line for line in result.stderr.splitlines() if "connection lost" in line)
+    assert lost.endswith("; reconnecting…")
+    assert "connection restored" in result.stderr
+    assert len(result.stdout.splitlines()) == 10
+
+
+def test_status_watch_json_reports_link_events_as_lines() -> None:
+    args = ("--json", "status", "--watch", "--count", "10", "--interval", "0.05")
+    result = invoke(*args, port=DROPPING)
+    assert result.exit_code == 0, result.output
+    lines = json_lines(result.stdout)
+    assert len([line for line in lines if "time_stamp" in line]) == 10
+    lost = [line for line in lines if line.get("event") == "ConnectionLost"]
+    assert lost
+    assert isinstance(lost[0]["reason"], str)
+    assert lost[0]["reason"]
+    assert {"event": "ConnectionRestored"} in lines
+
+
+def test_status_watch_without_reconnect_exits_on_link_loss() -> None:
+    args = ("status", "--watch", "--no-reconnect", "--interval", "0.05")
+    result = invoke(*args, port=DROPPING)
+    assert result.exit_code == ExitCode.CONNECTION, result.output
+    assert "connection lost" in result.stderr  # the link event, then the error line
+    assert result.stderr.strip().splitlines()[-1].startswith("error: ConnectionLost: ")
+    assert "Traceback" not in result.output
 
 
 def test_nav_start_and_stop() -> None:
@@ -137,11 +216,19 @@ def test_goto_timeout_exit_code_and_one_line() -> None:
 def test_goto_without_navigation_is_not_ready() -> None:
     result = invoke("goto", "1", "--no-start-nav")
     assert result.exit_code == ExitCode.NOT_READY
+    assert result.stderr.startswith("error: NotReady: ")
     assert "nav start" in result.stderr
 
 
 def test_goto_bad_id_is_a_usage_error() -> None:
     assert invoke("goto", "300").exit_code == ExitCode.USAGE
+
+
+def test_goto_negative_id_reaches_the_range_check() -> None:
+    result = invoke("goto", "-1")
+    assert result.exit_code == ExitCode.USAGE
+    assert "No such option" not in result.output
+    assert "greater than or equal to 0" in result.output
 
 
 def test_connection_error_exit_code() -> None:
@@ -188,7 +275,17 @@ def test_cancel_without_a_goal_is_fine() -> None:
 def test_rotate_ignored_by_real_firmware_times_out() -> None:
     result = invoke("rotate", "90", "--timeout", "1")
     assert result.exit_code == ExitCode.TIMEOUT
-    assert "ignore" in result.stderr
+    notice, error = result.stderr.strip().splitlines()[-2:]
+    # Said before the wait, so the user knows what the pause is about.
+    assert notice.startswith("rotate: waiting up to 1 s for angle_goal_status")
+    assert "many firmware versions ignore the rotate command 'a'" in notice
+    assert error.startswith("error: ")
+
+
+def test_rotate_default_timeout_is_short() -> None:
+    result = invoke("rotate", "--help")
+    assert result.exit_code == 0
+    assert "default: 10.0" in result.stdout
 
 
 def test_rotate_in_document_mode_with_negative_angle() -> None:
@@ -269,6 +366,26 @@ def test_record_then_decode(tmp_path: Path) -> None:
     assert stamps == sorted(stamps)
 
 
+def test_record_reports_chunks_dropped_when_the_writer_falls_behind(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    @contextlib.asynccontextmanager
+    async def burst(url: str, chunks: connectors.ChunkQueue) -> AsyncIterator[float]:
+        for index in range(5):  # all at once, before the writer reads one
+            chunks.put(float(index), b"\xcd" * 10)
+        chunks.end()
+        yield 0.0
+
+    monkeypatch.setattr(connectors, "RECORD_QUEUE_CHUNKS", 2)
+    monkeypatch.setattr(connectors, "open_raw", burst)
+    capture = tmp_path / "burst.bin"
+    result = invoke("record", str(capture), "--raw", "--duration", "5")
+    assert result.exit_code == ExitCode.ERROR, result.output
+    assert capture.read_bytes() == b"\xcd" * 20
+    assert "recorded 20 bytes in 2 chunks" in result.stdout
+    assert "error: the file writer fell behind: dropped 3 chunks (30 bytes)" in result.stderr
+
+
 def test_record_raw_and_decode_from_stdin(tmp_path: Path) -> None:
     capture = tmp_path / "capture.bin"
     assert invoke("record", str(capture), "--raw", "--duration", "0.2").exit_code == 0
@@ -332,6 +449,14 @@ def test_teleop_needs_a_terminal() -> None:
     result = invoke("teleop")
     assert result.exit_code == ExitCode.ERROR
     assert "tty" in result.stderr
+
+
+def test_help_names_every_url_form() -> None:
+    result = invoke("--help", port=None)
+    assert result.exit_code == 0
+    text = " ".join(result.stdout.split())
+    for form in ("socket://host:port", "ros://host:11311", "sim://", "--map-targets"):
+        assert form in text
 
 
 def test_version() -> None:

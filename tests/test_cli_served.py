@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import json
 import os
@@ -12,9 +13,9 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Coroutine, Iterator
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, TypeVar
 
 import pytest
 from typer.testing import CliRunner, Result
@@ -22,6 +23,8 @@ from typer.testing import CliRunner, Result
 from galileo_async.cli import ExitCode, app
 from galileo_async.models import TargetStatus
 from galileo_async.sim import SimState, Simulator
+
+_T = TypeVar("_T")
 
 #: Bound on every wait in this module, seconds.
 WAIT = 15.0
@@ -67,9 +70,17 @@ class ServedSim:
         future = asyncio.run_coroutine_threadsafe(asyncio.wait_for(check(), timeout), self.loop)
         future.result(timeout + 1)
 
-    def close(self) -> None:
+    def run_soon(self, coroutine: Coroutine[Any, Any, _T]) -> concurrent.futures.Future[_T]:
+        """Run ``coroutine`` on the simulator's loop; its future for the test thread."""
+        return asyncio.run_coroutine_threadsafe(coroutine, self.loop)
+
+    def stop_serving(self) -> None:
+        """Close the simulator (its server and every connection), leaving the loop running."""
         assert self.simulator is not None
-        asyncio.run_coroutine_threadsafe(self.simulator.close(), self.loop).result(WAIT)
+        self.run_soon(self.simulator.close()).result(WAIT)
+
+    def close(self) -> None:
+        self.stop_serving()  # Simulator.close is idempotent
         self.loop.call_soon_threadsafe(self.loop.stop)
         self._thread.join(WAIT)
         self.loop.close()
@@ -202,6 +213,79 @@ def test_monitor_shows_the_events_of_a_goal(served: ServedSim) -> None:
             assert name in names
         reached = next(line for line in seen if line.get("event") == "GoalReached")
         assert reached["target_id"] == 0
+    finally:
+        monitor.kill()
+        monitor.communicate()
+
+
+def _read_until(stream: IO[str], text: str, timeout: float = WAIT) -> str:
+    """Lines read from ``stream`` until one contains ``text`` (failing after ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    seen = ""
+    while text not in seen:
+        ready, _, _ = select.select([stream], [], [], max(0.0, deadline - time.monotonic()))
+        assert ready, f"{text!r} not seen in {seen!r}"
+        line = stream.readline()
+        assert line, f"the stream ended before {text!r}: {seen!r}"
+        seen += line
+    return seen
+
+
+def _watch(served: ServedSim, *args: str) -> subprocess.Popen[str]:
+    """``galileo status --watch`` on the served robot, once its first line is out."""
+    watch = subprocess.Popen(
+        [*GALILEO, "--port", served.url, "status", "--watch", "--interval", "0.05", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert watch.stdout is not None
+    _read_until(watch.stdout, "nav ")
+    return watch
+
+
+def test_status_watch_exits_when_the_server_goes_away_without_reconnect(
+    served: ServedSim,
+) -> None:
+    watch = _watch(served, "--no-reconnect")
+    try:
+        served.stop_serving()
+        assert watch.wait(WAIT) == ExitCode.CONNECTION
+        assert watch.stderr is not None
+        stderr = watch.stderr.read()
+        assert "connection lost" in stderr
+        assert stderr.strip().splitlines()[-1].startswith("error: ConnectionLost: ")
+    finally:
+        watch.kill()
+        watch.communicate()
+
+
+def test_status_watch_says_when_the_server_goes_away(served: ServedSim) -> None:
+    watch = _watch(served)
+    try:
+        served.stop_serving()
+        assert watch.stderr is not None
+        lost = _read_until(watch.stderr, "connection lost").splitlines()[-1]
+        assert lost.endswith("; reconnecting…")
+        assert watch.poll() is None  # still waiting for the robot to come back
+    finally:
+        watch.kill()
+        watch.communicate()
+
+
+def test_monitor_json_says_when_the_server_goes_away(served: ServedSim) -> None:
+    monitor = subprocess.Popen(
+        [*GALILEO, "--json", "--port", served.url, "monitor", "--duration", str(WAIT)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert monitor.stdout is not None
+        _read_until(monitor.stdout, '"status"')
+        served.stop_serving()
+        lost = _read_until(monitor.stdout, '"ConnectionLost"').splitlines()[-1]
+        assert json.loads(lost)["reason"]
     finally:
         monitor.kill()
         monitor.communicate()

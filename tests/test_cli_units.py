@@ -12,9 +12,18 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from galileo_async.cli.capture import MAGIC, RECORD, iter_capture
+from galileo_async.cli.connectors import RECORD_QUEUE_CHUNKS, ChunkQueue
 from galileo_async.cli.ops import parse_command
 from galileo_async.cli.render import event_text, goal_line, link_dict, status_dict, status_line
-from galileo_async.cli.runner import ExitCode, Settings, exit_code_for, report, run, with_query
+from galileo_async.cli.runner import (
+    ExitCode,
+    Settings,
+    exit_code_for,
+    fail,
+    report,
+    run,
+    with_query,
+)
 from galileo_async.cli.teleop import KEYS, parse_keys
 from galileo_async.errors import (
     AcceptTimeout,
@@ -209,7 +218,7 @@ def test_errors_inside_task_groups_are_reported_as_one_line(
     with pytest.raises(typer.Exit) as exit_info:
         run(Settings(), main)
     assert exit_info.value.exit_code == ExitCode.CONNECTION
-    assert capsys.readouterr().err.strip() == "ConnectionLost: the link dropped"
+    assert capsys.readouterr().err.strip() == "error: ConnectionLost: the link dropped"
 
 
 def test_bugs_keep_their_traceback() -> None:
@@ -222,4 +231,43 @@ def test_bugs_keep_their_traceback() -> None:
 
 def test_markup_in_messages_is_printed_as_is(capsys: pytest.CaptureFixture[str]) -> None:
     report(GalileoError("cannot open [Errno 2] [bold]x[/bold]"), verbose=0)
-    assert capsys.readouterr().err.strip() == "GalileoError: cannot open [Errno 2] [bold]x[/bold]"
+    expected = "error: GalileoError: cannot open [Errno 2] [bold]x[/bold]"
+    assert capsys.readouterr().err.strip() == expected
+
+
+def test_every_error_line_has_one_format(capsys: pytest.CaptureFixture[str]) -> None:
+    report(NotReady("goto: navigation must be open", None), verbose=0)
+    report(OSError("port busy"), verbose=0)
+    with pytest.raises(typer.Exit):
+        fail("bad input", ExitCode.USAGE)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith("error: NotReady: goto: navigation must be open (start it with")
+    assert lines[1:] == ["error: port busy", "error: bad input"]
+
+
+async def test_chunk_queue_is_bounded_and_counts_what_it_drops() -> None:
+    assert RECORD_QUEUE_CHUNKS >= 1024
+    chunks = ChunkQueue(limit=2)
+    for index in range(5):
+        chunks.put(float(index), bytes([index]) * (index + 1))
+    chunks.end()  # the queue is full: the end still shows once it is drained
+    with anyio.fail_after(5):
+        got = [await chunks.get() for _ in range(3)]
+    assert got == [(0.0, b"\x00"), (1.0, b"\x01\x01"), None]
+    assert (chunks.dropped_chunks, chunks.dropped_bytes) == (3, 3 + 4 + 5)
+
+
+async def test_chunk_queue_end_wakes_a_waiting_reader() -> None:
+    chunks = ChunkQueue(limit=2)
+    got: list[object] = []
+    with anyio.fail_after(5):
+        async with anyio.create_task_group() as group:
+
+            async def read() -> None:
+                got.append(await chunks.get())
+
+            group.start_soon(read)
+            await anyio.wait_all_tasks_blocked()
+            chunks.end()
+    assert got == [None]
+    assert chunks.dropped_chunks == 0

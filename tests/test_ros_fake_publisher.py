@@ -123,7 +123,10 @@ async def test_newer_definition_with_unknown_fields_and_bad_messages(master: Ros
         assert status.power == 24.0
         assert status.target_num_id == 6
         assert status.visual_status is None
-        await store.wait_until(lambda s: link.stats.bytes_discarded > 0, timeout=3)
+        await store.wait_until(lambda s: link.decode_errors > 0, timeout=3)
+        # Messages are counted as messages, their bytes (with the length prefix) as bytes.
+        assert link.stats.bytes_discarded == link.decode_errors * (len(bad) + 4)
+        assert link.stats.resyncs == 0
         assert link.connected
         await link.send(Goto(5))
         command = await asyncio.wait_for(robot.commands.get(), 3)

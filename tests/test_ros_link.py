@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import asyncio
 import signal
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
-from typing import Any
 
 import pytest
-from ros_support import RobotNode, RosMaster, free_port
+from ros_support import RobotNode, RosMaster, eventually, free_port
 
 import galileo_async as galileo
 from galileo_async.errors import ConnectionLost, GalileoConnectionError, LinkStale
@@ -26,21 +24,6 @@ pytestmark = pytest.mark.timeout(60)
 async def master(tmp_path: Path) -> AsyncIterator[RosMaster]:
     async with RosMaster.running(tmp_path) as master:
         yield master
-
-
-async def eventually(check: Callable[[], Any], timeout: float, what: str) -> None:
-    """Poll an external condition (another process's state has no event to await)."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while True:
-        result = check()
-        if asyncio.iscoroutine(result):
-            result = await result
-        if result:
-            return
-        if loop.time() > deadline:
-            pytest.fail(f"timed out waiting for {what}")
-        await asyncio.sleep(0.05)
 
 
 async def registered(master: RosMaster, node_name: str) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import socket
 import struct
 from collections.abc import AsyncIterator
 
@@ -14,6 +15,9 @@ from ros_support import free_port
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
 from galileo_async.link.ros import RosLink, open_ros_link, parse_ros_url
 from galileo_async.link.ros.tcpros import (
+    KEEPALIVE_COUNT,
+    KEEPALIVE_IDLE,
+    KEEPALIVE_INTERVAL,
     MAX_FRAME,
     Framer,
     TcprosError,
@@ -108,6 +112,33 @@ async def test_publisher_delivers_to_subscribers(publisher: TcprosPublisher) -> 
         assert await asyncio.wait_for(received.get(), 2) == b""
         await publisher.close()  # the subscriber sees the publisher go away
         await asyncio.wait_for(closed, 2)
+    finally:
+        transport.abort()
+
+
+def assert_keepalive(sock: socket.socket) -> None:
+    assert sock.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) != 0
+    if hasattr(socket, "TCP_KEEPIDLE"):
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE) == KEEPALIVE_IDLE
+    if hasattr(socket, "TCP_KEEPINTVL"):
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL) == KEEPALIVE_INTERVAL
+    if hasattr(socket, "TCP_KEEPCNT"):
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT) == KEEPALIVE_COUNT
+
+
+async def test_both_ends_of_a_topic_connection_use_tcp_keepalive(
+    publisher: TcprosPublisher,
+) -> None:
+    """A peer whose host vanished sends no FIN: only keepalive probes can report it."""
+    assert publisher.port is not None
+    header = {"callerid": "/sub", "topic": TOPIC, "md5sum": "*", "type": "*"}
+    transport, _ = await subscribe("127.0.0.1", publisher.port, header, print, print, timeout=2)
+    try:
+        assert await publisher.wait_for_subscriber(2)
+        assert_keepalive(transport.get_extra_info("socket"))
+        (connection,) = publisher._connections
+        assert connection.transport is not None
+        assert_keepalive(connection.transport.get_extra_info("socket"))
     finally:
         transport.abort()
 

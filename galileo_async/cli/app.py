@@ -15,7 +15,10 @@ __all__ = ["app", "main"]
 
 app = typer.Typer(
     name="galileo",
-    help="Drive and watch a Galileo navigation robot (serial, socket:// or the sim:// default).",
+    help=(
+        "Drive and watch a Galileo navigation robot (serial, socket://, ros:// or the sim:// "
+        "default)."
+    ),
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
@@ -43,7 +46,10 @@ def options(
             "-p",
             envvar="GALILEO_PORT",
             show_envvar=True,
-            help="Serial device, socket://host:port, or sim://?speed=…&layout=… (simulator).",
+            help=(
+                "Serial device (/dev/ttyUSB0), socket://host:port, ros://host:11311 (ROS "
+                "master), or sim://?speed=…&layout=… (simulator)."
+            ),
         ),
     ] = DEFAULT_PORT,
     layout: Annotated[
@@ -90,7 +96,7 @@ _NUMBERS = {"ignore_unknown_options": True}  # lets "-2.5" through as a number
 app.command("status")(watch.status)
 app.command("monitor")(watch.monitor)
 app.add_typer(ops.nav_app, name="nav")
-app.command("goto")(ops.goto)
+app.command("goto", context_settings=_NUMBERS)(ops.goto)  # "-1" gets the range error
 app.command("goto-point", context_settings=_NUMBERS)(ops.goto_point)
 _GROUPS = {
     None: app, "nav": ops.nav_app, "patrol": ops.patrol_app, "map": ops.map_app,

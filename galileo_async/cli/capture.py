@@ -23,9 +23,9 @@ import anyio
 import typer
 
 from ..protocol import StatusDecoder
-from .connectors import open_raw
+from . import connectors
 from .render import status_dict
-from .runner import ExitCode, err_console, fail, out_console, run, settings_of
+from .runner import ExitCode, err_console, fail, out_console, print_error, run, settings_of
 
 __all__ = ["MAGIC", "RECORD", "decode", "iter_capture", "record", "stop_requested"]
 
@@ -141,11 +141,11 @@ def record(
     settings = settings_of(ctx)
 
     async def main() -> int:
-        chunks: asyncio.Queue[tuple[float, bytes] | None] = asyncio.Queue()
+        chunks = connectors.ChunkQueue(connectors.RECORD_QUEUE_CHUNKS)
         written = count = 0
         closed = False
         async with (
-            open_raw(settings.url, chunks) as started,
+            connectors.open_raw(settings.url, chunks) as started,
             await anyio.open_file(path, "wb") as file,
         ):
             if not raw:
@@ -165,6 +165,12 @@ def record(
         if closed:
             err_console().print("the link closed; recording ended")
         out_console().print(f"recorded {written} bytes in {count} chunks to {path}")
+        if chunks.dropped_chunks:
+            print_error(
+                f"the file writer fell behind: dropped {chunks.dropped_chunks} chunks "
+                f"({chunks.dropped_bytes} bytes); the recording has gaps"
+            )
+            return int(ExitCode.ERROR)
         return 0
 
     run(settings, main)

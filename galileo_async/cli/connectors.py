@@ -9,10 +9,40 @@ from urllib.parse import urlsplit
 
 from ..link.connectors import Connector, parse_socket_url, serial_connector, socket_connector
 
-__all__ = ["ChunkQueue", "open_raw"]
+__all__ = ["RECORD_QUEUE_CHUNKS", "ChunkQueue", "open_raw"]
 
-#: Received chunks as (loop time, bytes); None once the link closed.
-ChunkQueue = asyncio.Queue[tuple[float, bytes] | None]
+#: Most received chunks waiting for the file writer; beyond it chunks are dropped and counted.
+RECORD_QUEUE_CHUNKS = 4096
+
+
+class ChunkQueue:
+    """Received chunks as (loop time, bytes) for one writer; bounded, drops counted; then None."""
+
+    def __init__(self, limit: int = RECORD_QUEUE_CHUNKS) -> None:
+        self._queue: asyncio.Queue[tuple[float, bytes] | None] = asyncio.Queue(limit)
+        self.ended = False
+        self.dropped_chunks = 0
+        self.dropped_bytes = 0
+
+    def put(self, when: float, data: bytes) -> None:
+        """Queue a chunk, or count it as dropped when the writer is ``limit`` chunks behind."""
+        try:
+            self._queue.put_nowait((when, data))
+        except asyncio.QueueFull:
+            self.dropped_chunks += 1
+            self.dropped_bytes += len(data)
+
+    def end(self) -> None:
+        """The link closed: get() returns None once the queued chunks are read."""
+        self.ended = True
+        with contextlib.suppress(asyncio.QueueFull):
+            self._queue.put_nowait(None)  # wakes a waiting get(); a full queue needs no wake
+
+    async def get(self) -> tuple[float, bytes] | None:
+        """The next chunk, or None after the last one once the link closed."""
+        if self.ended and self._queue.empty():
+            return None
+        return await self._queue.get()
 
 
 class _Tap(asyncio.Protocol):
@@ -23,13 +53,13 @@ class _Tap(asyncio.Protocol):
         self._loop = asyncio.get_running_loop()
 
     def data_received(self, data: bytes) -> None:
-        self._chunks.put_nowait((self._loop.time(), bytes(data)))
+        self._chunks.put(self._loop.time(), bytes(data))
 
     def eof_received(self) -> bool | None:
         return None  # let the transport close
 
     def connection_lost(self, exc: Exception | None) -> None:
-        self._chunks.put_nowait(None)
+        self._chunks.end()
 
 
 @contextlib.asynccontextmanager

@@ -12,12 +12,13 @@ import typer
 from ..errors import InvalidArgument
 from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
 from .goals import follow_goal, with_progress
-from .runner import ExitCode, fail, out_console, run_robot, settings_of
+from .runner import ExitCode, err_console, fail, out_console, run_robot, settings_of
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
 __all__ = [
+    "ROTATE_TIMEOUT",
     "SIMPLE_COMMANDS",
     "charge_app",
     "goto",
@@ -116,19 +117,31 @@ def goto_point(
     run_robot(settings, body, navigation=start_nav)
 
 
+#: Default --timeout of ``rotate``: a half turn takes a few seconds, and many firmware
+#: versions drop 'a' silently (PROTOCOL.md §2.g), so do not keep the user waiting long.
+ROTATE_TIMEOUT = 10.0
+
+
 def rotate(
     ctx: typer.Context,
     degrees: Annotated[int, typer.Argument(min=-180, max=180, help="Heading, degrees.")],
-    timeout: Annotated[float, typer.Option("--timeout", "-t", min=0.1)] = 15.0,
+    timeout: Annotated[
+        float, typer.Option("--timeout", "-t", min=0.1, help="Give up after seconds.")
+    ] = ROTATE_TIMEOUT,
     start_nav: StartNav = None,
 ) -> None:
     """Rotate to a heading (-180..180); many firmware versions ignore it (then: timeout)."""
-    _simple(
-        ctx,
-        lambda robot: robot.rotate_to(degrees, timeout=timeout),
-        f"rotated to {degrees}°",
-        navigation=start_nav,
-    )
+
+    async def call(robot: Robot) -> None:
+        err_console().print(
+            f"rotate: waiting up to {timeout:g} s for angle_goal_status to show the turn done; "
+            "many firmware versions ignore the rotate command 'a' (then: exit code 6)",
+            markup=False,
+            style="dim",
+        )
+        await robot.rotate_to(degrees, timeout=timeout)
+
+    _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav)
 
 
 # --- patrol, mapping, charging -------------------------------------------------------------

@@ -12,6 +12,7 @@ from rich.console import Group, RenderableType
 from rich.panel import Panel
 from rich.table import Table
 
+from ..events import ConnectionLost, ConnectionRestored, LinkRestored, LinkStale
 from ..models import GalileoStatus
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "event_text",
     "goal_line",
     "link_dict",
+    "link_event_text",
     "status_dict",
     "status_line",
     "status_table",
@@ -114,6 +116,21 @@ def event_text(event: object) -> str:
     return f"{name} {rest}".strip()
 
 
+def link_event_text(event: object, *, reconnecting: bool) -> str | None:
+    """A line about the link's health for a link event (None for any other event)."""
+    if isinstance(event, LinkStale):
+        return f"link stale: no valid status frame for {event.silent_for:.1f} s"
+    if isinstance(event, LinkRestored):
+        return "link restored: status frames arrive again"
+    if isinstance(event, ConnectionLost):
+        reason = event.reason
+        text = reason if reason.startswith("connection lost") else f"connection lost: {reason}"
+        return f"{text}; reconnecting…" if reconnecting else text
+    if isinstance(event, ConnectionRestored):
+        return "connection restored"
+    return None
+
+
 def _plain(value: object) -> str:
     if isinstance(value, float):
         return "—" if math.isnan(value) else f"{value:.2f}"
@@ -197,7 +214,13 @@ _LINK_ROWS = (
 
 def _link_rows(stats: dict[str, Any]) -> list[tuple[str, str]]:
     rows = [(label, _value(stats.get(key))) for key, label in _LINK_ROWS]
-    state = "stale" if stats.get("stale") else "up" if stats.get("connected") else "down"
+    state = (
+        "[bold yellow]stale[/]"
+        if stats.get("stale")
+        else "up"
+        if stats.get("connected")
+        else "[bold red]down[/]"
+    )
     age = stats.get("last_frame_age")
     rows.append(("link", state))
     rows.append(("age", "—" if age is None else f"{age * 1000:.0f} ms"))

@@ -36,10 +36,12 @@ __all__ = [
     "Settings",
     "ensure_navigation",
     "err_console",
+    "error_text",
     "exit_code_for",
     "fail",
     "is_sim",
     "out_console",
+    "print_error",
     "report",
     "run",
     "run_robot",
@@ -164,21 +166,31 @@ def _hint(exc: BaseException) -> str:
     return ""
 
 
+def error_text(exc: BaseException) -> str:
+    """``Kind: message`` for a driver error (GalileoError), the bare message otherwise."""
+    message = str(exc) or type(exc).__name__
+    if isinstance(exc, GalileoError):
+        return f"{type(exc).__name__}: {message}"
+    return message
+
+
+def print_error(message: str) -> None:
+    """Print ``error: message`` on stderr: the one format of every error line of the CLI."""
+    err_console().print(f"[bold red]error:[/] {escape(message)}", highlight=False)
+
+
 def report(exc: BaseException, verbose: int) -> ExitCode:
     """Print one clear line for ``exc`` (a traceback too with -v) and return its exit code."""
     code = exit_code_for(exc)
-    console = err_console()
     if verbose:
-        console.print_exception(show_locals=False)
-    kind = type(exc).__name__ if isinstance(exc, GalileoError) else "error"
-    message = str(exc) or type(exc).__name__
-    console.print(f"[bold red]{kind}:[/] {escape(message)}{_hint(exc)}", highlight=False)
+        err_console().print_exception(show_locals=False)
+    print_error(error_text(exc) + _hint(exc))
     return code
 
 
 def fail(message: str, code: ExitCode = ExitCode.ERROR) -> NoReturn:
     """Print ``message`` as an error line and exit with ``code``."""
-    err_console().print(f"[bold red]error:[/] {escape(message)}")
+    print_error(message)
     raise typer.Exit(int(code))
 
 

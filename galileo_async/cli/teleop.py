@@ -11,7 +11,16 @@ import anyio
 import typer
 
 from ..errors import GalileoError
-from .runner import ExitCode, err_console, fail, out_console, run_robot, settings_of
+from .runner import (
+    ExitCode,
+    err_console,
+    error_text,
+    fail,
+    out_console,
+    print_error,
+    run_robot,
+    settings_of,
+)
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -143,7 +152,7 @@ def teleop(
                     await robot.stop()
                     out_console().print("stop (on exit)")
                 except GalileoError as exc:
-                    err_console().print(f"could not send stop on exit: {exc}")
+                    print_error(f"could not send stop on exit: {error_text(exc)}")
         return 0
 
     run_robot(settings, body, interrupted=ExitCode.OK)

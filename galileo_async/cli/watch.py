@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from collections import deque
+from collections.abc import AsyncIterator
 from typing import TYPE_CHECKING, Annotated
 
 import anyio
@@ -12,10 +13,20 @@ from rich.console import RenderableType
 from rich.live import Live
 
 from ..errors import ConnectionLost
+from ..events import ConnectionLost as LostEvent
+from ..events import Event
 from ..models import GalileoStatus
 from .goals import aclose
-from .render import dashboard, event_dict, event_text, link_dict, status_dict, status_line
-from .runner import ExitCode, out_console, run_robot, settings_of
+from .render import (
+    dashboard,
+    event_dict,
+    event_text,
+    link_dict,
+    link_event_text,
+    status_dict,
+    status_line,
+)
+from .runner import ExitCode, err_console, out_console, run_robot, settings_of
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -37,12 +48,25 @@ def status(
     count: Annotated[
         int | None, typer.Option(min=1, help="Stop after this many lines with --watch.")
     ] = None,
+    reconnect: Annotated[
+        bool,
+        typer.Option(
+            "--reconnect/--no-reconnect",
+            help="With --watch: reconnect after a drop, or exit 7 at once.",
+        ),
+    ] = True,
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:
-    """Show the latest status (every field), or one line per interval with --watch."""
+    """Show the latest status (every field), or one line per interval with --watch.
+
+    With --watch, link health (stale, connection lost / restored) goes to stderr, or to
+    stdout as JSON event lines with --json.
+    """
     settings = settings_of(ctx)
     as_json = settings.json or json_output
     console = out_console()
+    if watch and not reconnect:
+        settings.extra["reconnect"] = False
 
     async def body(robot: Robot) -> int:
         if not watch:
@@ -56,25 +80,59 @@ def status(
 
                 console.print(status_table(latest))
             return 0
-        printed = 0
-        next_at = 0.0
+        lost: list[str] = []
+        events = robot.events()  # subscribed before the first line: no drop goes unseen
         stream = robot.statuses()
         try:
-            async for current in stream:
-                now = anyio.current_time()
-                if now < next_at:
-                    continue
-                next_at = now + interval
-                text = json.dumps(status_dict(current)) if as_json else status_line(current)
-                console.print(text, markup=False)
-                printed += 1
-                if count is not None and printed >= count:
+            async with anyio.create_task_group() as group:
+                group.start_soon(_report_link, events, as_json, reconnect, lost)
+                if await _print_statuses(stream, interval, count, as_json):
+                    group.cancel_scope.cancel()
                     return 0
+                # The status stream ended: the store closed, so the event stream ends too
+                # once the link events buffered before it are printed.
         finally:
             await aclose(stream)
-        raise ConnectionLost("the link closed")
+            await aclose(events)
+        raise ConnectionLost(lost[-1] if lost else "the link closed")
 
-    run_robot(settings, body, interrupted=ExitCode.OK, long_running=watch)
+    run_robot(settings, body, interrupted=ExitCode.OK, long_running=watch and reconnect)
+
+
+async def _print_statuses(
+    stream: AsyncIterator[GalileoStatus], interval: float, count: int | None, as_json: bool
+) -> bool:
+    """Print a line per interval; True after ``count`` lines, False when the stream ended."""
+    console = out_console()
+    printed = 0
+    next_at = 0.0
+    async for current in stream:
+        now = anyio.current_time()
+        if now < next_at:
+            continue
+        next_at = now + interval
+        text = json.dumps(status_dict(current)) if as_json else status_line(current)
+        console.print(text, markup=False)
+        printed += 1
+        if count is not None and printed >= count:
+            return True
+    return False
+
+
+async def _report_link(
+    events: AsyncIterator[Event], as_json: bool, reconnecting: bool, lost: list[str]
+) -> None:
+    """Print link health events (stderr, or JSON lines on stdout); remember loss reasons."""
+    async for event in events:
+        text = link_event_text(event, reconnecting=reconnecting)
+        if text is None:
+            continue
+        if isinstance(event, LostEvent):
+            lost.append(event.reason)
+        if as_json:
+            out_console().print(json.dumps(event_dict(event)), markup=False)
+        else:
+            err_console().print(text, markup=False, style="yellow")
 
 
 def monitor(

@@ -7,6 +7,7 @@ import asyncio
 import logging
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument, LinkStale
@@ -28,6 +29,7 @@ __all__ = [
 _log = logging.getLogger(__name__)
 #: Raw frames in hex, both directions, at DEBUG only.
 frames_log = logging.getLogger("galileo_async.link.frames")
+_monotonic = time.monotonic
 
 #: The document allows at most 100 commands/s; back-to-back writes lose commands (PROTOCOL.md §2).
 DEFAULT_MIN_COMMAND_INTERVAL = 0.010
@@ -180,16 +182,25 @@ class BaseLink(abc.ABC):
 
     def _on_status(self, status: GalileoStatus) -> None:
         """Account for one valid status and hand it to the store (hot path)."""
+        self._on_statuses((status,))
+
+    def _on_statuses(self, statuses: Sequence[GalileoStatus]) -> None:
+        """Account for the valid statuses of one read and hand them to the store in order."""
+        if not statuses:
+            return
         stats = self.stats
-        stats.frames += 1
-        stats.layout = status.layout
-        stats.last_frame_at = self._alive_since = time.monotonic()
+        stats.frames += len(statuses)
+        stats.layout = statuses[-1].layout
+        # Only a timestamp per read: the watchdog timer re-arms itself from it (_check_stale).
+        stats.last_frame_at = self._alive_since = _monotonic()
         if stats.stale:
             stats.stale = False
             _log.info("link fresh again")
             self.store.link_fresh()
             self._arm_watchdog(self.stale_timeout)
-        self.store.update(status)
+        update = self.store.update
+        for status in statuses:
+            update(status)
 
     def _on_lost(self, exc: BaseException | None) -> None:
         """The transport dropped (EOF, close or error): fail waiters, then reconnect."""

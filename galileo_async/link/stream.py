@@ -127,8 +127,7 @@ class StreamLink(BaseLink):
         stats.bytes_discarded = counted.bytes_discarded
         stats.resyncs = counted.resyncs
         stats.lost_frames = counted.lost_frames
-        for status in statuses:
-            self._on_status(status)
+        self._on_statuses(statuses)
 
     def _on_transport_lost(self, protocol: _StreamProtocol, exc: Exception | None) -> None:
         if protocol is not self._protocol:

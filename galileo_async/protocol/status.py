@@ -6,7 +6,7 @@ import enum
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from ..models import GalileoStatus, StatusLayout
 from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, V2_DEFAULTS, Layout
@@ -102,6 +102,13 @@ _RUN_MIN, _RUN_MAX = 4, 64
 _V2_PADDED = struct.Struct("<4x" + LAYOUTS[StatusLayout.V2].struct.format.lstrip("<") + "x")
 _RUN_BYTES = tuple(bytes((value,)) * _RUN_MAX for value in (*HEADER, LENGTH_V2, 0))
 _V2_SIZE = LAYOUTS[StatusLayout.V2].frame_size
+_V2_STAMP_AT = _HEADER_SIZE + struct.calcsize(
+    "<" + LAYOUTS[StatusLayout.V2].struct.format.lstrip("<")[:_V2_STAMP]
+)
+_V2_AFTER_STAMP = _V2_STAMP_AT + 4
+_V2_STAMP_UNPACK = struct.Struct(
+    "<" + LAYOUTS[StatusLayout.V2].struct.format.lstrip("<")[_V2_STAMP]
+).unpack_from
 
 
 class StatusDecoder:
@@ -114,6 +121,9 @@ class StatusDecoder:
         self._buffer = bytearray()
         self._in_sync = True
         self._last_time_stamp: int | None = None
+        # The last frame the single-frame path decoded and its status: identical bytes
+        # but for time_stamp decode to identical values (bytes -> values is pure).
+        self._last: tuple[bytes, GalileoStatus] | None = None
         self.stats = DecoderStats(layout=self._pinned)
 
     @property
@@ -130,13 +140,51 @@ class StatusDecoder:
         """Forget partial data and the frame counter (after a reconnect)."""
         self._buffer.clear()
         self._last_time_stamp = None
+        self._last = None
         self._in_sync = True
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
-        values = self._single_v2(data)
-        if values is not None:
-            return [GalileoStatus.trusted(_V2.convert(values))]
+        # The commonest read, one whole clean v2 frame with nothing held back, decoded
+        # inline (checks as _single_clean_v2, accounting as _accept_v2).
+        if (
+            len(data) == _V2_SIZE
+            and type(data) is bytes
+            and not self._buffer
+            and data[3] == LENGTH_V2
+            and data[_V2_SIZE - 1] == 0
+            and data.startswith(HEADER)
+            and data.find(HEADER, _HEADER_SIZE) < 0
+            and (self._detected is _V2_NAME or self._v2_first())
+        ):
+            last = self._last
+            if (
+                last is not None
+                and data[_V2_AFTER_STAMP:] == (frame := last[0])[_V2_AFTER_STAMP:]
+                and data[_HEADER_SIZE:_V2_STAMP_AT] == frame[_HEADER_SIZE:_V2_STAMP_AT]
+            ):
+                # A robot at rest re-sends its cached status with a new time_stamp
+                # (PROTOCOL.md §1): same bytes, so the same values as the last frame.
+                time_stamp = _V2_STAMP_UNPACK(data, _V2_STAMP_AT)[0]
+                fields = last[1].__dict__.copy()
+                fields["time_stamp"] = time_stamp
+                status = GalileoStatus.trusted(fields)
+            else:
+                values = _V2_UNPACK(data, _HEADER_SIZE)
+                time_stamp = values[_V2_STAMP]
+                status = GalileoStatus.trusted(_V2.convert(values))
+            self._last = (data, status)
+            stats = self.stats
+            stats.frames += 1
+            self._in_sync = True
+            if self._detected is not _V2_NAME:
+                self._detected = stats.layout = _V2_NAME
+                self._run = 0
+            self._run += 1
+            previous, self._last_time_stamp = self._last_time_stamp, time_stamp
+            if previous is not None and time_stamp != previous + 1:
+                self._count_gap(time_stamp - previous - 1)
+            return [status]
         trusted, v2, convert_v2 = GalileoStatus.trusted, _V2_NAME, _V2.convert
         return [
             trusted(convert_v2(values) if name is v2 else _CONVERTERS[name].convert(values))
@@ -145,25 +193,27 @@ class StatusDecoder:
 
     def feed_raw(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
         """Like feed, but return (layout, raw field values in wire order) per frame."""
-        values = self._single_v2(data)
-        if values is not None:
+        if self._single_clean_v2(data):
+            values = _V2_UNPACK(data, _HEADER_SIZE)
+            self._accept_v2(values[_V2_STAMP])
             return [(_V2_NAME, values)]
         return self._frames(data)
 
-    def _single_v2(self, data: bytes | bytearray | memoryview) -> Values | None:
-        """Values of the commonest read, one whole clean v2 frame; None (nothing consumed) else."""
-        if (
-            len(data) != _V2_SIZE
-            or self._buffer
-            or type(data) is not bytes
-            or data[3] != LENGTH_V2
-            or data[_V2_SIZE - 1] != 0
-            or not data.startswith(HEADER)
-            or data.find(HEADER, _HEADER_SIZE) >= 0
-            or not self._v2_first()
-        ):
-            return None
-        values = _V2_UNPACK(data, _HEADER_SIZE)
+    def _single_clean_v2(self, data: bytes | bytearray | memoryview) -> bool:
+        """Whether ``data`` is the commonest read: one whole clean v2 frame, nothing held back."""
+        return (
+            len(data) == _V2_SIZE
+            and type(data) is bytes
+            and not self._buffer
+            and data[3] == LENGTH_V2
+            and data[_V2_SIZE - 1] == 0
+            and data.startswith(HEADER)
+            and data.find(HEADER, _HEADER_SIZE) < 0
+            and (self._detected is _V2_NAME or self._v2_first())
+        )
+
+    def _accept_v2(self, time_stamp: int) -> None:
+        """Account for one v2 frame taken by the single-frame path (as _count does)."""
         stats = self.stats
         stats.frames += 1
         self._in_sync = True
@@ -171,11 +221,9 @@ class StatusDecoder:
             self._detected = stats.layout = _V2_NAME
             self._run = 0
         self._run += 1
-        time_stamp = values[_V2_STAMP]
         last, self._last_time_stamp = self._last_time_stamp, time_stamp
         if last is not None and time_stamp != last + 1:
             self._count_gap(time_stamp - last - 1)
-        return values
 
     def _frames(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
         held = self._buffer
@@ -287,7 +335,7 @@ class StatusDecoder:
         return count
 
     def _count(self, converter: _Converter, values: Values) -> None:
-        """Account for one accepted frame (_single_v2 does the same inline)."""
+        """Account for one accepted frame (_accept_v2 is the single-frame path's copy)."""
         self._in_sync = True
         name = converter.name
         if self._detected is not name:

@@ -10,8 +10,9 @@ import logging
 import os
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass
+from typing import Any
 from urllib.parse import urlsplit
 
 from ...errors import ConnectionLost, GalileoConnectionError
@@ -33,6 +34,7 @@ from .tcpros import TcprosPublisher, subscribe
 from .xmlrpc import MasterClient, RosApiError, SlaveServer, http_uri, request_topic
 
 __all__ = [
+    "CLOSE_BOUND",
     "DEFAULT_CONNECT_TIMEOUT",
     "DEFAULT_MASTER_CHECK_INTERVAL",
     "DEFAULT_RPC_TIMEOUT",
@@ -50,6 +52,8 @@ DEFAULT_CONNECT_TIMEOUT = 5.0
 DEFAULT_RPC_TIMEOUT = 2.0
 #: How often the master is polled to notice a restart and register again.
 DEFAULT_MASTER_CHECK_INTERVAL = 1.0
+#: Bound on everything close() awaits (unregistering, servers closing): within BaseLink's.
+CLOSE_BOUND = 1.0
 
 _node_numbers = itertools.count(1)
 
@@ -80,9 +84,14 @@ class NodeStats:
 
     messages: int = 0
     bytes_received: int = 0
+    #: Messages that arrived whole but could not be decoded (a count of messages).
     decode_errors: int = 0
+    #: Bytes of those messages, framing included.
+    bytes_discarded: int = 0
     lost_messages: int = 0
     master_restarts: int = 0
+    #: Times the node dropped a publisher the master no longer lists (a new one replaced it).
+    publisher_replaced: int = 0
 
 
 class RosNode:
@@ -184,6 +193,26 @@ class RosNode:
     def _publisher_update(self, publishers: list[str]) -> None:
         self._publishers = publishers
         self._publishers_changed.set()
+        current = self.publisher_uri
+        if self._up and publishers and current is not None and current not in publishers:
+            # The robot's node was restarted under a new URI while our TCP connection to the
+            # old one lingers (a frozen or vanished host sends no FIN): take the new one.
+            self.stats.publisher_replaced += 1
+            self.drop(
+                ConnectionLost(
+                    f"the {STATUS_TOPIC} publisher {current} was replaced by {publishers[-1]}"
+                )
+            )
+
+    def drop(self, reason: BaseException) -> None:
+        """Give the connection up now: stop taking statuses and report it lost (idempotent)."""
+        if not self._up or self._closed:
+            return
+        self._up = False
+        transport, self._status_transport = self._status_transport, None
+        if transport is not None:
+            transport.abort()
+        self._on_lost(reason)
 
     async def _connect_status(self, deadline: float) -> None:
         loop = asyncio.get_running_loop()
@@ -245,6 +274,7 @@ class RosNode:
             status = decoder.decode(data)
         except MessageDefinitionError:
             stats.decode_errors += 1
+            stats.bytes_discarded += len(data) + 4
             return
         stats.messages += 1
         seq = status.time_stamp
@@ -289,31 +319,46 @@ class RosNode:
             raise ConnectionLost(f"nobody subscribes to {CMDS_TOPIC}")
 
     async def close(self) -> None:
-        """Unregister (bounded, best effort) and release every socket and task."""
+        """Release every socket and task, then unregister (best effort); bounded by CLOSE_BOUND."""
         if self._closed:
             return
         self._closed = True
         self._up = False
+        # Local sockets first, synchronously: an unreachable master must not leave them open.
+        if self._status_transport is not None:
+            self._status_transport.abort()
+            self._status_transport = None
+        self._cmds.stop()
+        self._slave.stop()
         if self._watch_task is not None:
             self._watch_task.cancel()
             await asyncio.gather(self._watch_task, return_exceptions=True)
             self._watch_task = None
-        if self._status_transport is not None:
-            self._status_transport.abort()
-            self._status_transport = None
+        waits: list[Coroutine[Any, Any, None]] = [self._cmds.close(), self._slave.close()]
         slave_uri = self._slave.uri
         if slave_uri is not None and self._master_pid is not None:
-            self._master.timeout = min(self.rpc_timeout, 0.5)
-            for unregister, topic in (
-                (self._master.unregister_subscriber, STATUS_TOPIC),
-                (self._master.unregister_publisher, CMDS_TOPIC),
-            ):
-                try:
-                    await unregister(topic, slave_uri)
-                except RosApiError as exc:
-                    _log.debug("unregistering from %s: %s", self.master_uri, exc)
-        await self._cmds.close()
-        await self._slave.close()
+            self._master.timeout = min(self.rpc_timeout, CLOSE_BOUND)
+            waits.append(self._unregister(self._master.unregister_subscriber, STATUS_TOPIC))
+            waits.append(self._unregister(self._master.unregister_publisher, CMDS_TOPIC))
+        tasks = [asyncio.ensure_future(wait) for wait in waits]
+        try:
+            _, pending = await asyncio.wait(tasks, timeout=CLOSE_BOUND)
+            if pending:
+                _log.debug("closing %r: %d steps cut at %.1f s", self, len(pending), CLOSE_BOUND)
+        finally:  # also when close() itself is cancelled: no task may outlive it
+            for task in tasks:
+                task.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _unregister(
+        self, unregister: Callable[[str, str], Awaitable[None]], topic: str
+    ) -> None:
+        slave_uri = self._slave.uri
+        assert slave_uri is not None
+        try:
+            await unregister(topic, slave_uri)
+        except RosApiError as exc:
+            _log.debug("unregistering %s from %s: %s", topic, self.master_uri, exc)
 
 
 def _is_ip(host: str) -> bool:

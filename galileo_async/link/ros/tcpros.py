@@ -19,6 +19,7 @@ __all__ = [
     "decode_header",
     "encode_header",
     "frame",
+    "set_keepalive",
     "subscribe",
 ]
 
@@ -27,7 +28,33 @@ MAX_FRAME = 1 << 20
 #: A subscriber whose socket buffer grows past this is disconnected rather than queued for.
 MAX_WRITE_BUFFER = 1 << 20
 
+#: TCP keepalive on every TCPROS socket: a peer whose host vanished (power, cable, Wi-Fi)
+#: sends no FIN; after KEEPIDLE s of silence, CNT unanswered probes KEEPINTVL s apart
+#: report it as a connection error (about 11 s here, instead of never).
+KEEPALIVE_IDLE = 5
+KEEPALIVE_INTERVAL = 2
+KEEPALIVE_COUNT = 3
+
 _U32 = struct.Struct("<I")
+
+
+def set_keepalive(transport: asyncio.BaseTransport) -> None:
+    """Turn on TCP keepalive with short timers (where the platform has them); best effort."""
+    sock = transport.get_extra_info("socket")
+    if sock is None:
+        return
+    options = [(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)]
+    for name, value in (
+        ("TCP_KEEPIDLE", KEEPALIVE_IDLE),
+        ("TCP_KEEPALIVE", KEEPALIVE_IDLE),  # macOS's name for the idle time
+        ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
+        ("TCP_KEEPCNT", KEEPALIVE_COUNT),
+    ):
+        if hasattr(socket, name):
+            options.append((socket.IPPROTO_TCP, getattr(socket, name), value))
+    for level, option, value in options:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(level, option, value)
 
 
 class TcprosError(GalileoConnectionError):
@@ -99,6 +126,7 @@ class _PublisherConnection(asyncio.Protocol):
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
+        set_keepalive(transport)
 
     def data_received(self, data: bytes) -> None:
         if self.ready or self.transport is None:
@@ -225,14 +253,19 @@ class TcprosPublisher:
             sent += 1
         return sent
 
-    async def close(self) -> None:
-        """Stop listening and drop every subscriber."""
+    def stop(self) -> None:
+        """Stop listening and drop every subscriber, at once (close() also waits)."""
         for connection in list(self._connections):
             if connection.transport is not None:
                 connection.transport.abort()
         self._connections.clear()
         if self._server is not None:
             self._server.close()
+
+    async def close(self) -> None:
+        """Stop listening, drop every subscriber and wait (bounded) for the server to close."""
+        self.stop()
+        if self._server is not None:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._server.wait_closed(), 1.0)
             self._server = None
@@ -258,6 +291,7 @@ class _SubscriberProtocol(asyncio.Protocol):
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
+        set_keepalive(transport)
         transport.write(encode_header(self._header))
 
     def data_received(self, data: bytes) -> None:

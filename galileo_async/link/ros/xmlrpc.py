@@ -227,10 +227,15 @@ class SlaveServer:
         self.uri = http_uri(host, bound)
         return self.uri
 
-    async def close(self) -> None:
-        """Stop listening."""
+    def stop(self) -> None:
+        """Stop listening, at once (close() also waits)."""
         if self._server is not None:
             self._server.close()
+
+    async def close(self) -> None:
+        """Stop listening and wait (bounded) for the server to close."""
+        self.stop()
+        if self._server is not None:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._server.wait_closed(), 1.0)
             self._server = None
