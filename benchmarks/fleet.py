@@ -2,14 +2,15 @@
 
 Per N, phases on the same server and the same kind of streams:
 
-* **bare**: N ``asyncio.Protocol`` connections that only count bytes (the baseline), half
-  its window before the driver phases and half after;
+* **bare**: N ``asyncio.Protocol`` connections that only count bytes (the baseline), run
+  first in every round (the rounds interleave bare and driver phases);
 * **driver**: N ``Robot`` objects (``galileo_async.connect("socket://…")``), each with a
   task iterating ``robot.statuses()``;
 * **driver, sampled**: the same robots without those tasks; one task reads every robot's
   ``status`` ten times a second (a dashboard), so only the driver itself runs per frame.
 
-Each phase warms up, then measures over a window: process CPU seconds (time.process_time),
+An untimed bare phase runs first on a fresh server. Each phase warms up, then measures
+over a window: process CPU seconds (time.process_time),
 frames kept (link counters: frames / (frames + time_stamp gaps)), and status age.
 
 Status age: the server starts every robot in one loop iteration and reports that
@@ -49,6 +50,8 @@ WARMUP = 1.5
 FRAME_SIZE = 89
 #: How often the task-less variant samples every robot's latest status.
 SAMPLE_RATE = 10
+#: Seconds of an untimed bare phase before the first timed one.
+SERVER_WARMUP = 3.0
 
 
 class _Server:
@@ -252,6 +255,9 @@ async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phas
     server = _Server(count)
     rounds: list[tuple[_Phase, ...]] = []
     try:
+        # Untimed: the first phase after the server starts often cost up to 1.7x more CPU
+        # per frame than the same phase later (BENCHMARKS.md §2); no timed phase is first.
+        await _bare(server, SERVER_WARMUP)
         for _ in range(repeats):
             bare = await _bare(server, seconds)
             driver = await _driver(server, seconds, consumers=True)
@@ -315,6 +321,9 @@ def _rows(
         Row(name, f"driver CPU ({how})", 100 * driver_cpu, "% of a core", 100 * bare_cpu,
             "bare Protocol", "≤ 1.5× bare", ratio <= 1.5,
             {"ratio_median": ratio, "ratios": [round(r, 2) for r in ratios],
+             "us_per_frame_rounds": [round(1e6 * d.cpu / max(1, d.frames), 2) for d in drivers],
+             "bare_us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2)
+                                          for b in bares],
              "us_per_frame": 1e6 * sum(d.cpu for d in drivers) / max(1, frames),
              "bare_us_per_frame": 1e6 * sum(b.cpu for b in bares)
              / max(1, sum(b.frames for b in bares)), **common}),

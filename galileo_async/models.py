@@ -221,8 +221,9 @@ class GalileoStatus(BaseModel):
         given the dict becomes the instance's storage, so the caller must not reuse it.
         """
         status = _new_status(cls)
+        fields_set: set[str]
         if len(values) == _FIELD_COUNT:  # every field given (the keys are field names)
-            fields_set = _ALL_FIELDS.copy()
+            fields_set = _ALL_FIELDS  # shared and read-only: no set built per frame
         else:
             fields_set = set(values)
             values = {**_FIELD_DEFAULTS, **values}
@@ -245,7 +246,35 @@ _FIELD_DEFAULTS: dict[str, Any] = {
     name: field.default for name, field in GalileoStatus.model_fields.items()
 }
 _FIELD_COUNT = len(_FIELD_DEFAULTS)
-_ALL_FIELDS = set(_FIELD_DEFAULTS)
+
+
+class _SharedFieldsSet(set[str]):
+    """``model_fields_set`` of every fully-given trusted status: one read-only set.
+
+    Copies (``copy``, ``model_copy``, ``deepcopy``, pickling) are plain sets, so pydantic's
+    own updates of a copy work; changing the shared set itself raises TypeError.
+    """
+
+    __slots__ = ()
+
+    def _read_only(self, *args: object, **kwargs: object) -> Any:
+        raise TypeError("this fields set is shared by trusted statuses: change a copy")
+
+    add = discard = remove = pop = clear = update = _read_only
+    difference_update = intersection_update = symmetric_difference_update = _read_only
+    __ior__ = __iand__ = __isub__ = __ixor__ = _read_only
+
+    def __copy__(self) -> set[str]:
+        return set(self)
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> set[str]:
+        return set(self)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (set, (list(self),))
+
+
+_ALL_FIELDS = _SharedFieldsSet(_FIELD_DEFAULTS)
 
 #: Names of the wire fields, in the order of the current (v2) struct.
 STATUS_FIELDS: tuple[str, ...] = tuple(n for n in GalileoStatus.model_fields if n != "layout")

@@ -288,8 +288,8 @@ class StatusStore:
                     stream._wakeup = None
                     if not wakeup.done():
                         wakeup.set_result(None)
-        for ref in self._watches.refs:
-            watch = ref()
+        for watch_ref in self._watches.refs:
+            watch = watch_ref()
             if watch is not None:
                 buffer = watch.buffer
                 if len(buffer) == buffer.maxlen:

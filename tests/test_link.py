@@ -5,13 +5,15 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
+import socket
 import sys
+import time
 import types
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 import pytest
-from fake_device import FakeDevice, MemoryConnector, status_frame
+from fake_device import FakeDevice, MemoryConnector, RecordingTransport, status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import (
@@ -21,6 +23,7 @@ from galileo_async.errors import (
     LinkStale,
 )
 from galileo_async.link import BaseLink, StreamLink, open_link
+from galileo_async.link.connectors import KEEPALIVE_IDLE
 from galileo_async.models import StatusLayout
 from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
@@ -419,3 +422,240 @@ async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> No
     assert link.store.status is not None
     await link.close()
     assert made[0].closed
+
+
+# --- silent peers (stale_reconnect) -------------------------------------------------------
+
+
+async def test_silent_tcp_peer_is_given_up_and_reconnected(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links, stale_timeout=0.05, stale_reconnect=3)
+    events = store.events()
+    device.start_stream(0.01)
+    await store.wait_until(lambda s: (s.time_stamp or 0) >= 3, timeout=STEP)
+    await device.stop_stream()  # the robot goes quiet; its TCP connection stays open
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    lost = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(lost, ev.ConnectionLost)
+    assert "no valid status frame" in lost.reason
+    assert link.stats.last_frame_at is not None
+    assert time.monotonic() - link.stats.last_frame_at >= 3 * 0.05
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionRestored)
+    # The old connection was closed from our side and a new one accepted.
+    await device.wait_for(lambda: device.connections == 2 and len(device.clients) == 1)
+    assert link.stats.reconnects == 1
+    device.push()
+    await store.wait_until(lambda s: s.time_stamp == device.time_stamp, timeout=STEP)
+    assert not link.stats.stale
+    await link.send(Goto(5))
+    await device.wait_for(lambda: Goto(5) in device.commands)
+
+
+async def test_socket_links_turn_tcp_keepalive_on(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, _ = await connect(device, links)
+    assert isinstance(link, StreamLink)
+    transport = link._current_transport()
+    assert transport is not None
+    sock = transport.get_extra_info("socket")
+    assert sock.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) != 0
+    if hasattr(socket, "TCP_KEEPIDLE"):
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE) == KEEPALIVE_IDLE
+
+
+async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseLink]) -> None:
+    # Stale between frames (0.05 s > 0.02 s), but never silent for 10 x 0.02 s.
+    connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=10)
+    events = link.store.events()
+    for stamp in range(1, 8):
+        connector.feed(status_frame(stamp))
+        await asyncio.sleep(0.05)
+    assert link.connected
+    assert len(connector.attempts) == 1
+    seen = []
+    while (event := await asyncio.wait_for(anext(events), STEP)) is not None:
+        seen.append(type(event))
+        if len(seen) == 4:
+            break
+    assert seen == [ev.LinkStale, ev.LinkRestored, ev.LinkStale, ev.LinkRestored]
+
+
+async def test_stale_reconnect_none_stays_stale(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=None)
+    events = link.store.events()
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    await asyncio.sleep(0.2)  # ten stale timeouts: the default factor would have given up
+    assert link.connected
+    assert link.stats.stale
+    assert len(connector.attempts) == 1
+    assert not connector.transport.is_closing()
+
+
+async def test_silent_peer_without_reconnect_closes_the_store(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=2, reconnect=False)
+    events = link.store.events()
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    lost = await asyncio.wait_for(anext(events), STEP)
+    assert isinstance(lost, ev.ConnectionLost)
+    assert "no valid status frame" in lost.reason
+    with pytest.raises(StopAsyncIteration):
+        await asyncio.wait_for(anext(events), STEP)
+    assert connector.transport.is_closing()  # aborted, not left open
+    assert not link.connected
+    assert len(connector.attempts) == 1
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"stale_reconnect": 0.5},
+        {"stale_reconnect": float("nan")},
+        {"drain_timeout": 0},
+        {"max_queued_commands": 0},
+        {"max_queued_commands": 1.5},
+        {"max_queued_commands": True},
+    ],
+)
+def test_bad_health_and_queue_options_are_refused(options: dict[str, Any]) -> None:
+    name = next(iter(options))
+    with pytest.raises(InvalidArgument, match=name):
+        StreamLink(StatusStore(), MemoryConnector(), **options)
+
+
+# --- flow control and the bounded queue ----------------------------------------------------
+
+
+class BufferingTransport(RecordingTransport):
+    """Reports ``buffered`` unsent bytes; a write may stay buffered for ``hold`` seconds."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, protocol: asyncio.Protocol) -> None:
+        super().__init__(loop, protocol)
+        self.buffered = 0
+        self.hold: float | None = None  # a slow peer: each write stays buffered this long
+        self.overlapping: list[bytes] = []  # writes made while earlier bytes were still buffered
+        self.polled = asyncio.Event()
+
+    def get_write_buffer_size(self) -> int:
+        self.polled.set()
+        return self.buffered
+
+    def write(self, data: bytes | bytearray | memoryview) -> None:
+        if self.buffered:
+            self.overlapping.append(bytes(data))
+        super().write(data)
+        if self.hold is not None:
+            self.buffered += len(data)
+            self.loop.call_later(self.hold, self.drain)
+
+    def drain(self) -> None:
+        """The peer took everything."""
+        self.buffered = 0
+
+
+class BufferingConnector(MemoryConnector):
+    """A MemoryConnector whose transports are BufferingTransports."""
+
+    async def __call__(
+        self, loop: asyncio.AbstractEventLoop, factory: Callable[[], asyncio.Protocol]
+    ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+        self.attempts.append(time.monotonic())
+        protocol = factory()
+        transport = BufferingTransport(loop, protocol)
+        protocol.connection_made(transport)
+        self.transports.append(transport)
+        return transport, protocol
+
+    @property
+    def buffering(self) -> BufferingTransport:
+        """The newest transport."""
+        transport = self.transports[-1]
+        assert isinstance(transport, BufferingTransport)
+        return transport
+
+
+async def buffering(links: list[BaseLink], **options: Any) -> tuple[BufferingTransport, StreamLink]:
+    connector = BufferingConnector()
+    link = StreamLink(StatusStore(), connector, stale_timeout=None, **options)
+    links.append(link)
+    await link.open()
+    return connector.buffering, link
+
+
+async def test_each_write_waits_for_an_empty_transport_buffer(links: list[BaseLink]) -> None:
+    transport, link = await buffering(links, min_command_interval=0)
+    transport.hold = 0.02
+    commands = [Goto(i) for i in range(4)]
+    await asyncio.wait_for(asyncio.gather(*(link.send(c) for c in commands)), STEP)
+    assert [data for _, data in transport.writes] == [encode(c) for c in commands]
+    assert transport.overlapping == []  # never flushed back to back after a stall
+    times = [t for t, _ in transport.writes]
+    assert all(b - a >= 0.02 for a, b in itertools.pairwise(times))
+
+
+async def test_a_stalled_transport_delays_the_write_until_it_drains(
+    links: list[BaseLink],
+) -> None:
+    transport, link = await buffering(links)
+    transport.buffered = 10
+    transport.polled.clear()
+    send = asyncio.create_task(link.send(Goto(1)))
+    for _ in range(3):  # the writer keeps looking without writing
+        await asyncio.wait_for(transport.polled.wait(), STEP)
+        transport.polled.clear()
+    assert not send.done()
+    assert transport.writes == []
+    transport.drain()
+    await asyncio.wait_for(send, STEP)
+    assert [data for _, data in transport.writes] == [encode(Goto(1))]
+
+
+async def test_a_stuck_transport_fails_the_queued_sends(links: list[BaseLink]) -> None:
+    transport, link = await buffering(links, drain_timeout=0.05)
+    transport.buffered = 10
+    started = time.monotonic()
+    results = await asyncio.wait_for(
+        asyncio.gather(link.send(Goto(1)), link.send(Goto(2)), return_exceptions=True), STEP
+    )
+    assert time.monotonic() - started >= 0.05
+    for result in results:
+        assert isinstance(result, GalileoConnectionError)
+        assert "10 unsent bytes" in str(result)
+    assert transport.writes == []
+    assert link.connected  # the link itself stays up; the stale watchdog judges the peer
+    transport.drain()
+    await asyncio.wait_for(link.send(Goto(3)), STEP)
+    assert [data for _, data in transport.writes] == [encode(Goto(3))]
+
+
+async def test_a_full_queue_makes_send_wait_in_order(links: list[BaseLink]) -> None:
+    transport, link = await buffering(links, max_queued_commands=2, drain_timeout=60)
+    transport.buffered = 1  # nothing gets written for now
+    sends = [asyncio.create_task(link.send(Goto(i))) for i in range(5)]
+    for _ in range(3):
+        await asyncio.sleep(0)
+    assert [command for command, _ in link._queue] == [Goto(0), Goto(1)]
+    sends[2].cancel()  # a sender waiting for room gives up
+    sends[0].cancel()  # a queued sender gives up: its place goes to the next in line
+    for _ in range(3):
+        await asyncio.sleep(0)
+    assert [command for command, _ in link._queue] == [Goto(1), Goto(3)]
+    transport.drain()
+    await asyncio.wait_for(asyncio.gather(*sends[3:], sends[1]), STEP)
+    assert [data for _, data in transport.writes] == [encode(Goto(i)) for i in (1, 3, 4)]
+    assert sends[0].cancelled()
+    assert sends[2].cancelled()
+
+
+async def test_senders_waiting_for_room_fail_when_the_link_drops(links: list[BaseLink]) -> None:
+    transport, link = await buffering(links, max_queued_commands=1, reconnect=False)
+    transport.buffered = 1
+    sends = [asyncio.create_task(link.send(Goto(i))) for i in range(3)]
+    for _ in range(3):
+        await asyncio.sleep(0)
+    transport.lose(OSError("unplugged"))
+    for send in sends:
+        with pytest.raises(ConnectionLost):
+            await asyncio.wait_for(send, STEP)
+    assert transport.writes == []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import copy
+import itertools
 import os
 import pickle
 import random
@@ -61,6 +62,66 @@ def test_trusted_status_behaves_like_a_validated_one() -> None:
     assert partial == GalileoStatus(layout=StatusLayout.V1, nav_status=1)
     assert partial.model_fields_set == {"layout", "nav_status"}
     assert partial.power is None
+
+
+def test_decoded_statuses_share_one_read_only_fields_set() -> None:
+    decoder = StatusDecoder()
+    first, second = (decoder.feed(encode_status(v.V2_ACTIVE_STATUS))[0] for _ in range(2))
+    assert first.model_fields_set == set(GalileoStatus.model_fields)
+    assert first.model_fields_set is second.model_fields_set
+    with pytest.raises(TypeError):
+        first.model_fields_set.add("power")
+    with pytest.raises(TypeError):
+        first.model_fields_set |= {"power"}
+    assert second.model_fields_set == set(GalileoStatus.model_fields)
+    # Copies get a plain set of their own, which pydantic may change.
+    for copied in (copy.copy(first), copy.deepcopy(first), pickle.loads(pickle.dumps(first))):
+        assert copied == first
+        assert type(copied.model_fields_set) is set
+        copied.model_fields_set.add("power")
+    assert first.model_copy(update={"busy_status": 1}).busy_status == 1
+    assert first.model_dump(exclude_unset=True) == first.model_dump()
+
+
+def _at_rest_frames(rng: random.Random, count: int) -> list[bytes]:
+    """v2 frames of a robot mostly at rest: runs that differ only in time_stamp."""
+    status, stamp, frames = v.V2_ACTIVE_STATUS, 1000, []
+    for _ in range(count):
+        stamp += 1 if rng.random() > 0.1 else rng.randint(2, 5)  # lost frames
+        roll = rng.random()
+        if roll < 0.05:
+            status = status.model_copy(update={"current_pose_x": rng.uniform(-5, 5)})  # tail
+        elif roll < 0.10:
+            status = status.model_copy(update={"power": rng.uniform(10, 13)})  # head
+        elif roll < 0.13:  # equal as floats, not as bytes: must not reuse the old value
+            speed = status.control_speed_x
+            status = status.model_copy(update={"control_speed_x": -0.0 if speed else 0.0})
+        elif roll < 0.16:
+            status = status.model_copy(update={"busy_status": 1 - (status.busy_status or 0)})
+        elif roll < 0.17:
+            stamp = rng.randint(0, 10)  # a counter reset
+        frames.append(encode_status(status.model_copy(update={"time_stamp": stamp})))
+    return frames
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_repeated_payload_reuses_values_exactly(seed: int) -> None:
+    frames = _at_rest_frames(random.Random(seed), 600)
+    decoder = StatusDecoder()
+    got = [status for frame in frames for status in decoder.feed(frame)]
+    fresh = [StatusDecoder().feed(frame)[0] for frame in frames]
+    assert got == fresh
+    assert [repr(status) for status in got] == [repr(status) for status in fresh]  # -0.0 too
+    whole = StatusDecoder()
+    assert whole.feed(b"".join(frames)) == got
+    assert decoder.stats == whole.stats  # lost frames and resets counted alike
+    assert decoder.stats.lost_frames > 0
+    assert decoder.stats.counter_resets > 0
+    # The at-rest path ran: its statuses share the previous one's value objects.
+    reused = sum(a.power is b.power for a, b in itertools.pairwise(got))
+    assert reused > len(frames) // 2
+    decoder.reset()
+    assert decoder.feed(frames[-1]) == [fresh[-1]]
 
 
 def _stream(rng: random.Random, frames: int) -> bytes:

@@ -7,15 +7,18 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import GalileoConnectionError
-from ..state import StatusStore
 from .base import (
     CLOSE_TIMEOUT,
+    DEFAULT_DRAIN_TIMEOUT,
+    DEFAULT_MAX_QUEUED_COMMANDS,
     DEFAULT_MIN_COMMAND_INTERVAL,
     DEFAULT_RECONNECT_INITIAL,
     DEFAULT_RECONNECT_MAX,
+    DEFAULT_STALE_RECONNECT,
     DEFAULT_STALE_TIMEOUT,
     BaseLink,
     LinkStats,
+    StatusSink,
 )
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -32,13 +35,17 @@ __all__ = [
     "CLOSE_TIMEOUT",
     "DEFAULT_BAUDRATE",
     "DEFAULT_CONNECT_TIMEOUT",
+    "DEFAULT_DRAIN_TIMEOUT",
+    "DEFAULT_MAX_QUEUED_COMMANDS",
     "DEFAULT_MIN_COMMAND_INTERVAL",
     "DEFAULT_RECONNECT_INITIAL",
     "DEFAULT_RECONNECT_MAX",
+    "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
     "BaseLink",
     "Connector",
     "LinkStats",
+    "StatusSink",
     "StreamLink",
     "open_link",
     "serial_connector",
@@ -47,30 +54,31 @@ __all__ = [
 ]
 
 
-def open_link(url: str, store: StatusStore, **options: Any) -> BaseLink:
+def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     """A link (not yet opened) for a serial path, ``socket://``, ``sim://`` or ``ros://`` URL."""
     scheme = urlsplit(url).scheme.lower()
     if scheme == "ros":
         return _ros_link(url, store, options)
+    sink: Any = store  # StreamLink's annotation still names state.StatusStore; any sink works
     baudrate = options.pop("baudrate", DEFAULT_BAUDRATE)
     serial_options = options.pop("serial_options", None) or {}
     connect_timeout = options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT)
     if scheme == "socket":
         host, port = parse_socket_url(url)
         connector = socket_connector(host, port, connect_timeout=connect_timeout)
-        return StreamLink(store, connector, name=url, **options)
+        return StreamLink(sink, connector, name=url, **options)
     if scheme == "sim":
         simulator = importlib.import_module("galileo_async.sim").Simulator.from_url(url)
-        link = StreamLink(store, simulator.connector(), name=url, **options)
+        link = StreamLink(sink, simulator.connector(), name=url, **options)
         link.simulator = simulator
         link.add_closer(simulator.close)
         return link
     # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
     connector = serial_connector(url, baudrate=baudrate, **serial_options)
-    return StreamLink(store, connector, name=url, **options)
+    return StreamLink(sink, connector, name=url, **options)
 
 
-def _ros_link(url: str, store: StatusStore, options: dict[str, Any]) -> BaseLink:
+def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
     try:
         ros = importlib.import_module("galileo_async.link.ros")
         open_ros_link = ros.open_ros_link

@@ -9,20 +9,25 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument, LinkStale
 from ..models import GalileoStatus, StatusLayout
 from ..protocol import Command
-from ..state import StatusStore
 
 __all__ = [
     "CLOSE_TIMEOUT",
+    "DEFAULT_DRAIN_TIMEOUT",
+    "DEFAULT_MAX_QUEUED_COMMANDS",
     "DEFAULT_MIN_COMMAND_INTERVAL",
     "DEFAULT_RECONNECT_INITIAL",
     "DEFAULT_RECONNECT_MAX",
+    "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
+    "DRAIN_POLL_INTERVAL",
     "BaseLink",
     "LinkStats",
+    "StatusSink",
     "frames_log",
 ]
 
@@ -35,6 +40,14 @@ _monotonic = time.monotonic
 DEFAULT_MIN_COMMAND_INTERVAL = 0.010
 #: Status arrives at 30 Hz; this long without a valid frame makes the link stale.
 DEFAULT_STALE_TIMEOUT = 1.0
+#: Silent for this many stale_timeouts: the peer is taken for dead and the link reconnects.
+DEFAULT_STALE_RECONNECT = 5.0
+#: Longest the transport may hold unsent bytes before the queued sends fail.
+DEFAULT_DRAIN_TIMEOUT = 2.0
+#: How often a writer waiting for the transport's buffer to empty looks again.
+DRAIN_POLL_INTERVAL = 0.005
+#: Commands waiting for the writer (one second at the 100/s maximum); send() waits when full.
+DEFAULT_MAX_QUEUED_COMMANDS = 100
 DEFAULT_RECONNECT_INITIAL = 0.1
 DEFAULT_RECONNECT_MAX = 5.0
 #: Longest close() waits for its tasks and for the transport to close.
@@ -65,6 +78,28 @@ class LinkStats:
         return time.monotonic() - self.last_frame_at
 
 
+class StatusSink(Protocol):
+    """What a link feeds (state.StatusStore is one): synchronous, cheap, never raising."""
+
+    def update(self, status: GalileoStatus) -> None:
+        """One valid status, in arrival order."""
+
+    def connection_lost(self, exc: GalileoConnectionError) -> None:
+        """The transport dropped."""
+
+    def connection_restored(self) -> None:
+        """The transport is up again."""
+
+    def link_stale(self, exc: LinkStale) -> None:
+        """No valid status for stale_timeout."""
+
+    def link_fresh(self) -> None:
+        """Valid statuses arrive again after the link was stale."""
+
+    def close(self) -> None:
+        """Nothing will be fed any more."""
+
+
 _Pending = tuple[Command, "asyncio.Future[None]"]
 
 
@@ -73,28 +108,44 @@ class BaseLink(abc.ABC):
 
     def __init__(
         self,
-        store: StatusStore,
+        store: StatusSink,
         *,
         reconnect: bool = True,
         reconnect_initial: float = DEFAULT_RECONNECT_INITIAL,
         reconnect_max: float = DEFAULT_RECONNECT_MAX,
         stale_timeout: float | None = DEFAULT_STALE_TIMEOUT,
+        stale_reconnect: float | None = DEFAULT_STALE_RECONNECT,
         min_command_interval: float = DEFAULT_MIN_COMMAND_INTERVAL,
+        drain_timeout: float = DEFAULT_DRAIN_TIMEOUT,
+        max_queued_commands: int = DEFAULT_MAX_QUEUED_COMMANDS,
     ) -> None:
         if not 0 < reconnect_initial <= reconnect_max:
             raise InvalidArgument("need 0 < reconnect_initial <= reconnect_max")
         if stale_timeout is not None and stale_timeout <= 0:
             raise InvalidArgument(f"stale_timeout must be positive or None, got {stale_timeout}")
+        if stale_reconnect is not None and not stale_reconnect >= 1:
+            raise InvalidArgument(
+                f"stale_reconnect must be >= 1 (times stale_timeout) or None, got {stale_reconnect}"
+            )
         if min_command_interval < 0:
             raise InvalidArgument(f"min_command_interval must be >= 0, got {min_command_interval}")
+        if not drain_timeout > 0:
+            raise InvalidArgument(f"drain_timeout must be positive, got {drain_timeout}")
+        queued = max_queued_commands
+        if isinstance(queued, bool) or not (isinstance(queued, int) and queued >= 1):
+            raise InvalidArgument(f"max_queued_commands must be an int >= 1, got {queued!r}")
         self.store = store
         self.stats = LinkStats()
         self.reconnect = reconnect
         self.reconnect_initial = reconnect_initial
         self.reconnect_max = reconnect_max
         self.stale_timeout = stale_timeout
+        self.stale_reconnect = stale_reconnect
         self.min_command_interval = min_command_interval
+        self.drain_timeout = drain_timeout
+        self.max_queued_commands = max_queued_commands
         self._queue: deque[_Pending] = deque()
+        self._room_waiters: deque[asyncio.Future[None]] = deque()
         self._queue_ready = asyncio.Event()
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
@@ -129,6 +180,18 @@ class BaseLink(abc.ABC):
     async def _disconnect(self) -> None:
         """Close the transport, if any, and release what the link owns (bounded)."""
 
+    def _current_transport(self) -> asyncio.WriteTransport | None:
+        """The asyncio transport written to, if any (default: ``self._transport`` if it is one)."""
+        transport = getattr(self, "_transport", None)
+        return transport if isinstance(transport, asyncio.WriteTransport) else None
+
+    def _abandon(self, reason: str) -> None:
+        """Give up a silent connection now: abort the transport, then handle it as a drop."""
+        transport = self._current_transport()
+        if transport is not None:
+            transport.abort()
+        self._on_lost(ConnectionLost(reason))
+
     # --- public API ------------------------------------------------------------------------
 
     async def open(self) -> None:
@@ -143,16 +206,23 @@ class BaseLink(abc.ABC):
         self._on_connected()
 
     async def send(self, command: Command) -> None:
-        """Queue one command for the paced writer; return once its bytes were written."""
-        if self._closing:
-            raise ConnectionLost("the link is closed")
-        if not self.stats.connected:
-            again = ", reconnecting" if self._reconnect_task is not None else ""
-            raise ConnectionLost(f"not connected{again}")
+        """Queue one command for the paced writer (waiting while full); return once written."""
+        self._check_can_send()
+        if self._room_waiters or len(self._queue) >= self.max_queued_commands:
+            await self._wait_for_room()
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._queue.append((command, future))
+        entry = (command, future)
+        self._queue.append(entry)
         self._queue_ready.set()
-        await future
+        try:
+            await future
+        finally:
+            if future.cancelled():  # its sender gave up before its turn: free the place now
+                for index, queued in enumerate(self._queue):
+                    if queued is entry:
+                        del self._queue[index]
+                        break
+                self._make_room()
 
     async def close(self) -> None:
         """Stop every task and timer, close the transport and the store (idempotent, bounded)."""
@@ -252,23 +322,85 @@ class BaseLink(abc.ABC):
             if self._reconnect_task is asyncio.current_task():
                 self._reconnect_task = None
 
+    def _check_can_send(self) -> None:
+        if self._closing:
+            raise ConnectionLost("the link is closed")
+        if not self.stats.connected:
+            again = ", reconnecting" if self._reconnect_task is not None else ""
+            raise ConnectionLost(f"not connected{again}")
+
+    async def _wait_for_room(self) -> None:
+        """Wait, first come first served, for a place in the full queue."""
+        waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._room_waiters.append(waiter)
+        try:
+            await waiter
+            self._check_can_send()  # the link may have dropped meanwhile
+        except BaseException:
+            self._room_waiters.remove(waiter)
+            self._make_room()  # hand the place this sender will not use to the next one
+            raise
+        self._room_waiters.remove(waiter)
+
+    def _make_room(self) -> None:
+        room = self.max_queued_commands - len(self._queue)
+        for waiter in self._room_waiters:
+            if room <= 0:
+                return
+            if not waiter.done():
+                waiter.set_result(None)
+            room -= 1  # woken but not yet running: the place is taken
+
+    def _write_buffer_size(self) -> int:
+        transport = self._current_transport()
+        if transport is None:
+            return 0
+        try:
+            return transport.get_write_buffer_size()
+        except NotImplementedError:  # a transport that cannot tell gets no flow control
+            return 0
+
     async def _writer(self) -> None:
         queue = self._queue
+        stalled_since: float | None = None
         while True:
             if not queue or not self.stats.connected:
+                stalled_since = None
                 self._queue_ready.clear()
                 await self._queue_ready.wait()
                 continue
             command, future = queue[0]
             if future.done():  # its sender was cancelled before the write
                 queue.popleft()
+                self._make_room()
                 continue
+            now = time.monotonic()
             if self._last_write is not None:
-                wait = self._last_write + self.min_command_interval - time.monotonic()
+                wait = self._last_write + self.min_command_interval - now
                 if wait > 0:
                     await asyncio.sleep(wait)
                     continue
+            # A stalled transport flushes what it buffered back to back in one segment, and
+            # the firmware loses commands written back to back (PROTOCOL.md §2): write only
+            # into an empty buffer.
+            buffered = self._write_buffer_size()
+            if buffered:
+                if stalled_since is None:
+                    stalled_since = now
+                elif now - stalled_since >= self.drain_timeout:
+                    stalled_since = None
+                    self._fail_pending(
+                        GalileoConnectionError(
+                            f"not sent: the transport still holds {buffered} unsent bytes "
+                            f"after {self.drain_timeout} s (the peer does not read)"
+                        )
+                    )
+                    continue
+                await asyncio.sleep(DRAIN_POLL_INTERVAL)
+                continue
+            stalled_since = None
             queue.popleft()
+            self._make_room()
             try:
                 self._write(command)
             except GalileoConnectionError as exc:
@@ -290,6 +422,7 @@ class BaseLink(abc.ABC):
         for _, future in pending:
             if not future.done():
                 future.set_exception(exc)
+        self._make_room()
 
     def _arm_watchdog(self, delay: float | None) -> None:
         self._cancel_watchdog()
@@ -308,10 +441,21 @@ class BaseLink(abc.ABC):
         if timeout is None or self._closing or not self.stats.connected:
             return
         silent = time.monotonic() - self._alive_since
-        if silent < timeout:
-            self._arm_watchdog(timeout - silent)
+        if not self.stats.stale:
+            if silent < timeout:
+                self._arm_watchdog(timeout - silent)
+                return
+            self.stats.stale = True
+            error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
+            _log.warning("%s", error)
+            self.store.link_stale(error)
+        # A peer that froze or vanished may keep its TCP connection open: give it up.
+        if self.stale_reconnect is None:
             return
-        self.stats.stale = True
-        error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
-        _log.warning("%s", error)
-        self.store.link_stale(error)
+        limit = self.stale_reconnect * timeout
+        if silent < limit:
+            self._arm_watchdog(limit - silent)  # a fresh frame re-arms it (_on_statuses)
+            return
+        reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
+        _log.warning("%s", reason)
+        self._abandon(reason)

@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import importlib
 import logging
+import socket
 from collections.abc import Awaitable, Callable, Iterator
 from types import ModuleType
 from typing import Any
@@ -18,6 +19,7 @@ __all__ = [
     "DEFAULT_CONNECT_TIMEOUT",
     "Connector",
     "ProtocolFactory",
+    "enable_keepalive",
     "parse_socket_url",
     "serial_backend",
     "serial_connector",
@@ -31,6 +33,9 @@ _log = logging.getLogger(__name__)
 DEFAULT_BAUDRATE = 115200
 #: Longest a TCP connect may take before it counts as failed.
 DEFAULT_CONNECT_TIMEOUT = 5.0
+#: TCP keepalive: probe after this long idle, then this often, give up after this many
+#: unanswered probes (the kernel then reports the connection lost: about 20 s in all).
+KEEPALIVE_IDLE, KEEPALIVE_INTERVAL, KEEPALIVE_COUNT = 10, 5, 2
 
 ProtocolFactory = Callable[[], asyncio.Protocol]
 #: Opens a transport and ties it to the protocol the factory makes.
@@ -97,9 +102,29 @@ def socket_connector(
             transport, protocol = await asyncio.wait_for(
                 loop.create_connection(factory, host, port), connect_timeout
             )
+        enable_keepalive(transport.get_extra_info("socket"))
         return transport, protocol
 
     return connect
+
+
+def enable_keepalive(sock: socket.socket | None) -> None:
+    """Turn TCP keepalive on, with short probe times where the platform lets us set them."""
+    if sock is None:
+        return
+    options = [(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)]
+    for name, value in (
+        ("TCP_KEEPIDLE", KEEPALIVE_IDLE),
+        ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
+        ("TCP_KEEPCNT", KEEPALIVE_COUNT),
+    ):
+        if hasattr(socket, name):
+            options.append((socket.IPPROTO_TCP, getattr(socket, name), value))
+    for level, option, value in options:
+        try:
+            sock.setsockopt(level, option, value)
+        except OSError as exc:  # best effort: the stale watchdog still catches a dead peer
+            _log.debug("setsockopt(%s, %s) failed: %s", level, option, exc)
 
 
 def parse_socket_url(url: str) -> tuple[str, int]:

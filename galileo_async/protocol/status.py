@@ -6,7 +6,7 @@ import enum
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any
 
 from ..models import GalileoStatus, StatusLayout
 from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, V2_DEFAULTS, Layout
@@ -121,9 +121,9 @@ class StatusDecoder:
         self._buffer = bytearray()
         self._in_sync = True
         self._last_time_stamp: int | None = None
-        # The last frame the single-frame path decoded and its status: identical bytes
-        # but for time_stamp decode to identical values (bytes -> values is pure).
-        self._last: tuple[bytes, GalileoStatus] | None = None
+        # The bytes after and before time_stamp of the last frame the single-frame path
+        # decoded, and its status: bytes equal but for time_stamp decode to equal values.
+        self._last: tuple[object, object, GalileoStatus] | None = None
         self.stats = DecoderStats(layout=self._pinned)
 
     @property
@@ -145,45 +145,27 @@ class StatusDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
-        # The commonest read, one whole clean v2 frame with nothing held back, decoded
-        # inline (checks as _single_clean_v2, accounting as _accept_v2).
-        if (
-            len(data) == _V2_SIZE
-            and type(data) is bytes
-            and not self._buffer
-            and data[3] == LENGTH_V2
-            and data[_V2_SIZE - 1] == 0
-            and data.startswith(HEADER)
-            and data.find(HEADER, _HEADER_SIZE) < 0
-            and (self._detected is _V2_NAME or self._v2_first())
-        ):
-            last = self._last
-            if (
-                last is not None
-                and data[_V2_AFTER_STAMP:] == (frame := last[0])[_V2_AFTER_STAMP:]
-                and data[_HEADER_SIZE:_V2_STAMP_AT] == frame[_HEADER_SIZE:_V2_STAMP_AT]
-            ):
-                # A robot at rest re-sends its cached status with a new time_stamp
-                # (PROTOCOL.md §1): same bytes, so the same values as the last frame.
-                time_stamp = _V2_STAMP_UNPACK(data, _V2_STAMP_AT)[0]
-                fields = last[1].__dict__.copy()
-                fields["time_stamp"] = time_stamp
-                status = GalileoStatus.trusted(fields)
-            else:
+        if self._single_clean_v2(data):
+            # Keep slices, never ``data``: holding on to each read's buffer doubled the
+            # link's CPU time per frame at 1000 robots (BENCHMARKS.md §4). The head is
+            # only sliced while the tail repeats.
+            tail = data[_V2_AFTER_STAMP:]
+            last, head, status = self._last, None, None
+            if last is not None and tail == last[0]:
+                head = data[_HEADER_SIZE:_V2_STAMP_AT]
+                if head == last[1]:
+                    # A robot at rest re-sends its cached status with a new time_stamp
+                    # (PROTOCOL.md §1): same bytes, so the same values as the last frame.
+                    time_stamp = _V2_STAMP_UNPACK(data, _V2_STAMP_AT)[0]
+                    fields = last[2].__dict__.copy()
+                    fields["time_stamp"] = time_stamp
+                    status = GalileoStatus.trusted(fields)
+            if status is None:
                 values = _V2_UNPACK(data, _HEADER_SIZE)
                 time_stamp = values[_V2_STAMP]
                 status = GalileoStatus.trusted(_V2.convert(values))
-            self._last = (data, status)
-            stats = self.stats
-            stats.frames += 1
-            self._in_sync = True
-            if self._detected is not _V2_NAME:
-                self._detected = stats.layout = _V2_NAME
-                self._run = 0
-            self._run += 1
-            previous, self._last_time_stamp = self._last_time_stamp, time_stamp
-            if previous is not None and time_stamp != previous + 1:
-                self._count_gap(time_stamp - previous - 1)
+            self._last = (tail, head, status)
+            self._accept_v2(time_stamp)
             return [status]
         trusted, v2, convert_v2 = GalileoStatus.trusted, _V2_NAME, _V2.convert
         return [

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
 import logging
 import os
-import time
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
@@ -14,7 +12,7 @@ from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ...models import GalileoStatus
 from ...protocol.commands import Command
 from ...state import StatusStore
-from ..base import BaseLink
+from ..base import DEFAULT_STALE_RECONNECT, BaseLink
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -36,8 +34,6 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 DEFAULT_MASTER_PORT = 11311
-#: Stale for this many stale_timeouts: the peer is taken for dead and the link reconnects.
-DEFAULT_STALE_RECONNECT = 5.0
 _QUERY_OPTIONS = {"host": str, "node_name": str, "connect_timeout": float}
 # Serial-only options a generic caller may pass along; they mean nothing over ROS.
 _IGNORED_OPTIONS = ("baudrate", "serial_options")
@@ -78,13 +74,10 @@ class RosLink(BaseLink):
         connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
         rpc_timeout: float = DEFAULT_RPC_TIMEOUT,
         master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
-        stale_reconnect: float | None = DEFAULT_STALE_RECONNECT,
         name: str | None = None,
         **base_options: Any,
     ) -> None:
         super().__init__(store, **base_options)
-        if stale_reconnect is not None and stale_reconnect < 1:
-            raise InvalidArgument(f"stale_reconnect must be >= 1 or None, got {stale_reconnect}")
         self.master_uri = master_uri
         # Like rospy: an explicit option, else ROS_IP / ROS_HOSTNAME, else the route's address.
         self.host = host or os.environ.get("ROS_IP") or os.environ.get("ROS_HOSTNAME")
@@ -94,12 +87,10 @@ class RosLink(BaseLink):
         self.rpc_timeout = rpc_timeout
         self.master_check_interval = master_check_interval
         self.name = name or master_uri
-        self.stale_reconnect = stale_reconnect
         self.node: RosNode | None = None
         #: Undecodable status messages over the link's life (their bytes are in bytes_discarded).
         self.decode_errors = 0
         self._counted = NodeStats()
-        self._dead_check: asyncio.TimerHandle | None = None
 
     def __repr__(self) -> str:
         return f"<RosLink {self.name}>"
@@ -126,7 +117,6 @@ class RosLink(BaseLink):
         except OSError as exc:  # foreign errors are translated at the link edge
             raise GalileoConnectionError(f"cannot connect to {self.master_uri}: {exc}") from exc
         self.node = node
-        self._arm_dead_check(self._dead_after())
         _log.info("connected to %s as %s", self.master_uri, node.name)
 
     def _status_from_node(self, status: GalileoStatus) -> None:
@@ -142,35 +132,12 @@ class RosLink(BaseLink):
         self.decode_errors += current.decode_errors - counted.decode_errors
         self._counted = dataclasses.replace(current)
 
-    def _dead_after(self) -> float | None:
-        if self.stale_reconnect is None or self.stale_timeout is None:
-            return None
-        return self.stale_reconnect * self.stale_timeout
-
-    def _arm_dead_check(self, delay: float | None) -> None:
-        self._cancel_dead_check()
-        if delay is not None and not self.closed:
-            loop = asyncio.get_running_loop()
-            self._dead_check = loop.call_later(delay, self._check_dead)
-
-    def _cancel_dead_check(self) -> None:
-        if self._dead_check is not None:
-            self._dead_check.cancel()
-            self._dead_check = None
-
-    def _check_dead(self) -> None:
-        """A peer that froze or vanished may keep its TCP connection open: give it up."""
-        self._dead_check = None
-        limit, node = self._dead_after(), self.node
-        if limit is None or node is None or self.closed or not self.stats.connected:
-            return  # the next connection arms it again
-        last = self.stats.last_frame_at
-        silent = 0.0 if last is None else time.monotonic() - last
-        if silent < limit or not self.stats.stale:
-            self._arm_dead_check(max(limit - silent, limit / 10))
-            return
-        _log.warning("no status for %.1f s: reconnecting", silent)
-        node.drop(ConnectionLost(f"no status for {silent:.1f} s (stale); reconnecting"))
+    def _abandon(self, reason: str) -> None:
+        """Drop the node's connections (a frozen robot keeps its sockets open), then reconnect."""
+        if self.node is not None:
+            self.node.drop(ConnectionLost(reason))
+        if self.stats.connected:  # no node, or one that was already down
+            super()._abandon(reason)
 
     def _write(self, command: Command) -> None:
         if self.node is None:
@@ -181,7 +148,6 @@ class RosLink(BaseLink):
         await self._drop_node()
 
     async def _drop_node(self) -> None:
-        self._cancel_dead_check()
         node, self.node = self.node, None
         if node is not None:
             self._count(node)
