@@ -372,7 +372,8 @@ def connect(url: str, **options: Any) -> Connection:
     ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
     ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
-    ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``, ``connect_timeout``.
+    ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
+    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``.
     """
     if not isinstance(url, str) or not url:
         raise InvalidArgument(f"url must be a non-empty string, got {url!r}")

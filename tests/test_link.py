@@ -23,8 +23,8 @@ from galileo_async.errors import (
     LinkStale,
 )
 from galileo_async.link import BaseLink, StreamLink, open_link
-from galileo_async.link.connectors import KEEPALIVE_IDLE
-from galileo_async.models import StatusLayout
+from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
+from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
 
@@ -461,8 +461,10 @@ async def test_socket_links_turn_tcp_keepalive_on(
     assert transport is not None
     sock = transport.get_extra_info("socket")
     assert sock.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) != 0
-    if hasattr(socket, "TCP_KEEPIDLE"):
+    if hasattr(socket, "TCP_KEEPIDLE"):  # Linux: short timers, not the 2-hour default
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE) == KEEPALIVE_IDLE
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL) == KEEPALIVE_INTERVAL
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT) == KEEPALIVE_COUNT
 
 
 async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseLink]) -> None:
@@ -659,3 +661,78 @@ async def test_senders_waiting_for_room_fail_when_the_link_drops(links: list[Bas
         with pytest.raises(ConnectionLost):
             await asyncio.wait_for(send, STEP)
     assert transport.writes == []
+
+
+async def test_close_fails_senders_waiting_for_room(links: list[BaseLink]) -> None:
+    transport, link = await buffering(links, max_queued_commands=1)
+    transport.buffered = 1
+    sends = [asyncio.create_task(link.send(Goto(i))) for i in range(3)]
+    for _ in range(3):
+        await asyncio.sleep(0)
+    await asyncio.wait_for(link.close(), STEP)
+    for send in sends:
+        with pytest.raises(ConnectionLost, match="closed"):
+            await asyncio.wait_for(send, STEP)
+    assert transport.writes == []
+
+
+class RecordingSink:
+    """A StatusSink that only records what the link reports (no StatusStore involved)."""
+
+    def __init__(self) -> None:
+        self.calls: list[str] = []
+        self.changed = asyncio.Event()
+
+    def record(self, call: str) -> None:
+        self.calls.append(call)
+        self.changed.set()
+
+    async def wait_for(self, call: str, count: int = 1) -> None:
+        async def until() -> None:
+            while self.calls.count(call) < count:
+                self.changed.clear()
+                await self.changed.wait()
+
+        await asyncio.wait_for(until(), STEP)
+
+    def update(self, status: GalileoStatus) -> None:
+        self.record(f"update {status.time_stamp}")
+
+    def connection_lost(self, exc: GalileoConnectionError) -> None:
+        self.record("connection_lost")
+
+    def connection_restored(self) -> None:
+        self.record("connection_restored")
+
+    def link_stale(self, exc: LinkStale) -> None:
+        self.record("link_stale")
+
+    def link_fresh(self) -> None:
+        self.record("link_fresh")
+
+    def close(self) -> None:
+        self.record("close")
+
+
+async def test_a_link_feeds_any_status_sink(links: list[BaseLink]) -> None:
+    sink, connector = RecordingSink(), MemoryConnector()
+    options = {"stale_timeout": 0.05, "stale_reconnect": None, "reconnect_initial": 0.01}
+    link = StreamLink(sink, connector, **options)
+    links.append(link)
+    await link.open()
+    connector.feed(status_frame(1))
+    await sink.wait_for("link_stale")
+    connector.feed(status_frame(2))
+    connector.transport.lose(None)
+    await sink.wait_for("connection_restored", 2)
+    await link.close()
+    assert sink.calls[:7] == [
+        "connection_restored",
+        "update 1",
+        "link_stale",
+        "link_fresh",
+        "update 2",
+        "connection_lost",
+        "connection_restored",
+    ]
+    assert sink.calls[-1] == "close"

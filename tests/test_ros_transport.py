@@ -13,11 +13,9 @@ from hypothesis import strategies as st
 from ros_support import free_port
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
+from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 from galileo_async.link.ros import RosLink, open_ros_link, parse_ros_url
 from galileo_async.link.ros.tcpros import (
-    KEEPALIVE_COUNT,
-    KEEPALIVE_IDLE,
-    KEEPALIVE_INTERVAL,
     MAX_FRAME,
     Framer,
     TcprosError,

@@ -59,23 +59,22 @@ def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     scheme = urlsplit(url).scheme.lower()
     if scheme == "ros":
         return _ros_link(url, store, options)
-    sink: Any = store  # StreamLink's annotation still names state.StatusStore; any sink works
     baudrate = options.pop("baudrate", DEFAULT_BAUDRATE)
     serial_options = options.pop("serial_options", None) or {}
     connect_timeout = options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT)
     if scheme == "socket":
         host, port = parse_socket_url(url)
         connector = socket_connector(host, port, connect_timeout=connect_timeout)
-        return StreamLink(sink, connector, name=url, **options)
+        return StreamLink(store, connector, name=url, **options)
     if scheme == "sim":
         simulator = importlib.import_module("galileo_async.sim").Simulator.from_url(url)
-        link = StreamLink(sink, simulator.connector(), name=url, **options)
+        link = StreamLink(store, simulator.connector(), name=url, **options)
         link.simulator = simulator
         link.add_closer(simulator.close)
         return link
     # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
     connector = serial_connector(url, baudrate=baudrate, **serial_options)
-    return StreamLink(sink, connector, name=url, **options)
+    return StreamLink(store, connector, name=url, **options)
 
 
 def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:

@@ -8,12 +8,11 @@ import logging
 import time
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Protocol
 
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument, LinkStale
-from ..models import GalileoStatus, StatusLayout
+from ..models import GalileoStatus
 from ..protocol import Command
+from .stats import LinkStats, StatusSink
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -52,52 +51,6 @@ DEFAULT_RECONNECT_INITIAL = 0.1
 DEFAULT_RECONNECT_MAX = 5.0
 #: Longest close() waits for its tasks and for the transport to close.
 CLOSE_TIMEOUT = 2.0
-
-
-@dataclass
-class LinkStats:
-    """Counters and health of one link (read by users as ``robot.link``)."""
-
-    frames: int = 0
-    bytes_received: int = 0
-    bytes_discarded: int = 0
-    resyncs: int = 0
-    lost_frames: int = 0
-    reconnects: int = 0
-    commands_sent: int = 0
-    connected: bool = False
-    stale: bool = False
-    layout: StatusLayout | None = None
-    last_frame_at: float | None = field(default=None, repr=False)
-
-    @property
-    def last_frame_age(self) -> float | None:
-        """Seconds since the last valid frame (time.monotonic), or None before the first."""
-        if self.last_frame_at is None:
-            return None
-        return time.monotonic() - self.last_frame_at
-
-
-class StatusSink(Protocol):
-    """What a link feeds (state.StatusStore is one): synchronous, cheap, never raising."""
-
-    def update(self, status: GalileoStatus) -> None:
-        """One valid status, in arrival order."""
-
-    def connection_lost(self, exc: GalileoConnectionError) -> None:
-        """The transport dropped."""
-
-    def connection_restored(self) -> None:
-        """The transport is up again."""
-
-    def link_stale(self, exc: LinkStale) -> None:
-        """No valid status for stale_timeout."""
-
-    def link_fresh(self) -> None:
-        """Valid statuses arrive again after the link was stale."""
-
-    def close(self) -> None:
-        """Nothing will be fed any more."""
 
 
 _Pending = tuple[Command, "asyncio.Future[None]"]

@@ -19,10 +19,10 @@ __all__ = [
     "DEFAULT_CONNECT_TIMEOUT",
     "Connector",
     "ProtocolFactory",
-    "enable_keepalive",
     "parse_socket_url",
     "serial_backend",
     "serial_connector",
+    "set_keepalive",
     "socket_connector",
     "translate_errors",
 ]
@@ -33,9 +33,12 @@ _log = logging.getLogger(__name__)
 DEFAULT_BAUDRATE = 115200
 #: Longest a TCP connect may take before it counts as failed.
 DEFAULT_CONNECT_TIMEOUT = 5.0
-#: TCP keepalive: probe after this long idle, then this often, give up after this many
-#: unanswered probes (the kernel then reports the connection lost: about 20 s in all).
-KEEPALIVE_IDLE, KEEPALIVE_INTERVAL, KEEPALIVE_COUNT = 10, 5, 2
+#: TCP keepalive on socket:// connections: a peer whose host vanished sends no FIN; after
+#: KEEPALIVE_IDLE s of silence, KEEPALIVE_COUNT unanswered probes KEEPALIVE_INTERVAL s apart
+#: report it as a lost connection (about 11 s, instead of never).
+KEEPALIVE_IDLE = 5
+KEEPALIVE_INTERVAL = 2
+KEEPALIVE_COUNT = 3
 
 ProtocolFactory = Callable[[], asyncio.Protocol]
 #: Opens a transport and ties it to the protocol the factory makes.
@@ -102,29 +105,29 @@ def socket_connector(
             transport, protocol = await asyncio.wait_for(
                 loop.create_connection(factory, host, port), connect_timeout
             )
-        enable_keepalive(transport.get_extra_info("socket"))
+        set_keepalive(transport)
         return transport, protocol
 
     return connect
 
 
-def enable_keepalive(sock: socket.socket | None) -> None:
-    """Turn TCP keepalive on, with short probe times where the platform lets us set them."""
+def set_keepalive(transport: asyncio.BaseTransport) -> None:
+    """Turn on TCP keepalive with short timers (where the platform has them); best effort."""
+    sock = transport.get_extra_info("socket")
     if sock is None:
         return
     options = [(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)]
     for name, value in (
         ("TCP_KEEPIDLE", KEEPALIVE_IDLE),
+        ("TCP_KEEPALIVE", KEEPALIVE_IDLE),  # macOS's name for the idle time
         ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
         ("TCP_KEEPCNT", KEEPALIVE_COUNT),
     ):
         if hasattr(socket, name):
             options.append((socket.IPPROTO_TCP, getattr(socket, name), value))
     for level, option, value in options:
-        try:
+        with contextlib.suppress(OSError):  # the stale watchdog still catches a dead peer
             sock.setsockopt(level, option, value)
-        except OSError as exc:  # best effort: the stale watchdog still catches a dead peer
-            _log.debug("setsockopt(%s, %s) failed: %s", level, option, exc)
 
 
 def parse_socket_url(url: str) -> tuple[str, int]:

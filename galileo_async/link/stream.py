@@ -10,8 +10,7 @@ from typing import Any, cast
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import StatusLayout
 from ..protocol import Command, StatusDecoder, encode
-from ..state import StatusStore
-from .base import CLOSE_TIMEOUT, BaseLink, frames_log
+from .base import CLOSE_TIMEOUT, BaseLink, StatusSink, frames_log
 from .connectors import Connector, translate_errors
 
 __all__ = ["StreamLink"]
@@ -58,7 +57,7 @@ class StreamLink(BaseLink):
 
     def __init__(
         self,
-        store: StatusStore,
+        store: StatusSink,
         connector: Connector,
         *,
         layout: StatusLayout | str | None = None,

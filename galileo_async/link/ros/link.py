@@ -11,8 +11,7 @@ from urllib.parse import parse_qs, urlsplit
 from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ...models import GalileoStatus
 from ...protocol.commands import Command
-from ...state import StatusStore
-from ..base import DEFAULT_STALE_RECONNECT, BaseLink
+from ..base import DEFAULT_STALE_RECONNECT, BaseLink, StatusSink
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -65,7 +64,7 @@ class RosLink(BaseLink):
 
     def __init__(
         self,
-        store: StatusStore,
+        store: StatusSink,
         master_uri: str,
         *,
         host: str | None = None,
@@ -154,7 +153,7 @@ class RosLink(BaseLink):
             await node.close()
 
 
-def open_ros_link(url: str, store: StatusStore, **options: Any) -> RosLink:
+def open_ros_link(url: str, store: StatusSink, **options: Any) -> RosLink:
     """A RosLink (not yet opened) for ``ros://host[:port]``; options as RosLink and BaseLink."""
     master_uri, url_options = parse_ros_url(url)
     for key in _IGNORED_OPTIONS:

@@ -9,6 +9,7 @@ import struct
 from collections.abc import Callable
 
 from ...errors import GalileoConnectionError
+from ..connectors import set_keepalive
 
 __all__ = [
     "MAX_FRAME",
@@ -28,33 +29,7 @@ MAX_FRAME = 1 << 20
 #: A subscriber whose socket buffer grows past this is disconnected rather than queued for.
 MAX_WRITE_BUFFER = 1 << 20
 
-#: TCP keepalive on every TCPROS socket: a peer whose host vanished (power, cable, Wi-Fi)
-#: sends no FIN; after KEEPIDLE s of silence, CNT unanswered probes KEEPINTVL s apart
-#: report it as a connection error (about 11 s here, instead of never).
-KEEPALIVE_IDLE = 5
-KEEPALIVE_INTERVAL = 2
-KEEPALIVE_COUNT = 3
-
 _U32 = struct.Struct("<I")
-
-
-def set_keepalive(transport: asyncio.BaseTransport) -> None:
-    """Turn on TCP keepalive with short timers (where the platform has them); best effort."""
-    sock = transport.get_extra_info("socket")
-    if sock is None:
-        return
-    options = [(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)]
-    for name, value in (
-        ("TCP_KEEPIDLE", KEEPALIVE_IDLE),
-        ("TCP_KEEPALIVE", KEEPALIVE_IDLE),  # macOS's name for the idle time
-        ("TCP_KEEPINTVL", KEEPALIVE_INTERVAL),
-        ("TCP_KEEPCNT", KEEPALIVE_COUNT),
-    ):
-        if hasattr(socket, name):
-            options.append((socket.IPPROTO_TCP, getattr(socket, name), value))
-    for level, option, value in options:
-        with contextlib.suppress(OSError):
-            sock.setsockopt(level, option, value)
 
 
 class TcprosError(GalileoConnectionError):
