@@ -37,9 +37,9 @@ from .commands import (
     encode,
     nudge_coordinates,
 )
-from .device import CommandDecoder, CommandDecoderStats, parse_payload
+from .device import CommandDecoder, CommandDecoderStats, encode_status, parse_payload
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS, Layout
-from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder, encode_status
+from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder
 
 __all__ = [
     "COMMAND_TYPES",

@@ -6,6 +6,7 @@ import struct
 from dataclasses import dataclass
 
 from ..errors import InvalidArgument
+from ..models import GalileoStatus, StatusLayout
 from .commands import (
     COMMAND_TYPES,
     MAX_COMMAND_PAYLOAD,
@@ -20,9 +21,9 @@ from .commands import (
     _Fixed,
     _Percent,
 )
-from .layouts import HEADER
+from .layouts import HEADER, LAYOUTS, V2_DEFAULTS
 
-__all__ = ["CommandDecoder", "CommandDecoderStats", "parse_payload"]
+__all__ = ["CommandDecoder", "CommandDecoderStats", "encode_status", "parse_payload"]
 
 _FIXED: dict[bytes, type[_Fixed]] = {
     cls.data: cls for cls in COMMAND_TYPES.values() if issubclass(cls, _Fixed)
@@ -114,3 +115,21 @@ class CommandDecoder:
                 self._payload.clear()
                 self._expected = None
         return out
+
+
+def encode_status(status: GalileoStatus, layout: StatusLayout | str | None = None) -> bytes:
+    """Encode a status as the robot sends it in ``layout`` (default: the status's own)."""
+    name = StatusLayout(layout) if layout is not None else status.layout
+    if name is StatusLayout.ROS:
+        name = StatusLayout.V2
+    target = LAYOUTS[name]
+    source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
+    values = []
+    for field in source.fields:
+        value = getattr(status, field)
+        values.append(V2_DEFAULTS[field] if value is None else value)
+    payload = source.struct.pack(*values)
+    if name is StatusLayout.V2_TRUNCATED:
+        payload = payload[: target.frame_size - len(HEADER) - 1]
+    tail = b"\x00" if target.terminated else b""
+    return HEADER + bytes((target.length_byte,)) + payload + tail

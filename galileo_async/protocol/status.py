@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..models import GalileoStatus, StatusLayout
-from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, V2_DEFAULTS, Layout
+from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, Layout
 
 __all__ = [
     "MAX_BUFFER",
@@ -17,7 +17,6 @@ __all__ = [
     "DecoderStats",
     "RawFrame",
     "StatusDecoder",
-    "encode_status",
 ]
 
 #: Most bytes the decoder keeps between feeds; a frame is at most 92 bytes with lookahead.
@@ -422,21 +421,3 @@ def _header_prefix_length(buf: bytes | bytearray, start: int, end: int) -> int:
         if buf[end - keep : end] == HEADER[:keep]:
             return keep
     return 0
-
-
-def encode_status(status: GalileoStatus, layout: StatusLayout | str | None = None) -> bytes:
-    """Encode a status as the robot sends it in ``layout`` (default: the status's own)."""
-    name = StatusLayout(layout) if layout is not None else status.layout
-    if name is StatusLayout.ROS:
-        name = StatusLayout.V2
-    target = LAYOUTS[name]
-    source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
-    values = []
-    for field in source.fields:
-        value = getattr(status, field)
-        values.append(V2_DEFAULTS[field] if value is None else value)
-    payload = source.struct.pack(*values)
-    if name is StatusLayout.V2_TRUNCATED:
-        payload = payload[: target.frame_size - _HEADER_SIZE]
-    tail = b"\x00" if target.terminated else b""
-    return HEADER + bytes((target.length_byte,)) + payload + tail
