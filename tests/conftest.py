@@ -15,10 +15,18 @@ settings.register_profile("dev", max_examples=100, deadline=None)
 settings.load_profile("ci")
 
 
+def _pending_timers(loop: asyncio.AbstractEventLoop) -> set[asyncio.TimerHandle]:
+    # The loop keeps its timers in a private heap; only this check reads it.
+    scheduled: list[asyncio.TimerHandle] = getattr(loop, "_scheduled", [])
+    return {handle for handle in scheduled if not handle.cancelled()}
+
+
 @pytest.fixture(autouse=True)
 async def no_lingering_tasks() -> AsyncIterator[None]:
-    """Fail a test that leaves a task running on its event loop."""
+    """Fail a test that leaves a task running or a timer armed on its event loop."""
+    loop = asyncio.get_running_loop()
     before = asyncio.all_tasks()
+    timers_before = _pending_timers(loop)
     yield
     for _ in range(3):  # let tasks that are already finishing run to completion
         await asyncio.sleep(0)
@@ -30,3 +38,9 @@ async def no_lingering_tasks() -> AsyncIterator[None]:
     if left:
         await asyncio.gather(*left, return_exceptions=True)
         pytest.fail(f"test left {len(left)} task(s) running: {left}")
+    timers = _pending_timers(loop) - timers_before
+    if timers:
+        described = sorted(map(repr, timers))
+        for handle in timers:
+            handle.cancel()
+        pytest.fail(f"test left {len(timers)} timer(s) armed: {described}")

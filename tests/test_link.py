@@ -538,6 +538,7 @@ class BufferingTransport(RecordingTransport):
         self.hold: float | None = None  # a slow peer: each write stays buffered this long
         self.overlapping: list[bytes] = []  # writes made while earlier bytes were still buffered
         self.polled = asyncio.Event()
+        self._drains: list[asyncio.TimerHandle] = []
 
     def get_write_buffer_size(self) -> int:
         self.polled.set()
@@ -549,11 +550,16 @@ class BufferingTransport(RecordingTransport):
         super().write(data)
         if self.hold is not None:
             self.buffered += len(data)
-            self.loop.call_later(self.hold, self.drain)
+            self._drains.append(self.loop.call_later(self.hold, self.drain))
 
     def drain(self) -> None:
         """The peer took everything."""
         self.buffered = 0
+
+    def close(self) -> None:
+        for handle in self._drains:
+            handle.cancel()
+        super().close()
 
 
 class BufferingConnector(MemoryConnector):
