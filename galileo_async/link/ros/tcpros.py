@@ -10,6 +10,7 @@ from collections.abc import Callable
 
 from ...errors import GalileoConnectionError
 from ..connectors import set_keepalive
+from ._server import close_server
 
 __all__ = [
     "MAX_FRAME",
@@ -240,10 +241,8 @@ class TcprosPublisher:
     async def close(self) -> None:
         """Stop listening, drop every subscriber and wait (bounded) for the server to close."""
         self.stop()
-        if self._server is not None:
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(self._server.wait_closed(), 1.0)
-            self._server = None
+        server, self._server = self._server, None
+        await close_server(server)
 
 
 class _SubscriberProtocol(asyncio.Protocol):

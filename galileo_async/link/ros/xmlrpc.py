@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import os
 import xmlrpc.client
 from collections.abc import Callable
@@ -11,6 +10,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ...errors import GalileoConnectionError
+from ._server import close_server
 
 __all__ = [
     "MAX_HTTP_BODY",
@@ -235,10 +235,8 @@ class SlaveServer:
     async def close(self) -> None:
         """Stop listening and wait (bounded) for the server to close."""
         self.stop()
-        if self._server is not None:
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(self._server.wait_closed(), 1.0)
-            self._server = None
+        server, self._server = self._server, None
+        await close_server(server)
 
     def dispatch(self, body: bytes) -> bytes:
         """Answer one XML-RPC request body (never raises)."""
