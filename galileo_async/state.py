@@ -49,6 +49,7 @@ _EVENT_KEY = attrgetter(
 
 _Sub = TypeVar("_Sub", bound="_Queue[Any]")
 
+
 class StatusStore:
     """Latest status and everything that waits on it; fed synchronously by the link."""
 
@@ -59,6 +60,8 @@ class StatusStore:
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     ) -> None:
         self.status: GalileoStatus | None = None
+        #: How many statuses update() has recorded.
+        self.updates = 0
         self.last_update: float | None = None
         self.closed = False
         self._clock = clock
@@ -67,7 +70,8 @@ class StatusStore:
         self._waiters: list[_Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         self._watches: _Subscribers[Watch] = _Subscribers()
-        self._status_streams: _Subscribers[StatusStream] = _Subscribers()
+        # Only streams whose consumer waits: the others read `status` when they ask.
+        self._waiting_streams: list[StatusStream] = []
         self._event_streams: _Subscribers[EventStream] = _Subscribers()
         self._link_error: GalileoConnectionError | None = None
 
@@ -82,6 +86,7 @@ class StatusStore:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
         prev = self.status
         self.status = status
+        self.updates = updates = self.updates + 1
         self.last_update = self._clock()
         if self._event_streams.refs:
             key = _EVENT_KEY(status)
@@ -97,20 +102,16 @@ class StatusStore:
             self._event_key = None
         if self._waiters:
             self._check_waiters(status)
-        # _Queue._push inlined: these loops run for every subscriber on every frame.
-        for ref in self._status_streams.refs:
-            stream = ref()
-            if stream is not None:
-                buffer = stream.buffer  # maxlen 1: newest only
-                if buffer:
-                    stream.dropped += 1
-                buffer.append(status)
+        waiting = self._waiting_streams
+        if waiting:
+            self._waiting_streams = []
+            for stream in waiting:
                 wakeup = stream._wakeup
-                if wakeup is not None:
-                    # Woken once: later frames before it runs only replace the status.
-                    stream._wakeup = None
-                    if not wakeup.done():
-                        wakeup.set_result(None)
+                stream._wakeup = None
+                if wakeup is not None and not wakeup.done():  # not cancelled or ended
+                    stream._seen = updates
+                    wakeup.set_result(status)
+        # _Queue._push inlined: this loop runs for every watch on every frame.
         for watch_ref in self._watches.refs:
             watch = watch_ref()
             if watch is not None:
@@ -118,11 +119,11 @@ class StatusStore:
                 if len(buffer) == buffer.maxlen:
                     watch.dropped += 1
                 buffer.append(status)
-                wakeup = watch._wakeup
-                if wakeup is not None:
+                signal = watch._wakeup
+                if signal is not None:
                     watch._wakeup = None
-                    if not wakeup.done():
-                        wakeup.set_result(None)
+                    if not signal.done():
+                        signal.set_result(None)
 
     def connection_lost(self, exc: GalileoConnectionError) -> None:
         """The transport dropped: fail every waiter and watch at once with ``exc``."""
@@ -161,12 +162,14 @@ class StatusStore:
             return
         self.closed = True
         self._fail_waiters(ConnectionLost("the status store is closed"))
-        for subscriptions in (self._watches, self._event_streams, self._status_streams):
+        for subscriptions in (self._watches, self._event_streams):
             for subscription in subscriptions:
                 subscription._close()
         self._watches.clear()
         self._event_streams.clear()
-        self._status_streams.clear()
+        waiting, self._waiting_streams = self._waiting_streams, []
+        for stream in waiting:
+            stream._end()
 
     # --- used by robot and users -------------------------------------------------------
 
@@ -204,10 +207,7 @@ class StatusStore:
 
     def statuses(self) -> StatusStream:
         """Newest-only async iterator (starts with the latest); survives reconnects."""
-        stream = self._subscribe(StatusStream(self, self._status_streams, 1))
-        if self.status is not None and not self.closed:
-            stream.buffer.append(self.status)
-        return stream
+        return StatusStream(self)
 
     def events(self, *, maxlen: int = DEFAULT_EVENT_QUEUE) -> EventStream:
         """Async iterator of events after now (bounded queue); ends when the store closes."""

@@ -198,7 +198,66 @@ class EventStream(_Queue[Event]):
     __slots__ = ()
 
 
-class StatusStream(_Queue[GalileoStatus]):
-    """Async iterator of the newest status only: a slow consumer skips to the newest one."""
+class StatusStream:
+    """Async iterator of the newest status only: a slow consumer skips to the newest one.
 
-    __slots__ = ()
+    Not a queue: a cursor over the store's latest status. Only a consumer that is waiting
+    is known to the store, so a stream costs nothing per frame while its consumer is busy,
+    and a waiting consumer is handed the status itself (no buffer).
+    """
+
+    __slots__ = ("_seen", "_store", "_wakeup", "closed", "dropped")
+
+    def __init__(self, store: StatusStore) -> None:
+        self._store = store
+        # The store's update count when this stream last handed out a status; one behind
+        # while a status exists, so the first item is the latest status.
+        self._seen = store.updates - 1 if store.status is not None else store.updates
+        # While set, the stream is on the store's list of waiting streams.
+        self._wakeup: asyncio.Future[GalileoStatus] | None = None
+        self.dropped = 0
+        self.closed = store.closed
+
+    def __aiter__(self) -> StatusStream:
+        return self
+
+    async def __anext__(self) -> GalileoStatus:
+        if self.closed:
+            raise StopAsyncIteration
+        store = self._store
+        updates = store.updates
+        if updates != self._seen:
+            status = store.status
+            assert status is not None
+            self.dropped += updates - self._seen - 1
+            self._seen = updates
+            return status
+        if store.closed:
+            self.closed = True
+            raise StopAsyncIteration
+        wakeup = self._wakeup
+        if wakeup is not None and not wakeup.done():
+            raise RuntimeError("another task is already waiting on this status stream")
+        fresh: asyncio.Future[GalileoStatus] = _running_loop().create_future()
+        self._wakeup = fresh
+        if wakeup is None:
+            store._waiting_streams.append(self)
+        # else: its last wait was cancelled and the store still lists it: only the future
+        # is new. StatusStore.update resolves it with the next status and unlists it.
+        return await fresh
+
+    def _end(self) -> None:
+        """The store closed or the stream did: a waiting consumer stops iterating."""
+        wakeup = self._wakeup
+        self._wakeup = None
+        if wakeup is not None and not wakeup.done():
+            wakeup.set_exception(StopAsyncIteration())
+
+    def close(self) -> None:
+        """Stop iterating (idempotent): a waiting consumer and every later step end."""
+        self.closed = True
+        self._end()
+
+    async def aclose(self) -> None:
+        """Same as close(), for ``contextlib.aclosing``."""
+        self.close()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import copy
-import itertools
 import os
 import pickle
 import random
@@ -105,7 +104,7 @@ def _at_rest_frames(rng: random.Random, count: int) -> list[bytes]:
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_repeated_payload_reuses_values_exactly(seed: int) -> None:
+def test_repeated_payloads_decode_like_fresh_ones(seed: int) -> None:
     frames = _at_rest_frames(random.Random(seed), 600)
     decoder = StatusDecoder()
     got = [status for frame in frames for status in decoder.feed(frame)]
@@ -117,9 +116,6 @@ def test_repeated_payload_reuses_values_exactly(seed: int) -> None:
     assert decoder.stats == whole.stats  # lost frames and resets counted alike
     assert decoder.stats.lost_frames > 0
     assert decoder.stats.counter_resets > 0
-    # The at-rest path ran: its statuses share the previous one's value objects.
-    reused = sum(a.power is b.power for a, b in itertools.pairwise(got))
-    assert reused > len(frames) // 2
     decoder.reset()
     assert decoder.feed(frames[-1]) == [fresh[-1]]
 

@@ -211,8 +211,9 @@ async def test_statuses_newest_only_and_starts_with_latest() -> None:
     store.update(st(1000))
     assert (await asyncio.wait_for(waiting, STEP)).time_stamp == 1000
     await stream.aclose()
-    assert stream not in store._status_streams
     assert stream.dropped == 997  # skipped, never queued
+    with pytest.raises(StopAsyncIteration):
+        await anext(stream)
 
 
 async def test_statuses_survive_reconnects_and_end_on_close() -> None:
@@ -245,13 +246,101 @@ async def test_many_independent_consumers() -> None:
     assert (await anext(slow)).time_stamp == 6
 
 
-async def test_dropped_stream_unregisters_itself() -> None:
+async def test_status_stream_is_listed_only_while_its_consumer_waits() -> None:
     store = StatusStore()
-    stream, events, watch = store.statuses(), store.events(), store.watch()
-    assert len(store._status_streams) == len(store._event_streams) == len(store._watches) == 1
-    del stream, events, watch
+    stream = store.statuses()
+    assert store._waiting_streams == []
+    waiting = asyncio.ensure_future(anext(stream))
+    await asyncio.sleep(0)
+    assert store._waiting_streams == [stream]
+    store.update(st(1))
+    assert store._waiting_streams == []
+    assert (await asyncio.wait_for(waiting, STEP)).time_stamp == 1
+    for stamp in range(2, 100):
+        store.update(st(stamp))  # a busy consumer: nothing per frame, nothing queued
+    assert store._waiting_streams == []
+    assert (await anext(stream)).time_stamp == 99
+    assert stream.dropped == 97
+
+
+async def test_status_stream_consumer_cancelled_while_waiting_gets_the_next_status() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    for _ in range(3):  # cancelled waits do not pile up on the store
+        with pytest.raises(TimeoutError):
+            await asyncio.wait_for(anext(stream), 0.001)
+    assert store._waiting_streams == [stream]
+    waiting = asyncio.ensure_future(anext(stream))
+    await asyncio.sleep(0)
+    assert store._waiting_streams == [stream]
+    store.update(st(7))
+    assert (await asyncio.wait_for(waiting, STEP)).time_stamp == 7
+    assert stream.dropped == 0
+
+
+async def test_status_stream_consumer_cancelled_after_wakeup_keeps_the_status() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    waiting = asyncio.ensure_future(anext(stream))
+    await asyncio.sleep(0)
+    waiting.cancel()
+    store.update(st(3))  # the cancelled wait is skipped, the status stays unseen
+    with pytest.raises(asyncio.CancelledError):
+        await waiting
+    assert (await anext(stream)).time_stamp == 3
+
+
+async def test_status_stream_refuses_a_second_concurrent_consumer() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    first = asyncio.ensure_future(anext(stream))
+    await asyncio.sleep(0)
+    with pytest.raises(RuntimeError, match="already waiting"):
+        await anext(stream)
+    store.update(st(1))
+    assert (await asyncio.wait_for(first, STEP)).time_stamp == 1
+
+
+async def test_status_stream_close_ends_a_waiting_consumer() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    received: list[int | None] = []
+
+    async def consume() -> None:
+        async for status in stream:
+            received.append(status.time_stamp)
+
+    task = asyncio.create_task(consume())
+    await asyncio.sleep(0)
+    store.update(st(1))
+    await asyncio.sleep(0)
+    stream.close()
+    await asyncio.wait_for(task, STEP)
+    store.update(st(2))
+    assert received == [1]
+    with pytest.raises(StopAsyncIteration):
+        await anext(stream)
+
+
+async def test_status_stream_gives_the_unseen_latest_after_the_store_closes() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+    store.update(st(1))
+    store.close()
+    assert (await anext(stream)).time_stamp == 1
+    with pytest.raises(StopAsyncIteration):
+        await anext(stream)
+    with pytest.raises(StopAsyncIteration):
+        await anext(store.statuses())  # made after close: nothing
+
+
+async def test_dropped_subscriptions_unregister_themselves() -> None:
+    store = StatusStore()
+    events, watch = store.events(), store.watch()
+    assert len(store._event_streams) == len(store._watches) == 1
+    del events, watch
     gc.collect()
-    assert len(store._status_streams) == len(store._event_streams) == len(store._watches) == 0
+    assert len(store._event_streams) == len(store._watches) == 0
 
 
 async def test_slow_consumers_stay_bounded() -> None:
@@ -264,8 +353,8 @@ async def test_slow_consumers_stay_bounded() -> None:
         assert len(never_read_watch.buffer) == 16
         assert len(never_read_events.buffer) == 8
         assert never_read_events.dropped == 4999 - 8
-        assert never_read_stream.buffer
-        assert never_read_stream.buffer[0].time_stamp == 5000
+        assert (await anext(never_read_stream)).time_stamp == 5000
+        assert never_read_stream.dropped == 4999
 
 
 async def test_events_from_updates_and_link() -> None:

@@ -204,16 +204,15 @@ class BaseLink(abc.ABC):
     # --- called by subclasses --------------------------------------------------------------
 
     def _on_status(self, status: GalileoStatus) -> None:
-        """Account for one valid status and hand it to the store (hot path)."""
+        """Count one valid status and hand it to the store (for links without a decoder)."""
+        stats = self.stats
+        stats.frames += 1
+        stats.layout = status.layout
         self._on_statuses((status,))
 
     def _on_statuses(self, statuses: Sequence[GalileoStatus]) -> None:
-        """Account for the valid statuses of one read and hand them to the store in order."""
-        if not statuses:
-            return
+        """Hand the counted statuses of one read (at least one) to the store in order."""
         stats = self.stats
-        stats.frames += len(statuses)
-        stats.layout = statuses[-1].layout
         # Only a timestamp per read: the watchdog timer re-arms itself from it (_check_stale).
         stats.last_frame_at = self._alive_since = _monotonic()
         if stats.stale:

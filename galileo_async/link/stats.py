@@ -7,25 +7,25 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from ..errors import GalileoConnectionError, LinkStale
-from ..models import GalileoStatus, StatusLayout
+from ..models import GalileoStatus
+from ..protocol import DecoderStats
 
 __all__ = ["LinkStats", "StatusSink"]
 
 
 @dataclass
-class LinkStats:
-    """Counters and health of one link (read by users as ``robot.link``)."""
+class LinkStats(DecoderStats):
+    """Counters and health of one link (read by users as ``robot.link``).
 
-    frames: int = 0
+    A byte link's decoder counts frames, discards, resyncs, lost frames, counter resets
+    and the layout straight into it.
+    """
+
     bytes_received: int = 0
-    bytes_discarded: int = 0
-    resyncs: int = 0
-    lost_frames: int = 0
     reconnects: int = 0
     commands_sent: int = 0
     connected: bool = False
     stale: bool = False
-    layout: StatusLayout | None = None
     last_frame_at: float | None = field(default=None, repr=False)
 
     @property

@@ -35,13 +35,9 @@ class _StreamProtocol(asyncio.Protocol):
         stats.bytes_received += len(data)
         if frames_log.isEnabledFor(_DEBUG):
             frames_log.debug("rx %s", data.hex(" "))
-        decoder = link.decoder
-        statuses = decoder.feed(data)
-        counted = decoder.stats
-        stats.bytes_discarded = counted.bytes_discarded
-        stats.resyncs = counted.resyncs
-        stats.lost_frames = counted.lost_frames
-        link._on_statuses(statuses)
+        statuses = link.decoder.feed(data)  # counts into stats itself
+        if statuses:
+            link._on_statuses(statuses)
 
     def eof_received(self) -> bool | None:
         return None  # let the transport close itself: EOF is a drop
@@ -66,7 +62,7 @@ class StreamLink(BaseLink):
     ) -> None:
         super().__init__(store, **base_options)
         self.name = name
-        self.decoder = StatusDecoder(layout)
+        self.decoder = StatusDecoder(layout, stats=self.stats)
         #: The in-process simulator behind a ``sim://`` link, else None.
         self.simulator: Any = None
         self._connector = connector
