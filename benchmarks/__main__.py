@@ -44,6 +44,13 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="fleet rounds of bare/driver phases (default 3 below N=1000, else 2; --quick 1)",
     )
+    parser.add_argument(
+        "--malloc",
+        choices=["heap", "default"],
+        default="heap",
+        help="fleet: pin glibc to serve asyncio's read buffers from the heap (default), "
+        "or leave it as it is (benchmarks/common.py pin_malloc)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
     names = args.names or list(BENCHMARKS)
@@ -61,6 +68,7 @@ def main(argv: list[str] | None = None) -> int:
             options["sizes"] = [int(n) for n in sizes.split(",")]
             options["seconds"] = args.seconds or (3.0 if args.quick else 6.0)
             options["repeats"] = args.rounds
+            options["malloc"] = args.malloc
         rows += module.run(**options)
     print()
     print(render_table(rows))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 import platform
@@ -16,6 +17,7 @@ __all__ = [
     "Row",
     "machine",
     "percentile",
+    "pin_malloc",
     "raise_fd_limit",
     "render_table",
     "rss_bytes",
@@ -57,6 +59,29 @@ def rss_bytes() -> int:
             return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except OSError:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+#: glibc's mallopt parameters.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def pin_malloc(mode: str) -> bool:
+    """Pin glibc to serve asyncio's 256 KiB read buffers from the heap; False if impossible.
+
+    A plain ``asyncio.Protocol`` gets a fresh bytes object per read, allocated at 256 KiB
+    and shrunk to the bytes read. In an unpinned process that read cost about 9 µs per
+    frame at some times and 15-16 µs at others, flipping unseen (BENCHMARKS.md §2); with
+    glibc's mmap threshold pinned above 256 KiB (``"heap"``, the trim threshold at twice
+    that, as glibc's own adjustment sets it) the cheap state holds. Only "heap" exists.
+    """
+    if mode != "heap":
+        raise ValueError(f"unknown malloc mode {mode!r}")
+    try:
+        mallopt = ctypes.CDLL("libc.so.6").mallopt
+    except (OSError, AttributeError):
+        return False
+    threshold = 1 << 20
+    return bool(mallopt(_M_MMAP_THRESHOLD, threshold) and mallopt(_M_TRIM_THRESHOLD, 2 * threshold))
 
 
 def raise_fd_limit() -> int:

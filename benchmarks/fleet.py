@@ -1,24 +1,30 @@
 """Fleet: N robots at 30 Hz from another process over loopback TCP, one driver event loop.
 
-Per N, phases on the same server and the same kind of streams:
+Per N, phases on the same server and the same kind of streams, in every round:
 
-* **bare**: N ``asyncio.Protocol`` connections that only count bytes (the baseline), run
-  first in every round (the rounds interleave bare and driver phases);
+* **bare**: N ``asyncio.Protocol`` connections that only count bytes (the baseline);
 * **driver**: N ``Robot`` objects (``galileo_async.connect("socket://…")``), each with a
   task iterating ``robot.statuses()``;
 * **driver, sampled**: the same robots without those tasks; one task reads every robot's
-  ``status`` ten times a second (a dashboard), so only the driver itself runs per frame.
+  ``status`` ten times a second (a dashboard), so only the driver itself runs per frame;
+* **bare BufferedProtocol**: the byte count again, reading into a buffer of its own as
+  the driver's link does (a reference figure, not a baseline of any target).
 
-An untimed bare phase runs first on a fresh server. Each phase warms up, then measures
-over a window: process CPU seconds (time.process_time),
-frames kept (link counters: frames / (frames + time_stamp gaps)), and status age.
+glibc is pinned to serve asyncio's 256 KiB read buffers from the heap (common.pin_malloc;
+``--malloc default`` leaves it be): left alone, the bare baseline's own cost flipped
+between about 9 and 15 µs per frame. An untimed bare phase runs first on a fresh server.
+Each phase warms up, then measures over a window: process CPU seconds
+(time.process_time), frames kept (link counters: frames / (frames + time_stamp gaps)),
+and status age.
 
 Status age: the server starts every robot in one loop iteration and reports that
 instant (``origin``) on CLOCK_MONOTONIC, which all processes on the host share; frame
 ``t`` of every robot is due at ``origin + t/30``. A consumer that receives a status
 computes ``time.monotonic() - (origin + time_stamp/30)``: the time from the frame's
 scheduled send to the application holding it. That includes any lateness of the server
-process (it shares the two cores), so it is an upper bound of what the driver adds.
+process (it shares the two cores), so it is an upper bound of what the driver adds. In
+the statuses() variant AGE_ROBOTS robots (evenly spread) time every status they get; the
+others only receive theirs.
 
 Memory per robot: RSS growth from before the robots connected to after the warm-up,
 divided by N; and, in a separate pass with tracemalloc on, the Python heap it traced.
@@ -41,13 +47,15 @@ from typing import Any
 import galileo_async
 from galileo_async import GalileoStatus, Robot
 
-from .common import Row, percentile, raise_fd_limit, rss_bytes
+from .common import Row, percentile, pin_malloc, raise_fd_limit, rss_bytes
 
 __all__ = ["run"]
 
 CONNECT_BATCH = 100
 WARMUP = 1.5
 FRAME_SIZE = 89
+#: How many robots of a fleet time every status they receive (statuses() variant).
+AGE_ROBOTS = 100
 #: How often the task-less variant samples every robot's latest status.
 SAMPLE_RATE = 10
 #: Seconds of an untimed bare phase before the first timed one.
@@ -104,6 +112,25 @@ class _Counter(asyncio.Protocol):
             self.lost.set_result(None)
 
 
+class _BufferedCounter(asyncio.BufferedProtocol):
+    """The same count, reading into one buffer of its own (as the driver's link does)."""
+
+    def __init__(self) -> None:
+        self.bytes = 0
+        self.lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._view = memoryview(bytearray(4096))
+
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self._view
+
+    def buffer_updated(self, nbytes: int) -> None:
+        self.bytes += nbytes
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if not self.lost.done():
+            self.lost.set_result(None)
+
+
 @dataclass
 class _Phase:
     cpu: float = 0.0
@@ -128,14 +155,15 @@ async def _window(seconds: float, server: _Server) -> tuple[float, float, float]
     return cpu, wall, server_after["cpu"] - server_before["cpu"]
 
 
-async def _bare(server: _Server, seconds: float) -> _Phase:
+async def _bare(server: _Server, seconds: float, *, buffered: bool = False) -> _Phase:
     loop = asyncio.get_running_loop()
-    counters: list[_Counter] = []
+    factory = _BufferedCounter if buffered else _Counter
+    counters: list[_Counter | _BufferedCounter] = []
     transports: list[asyncio.BaseTransport] = []
     for start in range(0, len(server.ports), CONNECT_BATCH):
         batch = server.ports[start : start + CONNECT_BATCH]
         made = await asyncio.gather(
-            *(loop.create_connection(_Counter, "127.0.0.1", port) for port in batch)
+            *(loop.create_connection(factory, "127.0.0.1", port) for port in batch)
         )
         for made_transport, protocol in made:
             transports.append(made_transport)
@@ -174,6 +202,10 @@ async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase
     monotonic = time.monotonic
 
     async def consume(robot: Robot) -> None:
+        async for _status in robot.statuses():
+            pass
+
+    async def consume_timed(robot: Robot) -> None:
         status: GalileoStatus
         async for status in robot.statuses():
             if recording:
@@ -199,7 +231,13 @@ async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase
     rss0 = rss_bytes()
     robots = await _connect(server)
     if consumers:
-        tasks = [asyncio.create_task(consume(robot)) for robot in robots]
+        # At most AGE_ROBOTS robots time their statuses: the age is a sample, and its
+        # bookkeeping (a clock read and a list append per status) is not the driver's cost.
+        every = max(1, len(robots) // AGE_ROBOTS)
+        tasks = [
+            asyncio.create_task((consume_timed if index % every == 0 else consume)(robot))
+            for index, robot in enumerate(robots)
+        ]
     else:
         tasks = [asyncio.create_task(sample(robots))]
     try:
@@ -255,14 +293,14 @@ async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phas
     server = _Server(count)
     rounds: list[tuple[_Phase, ...]] = []
     try:
-        # Untimed: the first phase after the server starts often cost up to 1.7x more CPU
-        # per frame than the same phase later (BENCHMARKS.md §2); no timed phase is first.
+        # Untimed: the first phase after the server starts warms both processes up.
         await _bare(server, SERVER_WARMUP)
         for _ in range(repeats):
             bare = await _bare(server, seconds)
             driver = await _driver(server, seconds, consumers=True)
             sampled = await _driver(server, seconds, consumers=False)
-            rounds.append((bare, driver, sampled))
+            buffered = await _bare(server, seconds, buffered=True)
+            rounds.append((bare, driver, sampled, buffered))
         rounds[0][1].traced_per_robot = await _traced(server)
     finally:
         await asyncio.get_running_loop().run_in_executor(None, server.close)
@@ -275,9 +313,12 @@ def run(
     sizes: list[int] | None = None,
     seconds: float = 10.0,
     repeats: int | None = None,
+    malloc: str = "heap",
 ) -> list[Row]:
-    """Measure the fleet for each N in ``sizes``."""
+    """Measure the fleet for each N in ``sizes`` (``malloc``: see common.pin_malloc)."""
     raise_fd_limit()
+    pinned = malloc == "heap" and pin_malloc("heap")
+    print(f"  glibc read buffers: {'pinned to the heap' if pinned else 'not pinned'}", flush=True)
     rows: list[Row] = []
     for count in sizes or [10, 100, 1000]:
         rounds_wanted = repeats or (1 if quick else 2 if count >= 1000 else 3)
@@ -288,7 +329,20 @@ def run(
         rows += _rows(name, count, bares, [r[1] for r in rounds], "statuses() task per robot")
         rows += _rows(name, count, bares, [r[2] for r in rounds], "no task, app samples status",
                       memory=False)  # fmt: skip
+        rows.append(_buffered_row(name, bares, [r[3] for r in rounds]))
     return rows
+
+
+def _buffered_row(name: str, bares: list[_Phase], buffered: list[_Phase]) -> Row:
+    """A BufferedProtocol that only counts: what reading into one's own buffer costs."""
+    return Row(
+        name, "bare BufferedProtocol CPU (for reference)",
+        100 * statistics.median(b.cpu / b.wall for b in buffered), "% of a core",
+        100 * statistics.median(b.cpu / b.wall for b in bares), "bare Protocol", "", None,
+        {"us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2) for b in buffered],
+         "bare_us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2)
+                                      for b in bares]},
+    )  # fmt: skip
 
 
 def _rows(

@@ -24,6 +24,7 @@ from galileo_async.errors import (
 )
 from galileo_async.link import BaseLink, StreamLink, open_link
 from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
+from galileo_async.link.stream import READ_SIZE
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
@@ -465,6 +466,27 @@ async def test_socket_links_turn_tcp_keepalive_on(
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE) == KEEPALIVE_IDLE
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL) == KEEPALIVE_INTERVAL
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT) == KEEPALIVE_COUNT
+
+
+async def test_socket_links_read_into_their_own_buffer(
+    device: FakeDevice, links: list[BaseLink]
+) -> None:
+    link, store = await connect(device, links)
+    assert isinstance(link, StreamLink)
+    assert isinstance(link._protocol, asyncio.BufferedProtocol)
+    # A burst over three read buffers, split mid-frame, then a single frame.
+    burst = b"".join(status_frame(stamp) for stamp in range(1, 201))
+    assert len(burst) > 2 * READ_SIZE
+    device.push_raw(burst[:1000])
+    device.push_raw(burst[1000:])
+    await store.wait_until(lambda s: s.time_stamp == 200, timeout=STEP)
+    stream = store.statuses()
+    assert (await anext(stream)).time_stamp == 200
+    device.time_stamp = 200
+    device.push()
+    assert (await asyncio.wait_for(anext(stream), STEP)).time_stamp == 201
+    assert (link.stats.frames, link.stats.lost_frames, link.stats.resyncs) == (201, 0, 0)
+    assert link.stats.bytes_received == len(burst) + len(status_frame(201))
 
 
 async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseLink]) -> None:

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 import struct
+import sys
 from typing import Any
 
 import pydantic
@@ -91,6 +94,43 @@ def test_status_is_frozen() -> None:
 def test_trusted_equals_validated() -> None:
     values = v.V2_ACTIVE_STATUS.model_dump()
     assert GalileoStatus.trusted(values) == GalileoStatus(**values)
+
+
+def test_builder_equals_validated_and_behaves_like_any_status() -> None:
+    expected = v.V2_ACTIVE_STATUS
+    names = [name for name in STATUS_FIELDS]
+    maps = {"nav_status": {1: NavStatus.OPEN}, "target_status": {1: TargetStatus.WORKING}}
+    build = GalileoStatus.builder(StatusLayout.V2, names, maps)
+    raw = tuple(int(getattr(expected, name)) if name in maps else getattr(expected, name)
+                for name in names)  # fmt: skip
+    built = build(raw)
+    assert built == expected
+    assert repr(built) == repr(expected)
+    assert built.model_fields_set == set(GalileoStatus.model_fields)
+    assert built.model_dump() == expected.model_dump()
+    assert copy.deepcopy(built) == pickle.loads(pickle.dumps(built)) == expected
+    assert built.model_copy(update={"power": 1.0}).power == 1.0
+    again = build(raw)
+    assert again == built
+    assert again.__dict__ is not built.__dict__
+    with pytest.raises(pydantic.ValidationError):
+        built.power = 2.0  # type: ignore[misc]
+    if sys.implementation.name == "cpython":  # its copies share one key table
+        assert sys.getsizeof(built.__dict__) < sys.getsizeof(dict(built.__dict__))
+
+
+def test_builder_for_a_layout_with_fewer_fields() -> None:
+    build = GalileoStatus.builder(StatusLayout.V1, ["nav_status", "power"], {})
+    built = build((1, 12.5))
+    assert built == GalileoStatus(layout=StatusLayout.V1, nav_status=1, power=12.5)
+    assert built.model_fields_set == {"layout", "nav_status", "power"}
+    assert built.time_stamp is None
+
+
+@pytest.mark.parametrize("fields", [["layout"], ["power", "power"], ["no_such_field"]])
+def test_builder_refuses_fields_that_are_not_distinct_status_fields(fields: list[str]) -> None:
+    with pytest.raises(ValueError, match="not distinct status fields"):
+        GalileoStatus.builder(StatusLayout.V2, fields, {})
 
 
 def status(**fields: Any) -> GalileoStatus:

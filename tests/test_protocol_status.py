@@ -301,6 +301,19 @@ def test_reset_forgets_partial_frame_and_counter() -> None:
     assert decoder.layout is V2  # the layout survives a reconnect
 
 
+def test_bytearray_reads_decode_like_bytes_and_are_not_kept() -> None:
+    frames = stamped(1, 2, 3)
+    decoder = StatusDecoder()
+    single = bytearray(frames[: len(frames) // 3])
+    assert decoder.feed(single) == StatusDecoder().feed(bytes(single))
+    # A reused read buffer: what the decoder holds back must be its own copy.
+    buffer = bytearray(frames[len(frames) // 3 : len(frames) // 3 + 50])
+    assert decoder.feed(buffer) == []
+    buffer[:] = b"\xff" * len(buffer)
+    assert [s.time_stamp for s in decoder.feed(frames[len(frames) // 3 + 50 :])] == [2, 3]
+    assert decoder.stats.bytes_discarded == 0
+
+
 # --- resync -------------------------------------------------------------------------------
 
 

@@ -13,7 +13,7 @@ from ..protocol import DecoderStats
 __all__ = ["LinkStats", "StatusSink"]
 
 
-@dataclass
+@dataclass(slots=True)
 class LinkStats(DecoderStats):
     """Counters and health of one link (read by users as ``robot.link``).
 

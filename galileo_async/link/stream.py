@@ -17,27 +17,49 @@ __all__ = ["StreamLink"]
 
 _log = logging.getLogger(__name__)
 _DEBUG = logging.DEBUG
+#: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
+READ_SIZE = 4096
 
 
-class _StreamProtocol(asyncio.Protocol):
-    """Forwards one transport's bytes and its loss to the link that made it."""
+class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
+    """Forwards one transport's bytes and its loss to the link that made it.
+
+    Sockets read into the protocol's own buffer (BufferedProtocol): a plain Protocol is
+    handed a fresh bytes object per read, which asyncio allocates at 256 KiB and shrinks,
+    and which glibc serves by mmap until its threshold adapts: up to 6 µs a read at 30 Hz
+    per robot (BENCHMARKS.md §2). It is a Protocol too: serial ports, pipes and custom
+    connectors call data_received.
+    """
+
+    __slots__ = ("_buffer", "_decoder", "_link", "_stats", "_view", "current", "lost")
 
     def __init__(self, link: StreamLink, loop: asyncio.AbstractEventLoop) -> None:
         self._link = link
+        self._decoder = link.decoder
+        self._stats = link.stats
+        #: False once the link has replaced or dropped this protocol: late reads are ignored.
+        self.current = True
         self.lost: asyncio.Future[None] = loop.create_future()
+        self._buffer = bytearray(READ_SIZE)
+        self._view = memoryview(self._buffer)
 
-    def data_received(self, data: bytes) -> None:
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self._view
+
+    def buffer_updated(self, nbytes: int) -> None:
+        # A copy of just the bytes read: the decoder keeps what it holds back, never this.
+        self.data_received(self._buffer[:nbytes])
+
+    def data_received(self, data: bytes | bytearray) -> None:
         # The link's hot path, here rather than behind one more call: it runs per read.
-        link = self._link
-        if self is not link._protocol:
+        if not self.current:
             return  # a late callback from a transport already replaced or closed
-        stats = link.stats
-        stats.bytes_received += len(data)
+        self._stats.bytes_received += len(data)
         if frames_log.isEnabledFor(_DEBUG):
             frames_log.debug("rx %s", data.hex(" "))
-        statuses = link.decoder.feed(data)  # counts into stats itself
+        statuses = self._decoder.feed(data)  # counts into the link's stats itself
         if statuses:
-            link._on_statuses(statuses)
+            self._link._on_statuses(statuses)
 
     def eof_received(self) -> bool | None:
         return None  # let the transport close itself: EOF is a drop
@@ -50,6 +72,10 @@ class _StreamProtocol(asyncio.Protocol):
 
 class StreamLink(BaseLink):
     """A link over any byte transport: serial, TCP, pty or an in-memory pair."""
+
+    __slots__ = (
+        "_closers", "_connector", "_protocol", "_transport", "decoder", "name", "simulator"
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -82,13 +108,13 @@ class StreamLink(BaseLink):
         protocol = _StreamProtocol(self, loop)
         self.decoder.reset()
         # Current before the connector returns: bytes may arrive before it does.
-        self._protocol = protocol
+        self._set_protocol(protocol)
         try:
             with translate_errors(f"cannot connect to {self.name or 'the device'}"):
                 transport, _ = await self._connector(loop, lambda: protocol)
         except BaseException:
             if self._protocol is protocol:
-                self._protocol = None
+                self._set_protocol(None)
             raise
         if protocol.lost.done() or self._protocol is not protocol:
             transport.close()
@@ -106,7 +132,8 @@ class StreamLink(BaseLink):
 
     async def _disconnect(self) -> None:
         transport, protocol = self._transport, self._protocol
-        self._transport = self._protocol = None
+        self._transport = None
+        self._set_protocol(None)
         try:
             if transport is not None and protocol is not None:
                 transport.close()
@@ -126,5 +153,13 @@ class StreamLink(BaseLink):
     def _on_transport_lost(self, protocol: _StreamProtocol, exc: Exception | None) -> None:
         if protocol is not self._protocol:
             return
-        self._transport = self._protocol = None
+        self._transport = None
+        self._set_protocol(None)
         self._on_lost(exc)
+
+    def _set_protocol(self, protocol: _StreamProtocol | None) -> None:
+        """Make ``protocol`` the current one; the one it replaces ignores late reads."""
+        previous = self._protocol
+        if previous is not None and previous is not protocol:
+            previous.current = False
+        self._protocol = protocol
