@@ -123,15 +123,17 @@ class StatusStore:
         for watch_ref in self._watches.refs:
             watch = watch_ref()
             if watch is not None:
-                buffer = watch.buffer
-                if len(buffer) == buffer.maxlen:
-                    watch.dropped += 1
-                buffer.append(status)
                 signal = watch._wakeup
                 if signal is not None:
                     watch._wakeup = None
                     if not signal.done():
-                        signal.set_result(None)
+                        # Its consumer waits, so nothing is buffered: hand the status over.
+                        signal.set_result(status)
+                        continue
+                buffer = watch.buffer
+                if len(buffer) == buffer.maxlen:
+                    watch.dropped += 1
+                buffer.append(status)
 
     def connection_lost(self, exc: GalileoConnectionError) -> None:
         """The transport dropped: fail every waiter and watch at once with ``exc``."""

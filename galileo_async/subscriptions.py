@@ -46,7 +46,9 @@ class _Queue(Generic[_T]):
         self._store = store
         self._registry = registry
         self.buffer: deque[_T] = deque(maxlen=maxlen)
-        self._wakeup: asyncio.Future[None] | None = None
+        # Resolved with None to look at the queue again, or (watches) with the item itself
+        # when the consumer was waiting on an empty queue.
+        self._wakeup: asyncio.Future[_T | None] | None = None
         self.dropped = 0
         self.closed = False
         self.error: GalileoConnectionError | None = None
@@ -71,13 +73,14 @@ class _Queue(Generic[_T]):
         if wakeup is not None and not wakeup.done():
             wakeup.set_result(None)
 
-    async def _wait(self, timeout: float | None) -> None:
-        """Wait until something is buffered, an error is pending or the queue is closed."""
+    async def _wait(self, timeout: float | None) -> _T | None:
+        """The item handed over, or None once something is buffered, failed or closed."""
         loop = asyncio.get_running_loop()
-        wakeup = self._wakeup = loop.create_future()
+        wakeup: asyncio.Future[_T | None] = loop.create_future()
+        self._wakeup = wakeup
         timer = None if timeout is None else loop.call_later(timeout, _expire, wakeup)
         try:
-            await wakeup
+            return await wakeup
         finally:
             self._wakeup = None
             if timer is not None:
@@ -97,7 +100,7 @@ class _Queue(Generic[_T]):
             # No clean-up needed: whoever wakes it clears _wakeup, and a cancelled future
             # left behind is done, which every waker checks.
             self._wakeup = wakeup = _running_loop().create_future()
-            await wakeup
+            await wakeup  # nothing hands an item over here: only watches get handoffs
 
     def close(self) -> None:
         """Stop receiving (idempotent); what is buffered can still be read."""
@@ -167,10 +170,12 @@ class Watch(_Queue[GalileoStatus]):
             if self.closed:
                 raise ConnectionLost("the watch is closed (or its status store is)")
             try:
-                await self._wait(timeout)
+                handed = await self._wait(timeout)
             except TimeoutError:
                 status = self._store.status
                 raise GalileoTimeout(f"no status within {timeout} s", status=status) from None
+            if handed is not None:
+                return handed
 
     def __enter__(self) -> Watch:
         return self

@@ -141,9 +141,29 @@ class StatusDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
-        if self._single_clean_v2(data):  # the commonest read, 30 times a second per robot
+        # The commonest read, 30 times a second per robot, inlined: one whole clean v2 frame
+        # and nothing held back, tested exactly as _frames' own single-frame branch does.
+        if (
+            len(data) == _V2_SIZE
+            and type(data) in _FLAT
+            and data[_V2_SIZE - 1] == 0
+            and data.startswith(_V2_START)  # type: ignore[union-attr]
+            and not self._buffer
+            and data.find(HEADER, _HEADER_SIZE) < 0  # type: ignore[union-attr]
+            and (self._detected is _V2_NAME or self._v2_first())
+        ):
             values = _V2_UNPACK(data, _HEADER_SIZE)
-            self._accept_v2(values[_V2_STAMP])
+            stats = self.stats
+            stats.frames += 1
+            self._in_sync = True
+            if self._detected is not _V2_NAME:
+                self._detected = stats.layout = _V2_NAME
+                self._run = 0
+            self._run += 1
+            time_stamp = values[_V2_STAMP]
+            last, self._last_time_stamp = self._last_time_stamp, time_stamp
+            if last is not None and time_stamp != last + 1:
+                self._count_gap(time_stamp - last - 1)
             return [_V2_BUILD(values)]
         v2, build_v2 = _V2_NAME, _V2_BUILD
         return [
@@ -153,36 +173,7 @@ class StatusDecoder:
 
     def feed_raw(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
         """Like feed, but return (layout, raw field values in wire order) per frame."""
-        if self._single_clean_v2(data):
-            values = _V2_UNPACK(data, _HEADER_SIZE)
-            self._accept_v2(values[_V2_STAMP])
-            return [(_V2_NAME, values)]
         return self._frames(data)
-
-    def _single_clean_v2(self, data: bytes | bytearray | memoryview) -> bool:
-        """Whether ``data`` is one whole clean v2 frame with nothing held back (_frames' test)."""
-        return (
-            len(data) == _V2_SIZE
-            and type(data) in _FLAT
-            and data[_V2_SIZE - 1] == 0
-            and data.startswith(_V2_START)  # type: ignore[union-attr]
-            and not self._buffer
-            and data.find(HEADER, _HEADER_SIZE) < 0  # type: ignore[union-attr]
-            and (self._detected is _V2_NAME or self._v2_first())
-        )
-
-    def _accept_v2(self, time_stamp: int) -> None:
-        """Account for one v2 frame taken by the single-frame path (as _count does)."""
-        stats = self.stats
-        stats.frames += 1
-        self._in_sync = True
-        if self._detected is not _V2_NAME:
-            self._detected = stats.layout = _V2_NAME
-            self._run = 0
-        self._run += 1
-        last, self._last_time_stamp = self._last_time_stamp, time_stamp
-        if last is not None and time_stamp != last + 1:
-            self._count_gap(time_stamp - last - 1)
 
     def _frames(self, data: bytes | bytearray | memoryview) -> list[RawFrame]:
         held = self._buffer
@@ -294,7 +285,7 @@ class StatusDecoder:
         return count
 
     def _count(self, converter: _Converter, values: Values) -> None:
-        """Account for one accepted frame (_accept_v2 is the single-frame path's copy)."""
+        """Account for one accepted frame (feed's single-frame path has an inlined copy)."""
         self._in_sync = True
         name = converter.name
         if self._detected is not name:
