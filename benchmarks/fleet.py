@@ -54,6 +54,8 @@ __all__ = ["run"]
 CONNECT_BATCH = 100
 WARMUP = 1.5
 FRAME_SIZE = 89
+#: The fleet size the issue's targets are set at.
+TARGET_N = 1000
 #: How many robots of a fleet time every status they receive (statuses() variant).
 AGE_ROBOTS = 100
 #: How often the task-less variant samples every robot's latest status.
@@ -365,15 +367,21 @@ def _rows(
     driver_cpu = statistics.median(d.cpu / d.wall for d in drivers)
     bare_cpu = statistics.median(b.cpu / b.wall for b in bares)
     bare_frames = sum(b.frames for b in bares) / (count * 30 * sum(b.wall for b in bares))
+    # The targets are set at N = TARGET_N; smaller fleets show how the figures grow.
+    held = count >= TARGET_N
+
+    def target(text: str, met: bool) -> tuple[str, bool | None]:
+        return (text, met) if held else (f"{text} at N={TARGET_N}", None)
+
     common = {"how": how, "rounds": len(drivers), "window_s": round(wall / len(drivers), 2),
               "server_cpu_s": [round(d.server_cpu, 2) for d in drivers]}  # fmt: skip
     rows = [
         Row(name, f"frames kept ({how})", 100 * kept, "%", 100 * bare_frames,
-            "bare: bytes/89 vs 30 Hz", "≥ 99.9 %", kept >= 0.999,
+            "bare: bytes/89 vs 30 Hz", *target("≥ 99.9 %", kept >= 0.999),
             {"frames": frames, "lost": lost, "received_vs_30Hz": frames / (count * 30 * wall),
              **common}),
         Row(name, f"driver CPU ({how})", 100 * driver_cpu, "% of a core", 100 * bare_cpu,
-            "bare Protocol", "≤ 1.5× bare", ratio <= 1.5,
+            "bare Protocol", *target("≤ 1.5× bare", ratio <= 1.5),
             {"ratio_median": ratio, "ratios": [round(r, 2) for r in ratios],
              "us_per_frame_rounds": [round(1e6 * d.cpu / max(1, d.frames), 2) for d in drivers],
              "bare_us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2)
@@ -381,8 +389,8 @@ def _rows(
              "us_per_frame": 1e6 * sum(d.cpu for d in drivers) / max(1, frames),
              "bare_us_per_frame": 1e6 * sum(b.cpu for b in bares)
              / max(1, sum(b.frames for b in bares)), **common}),
-        Row(name, f"status age p99 ({how})", 1000 * p99, "ms", 1000 * p50, "p50", "≤ 100 ms",
-            p99 <= 0.100, {"max_ms": 1000 * max(ages, default=float("nan")),
+        Row(name, f"status age p99 ({how})", 1000 * p99, "ms", 1000 * p50, "p50",
+            *target("≤ 100 ms", p99 <= 0.100), {"max_ms": 1000 * max(ages, default=float("nan")),
                            "samples": len(ages), **common}),
     ]  # fmt: skip
     if memory:
@@ -390,7 +398,7 @@ def _rows(
         worst = max(first.rss_per_robot, first.traced_per_robot)
         rows.append(
             Row(name, "memory per robot: RSS growth", first.rss_per_robot / 1024, "KiB",
-                first.traced_per_robot / 1024, "tracemalloc", "≤ 64 KiB (both)",
-                worst <= 64 * 1024)
+                first.traced_per_robot / 1024, "tracemalloc",
+                *target("≤ 64 KiB (both)", worst <= 64 * 1024))
         )  # fmt: skip
     return rows

@@ -62,7 +62,7 @@ class BaseLink(abc.ABC):
     # Slots: a fleet touches every link 30 times a second, and attributes kept inside the
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_alive_since", "_closed", "_closing", "_last_write", "_opened",
+        "__weakref__", "_closed", "_closing", "_connected_at", "_last_write", "_opened",
         "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_watchdog",
         "_writer_task", "drain_timeout", "max_queued_commands", "min_command_interval",
         "reconnect", "reconnect_initial", "reconnect_max", "stale_reconnect", "stale_timeout",
@@ -114,7 +114,7 @@ class BaseLink(abc.ABC):
         self._reconnect_task: asyncio.Task[None] | None = None
         self._watchdog: asyncio.TimerHandle | None = None
         self._last_write: float | None = None
-        self._alive_since = 0.0
+        self._connected_at = 0.0
         self._opened = False
         self._closing = False
         self._closed = asyncio.Event()
@@ -224,15 +224,19 @@ class BaseLink(abc.ABC):
         """Hand the counted statuses of one read (at least one) to the store in order."""
         stats = self.stats
         # Only a timestamp per read: the watchdog timer re-arms itself from it (_check_stale).
-        stats.last_frame_at = self._alive_since = _monotonic()
+        stats.last_frame_at = _monotonic()
         if stats.stale:
-            stats.stale = False
-            _log.info("link fresh again")
-            self.store.link_fresh()
-            self._arm_watchdog(self.stale_timeout)
+            self._fresh_again()
         update = self.store.update
         for status in statuses:
             update(status)
+
+    def _fresh_again(self) -> None:
+        """A valid frame came while the link was stale."""
+        self.stats.stale = False
+        _log.info("link fresh again")
+        self.store.link_fresh()
+        self._arm_watchdog(self.stale_timeout)
 
     def _on_lost(self, exc: BaseException | None) -> None:
         """The transport dropped (EOF, close or error): fail waiters, then reconnect."""
@@ -259,7 +263,7 @@ class BaseLink(abc.ABC):
     def _on_connected(self) -> None:
         self.stats.connected = True
         self.stats.stale = False
-        self._alive_since = time.monotonic()
+        self._connected_at = time.monotonic()
         self.store.connection_restored()
         self._arm_watchdog(self.stale_timeout)
         if self._queue:
@@ -402,7 +406,9 @@ class BaseLink(abc.ABC):
         timeout = self.stale_timeout
         if timeout is None or self._closing or not self.stats.connected:
             return
-        silent = time.monotonic() - self._alive_since
+        last = self.stats.last_frame_at
+        alive_since = self._connected_at if last is None else max(last, self._connected_at)
+        silent = time.monotonic() - alive_since
         if not self.stats.stale:
             if silent < timeout:
                 self._arm_watchdog(timeout - silent)
