@@ -201,6 +201,25 @@ async def test_pending_sends_fail_on_loss(links: list[BaseLink]) -> None:
     assert len(connector.transport.writes) == 1
 
 
+async def test_reads_from_a_replaced_connection_are_ignored(links: list[BaseLink]) -> None:
+    connector, link = await in_memory(links, reconnect_initial=0.01)
+    store = link.store
+    assert isinstance(store, StatusStore)
+    events = store.events()
+    connector.feed(status_frame(1))
+    old = connector.transport
+    old.lose(OSError("unplugged"))
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionRestored)
+    assert len(connector.transports) == 2
+    frames = link.stats.frames
+    old.protocol.data_received(status_frame(99))  # a late read from the old transport
+    assert (link.stats.frames, store.status and store.status.time_stamp) == (frames, 1)
+    connector.feed(status_frame(2))
+    assert store.status is not None
+    assert store.status.time_stamp == 2
+
+
 async def test_reconnects_after_the_server_restarts(
     device: FakeDevice, links: list[BaseLink]
 ) -> None:
