@@ -7,19 +7,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import GalileoConnectionError
-from .base import (
-    CLOSE_TIMEOUT,
-    DEFAULT_DRAIN_TIMEOUT,
-    DEFAULT_MAX_QUEUED_COMMANDS,
-    DEFAULT_MIN_COMMAND_INTERVAL,
-    DEFAULT_RECONNECT_INITIAL,
-    DEFAULT_RECONNECT_MAX,
-    DEFAULT_STALE_RECONNECT,
-    DEFAULT_STALE_TIMEOUT,
-    BaseLink,
-    LinkStats,
-    StatusSink,
-)
+from .base import BaseLink, LinkStats, StatusSink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -28,6 +16,16 @@ from .connectors import (
     serial_connector,
     socket_connector,
     translate_errors,
+)
+from .options import (
+    CLOSE_TIMEOUT,
+    DEFAULT_DRAIN_TIMEOUT,
+    DEFAULT_MAX_QUEUED_COMMANDS,
+    DEFAULT_MIN_COMMAND_INTERVAL,
+    DEFAULT_RECONNECT_INITIAL,
+    DEFAULT_RECONNECT_MAX,
+    DEFAULT_STALE_RECONNECT,
+    DEFAULT_STALE_TIMEOUT,
 )
 from .stream import StreamLink
 

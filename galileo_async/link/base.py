@@ -9,21 +9,13 @@ import time
 from collections import deque
 from collections.abc import Sequence
 
-from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument, LinkStale
+from ..errors import ConnectionLost, GalileoConnectionError, LinkStale
 from ..models import GalileoStatus
 from ..protocol import Command
+from . import options as _options
 from .stats import LinkStats, StatusSink
 
 __all__ = [
-    "CLOSE_TIMEOUT",
-    "DEFAULT_DRAIN_TIMEOUT",
-    "DEFAULT_MAX_QUEUED_COMMANDS",
-    "DEFAULT_MIN_COMMAND_INTERVAL",
-    "DEFAULT_RECONNECT_INITIAL",
-    "DEFAULT_RECONNECT_MAX",
-    "DEFAULT_STALE_RECONNECT",
-    "DEFAULT_STALE_TIMEOUT",
-    "DRAIN_POLL_INTERVAL",
     "BaseLink",
     "LinkStats",
     "StatusSink",
@@ -34,24 +26,6 @@ _log = logging.getLogger(__name__)
 #: Raw frames in hex, both directions, at DEBUG only.
 frames_log = logging.getLogger("galileo_async.link.frames")
 _monotonic = time.monotonic
-
-#: The document allows at most 100 commands/s; back-to-back writes lose commands (PROTOCOL.md §2).
-DEFAULT_MIN_COMMAND_INTERVAL = 0.010
-#: Status arrives at 30 Hz; this long without a valid frame makes the link stale.
-DEFAULT_STALE_TIMEOUT = 1.0
-#: Silent for this many stale_timeouts: the peer is taken for dead and the link reconnects.
-DEFAULT_STALE_RECONNECT = 5.0
-#: Longest the transport may hold unsent bytes before the queued sends fail.
-DEFAULT_DRAIN_TIMEOUT = 2.0
-#: How often a writer waiting for the transport's buffer to empty looks again.
-DRAIN_POLL_INTERVAL = 0.005
-#: Commands waiting for the writer (one second at the 100/s maximum); send() waits when full.
-DEFAULT_MAX_QUEUED_COMMANDS = 100
-DEFAULT_RECONNECT_INITIAL = 0.1
-DEFAULT_RECONNECT_MAX = 5.0
-#: Longest close() waits for its tasks and for the transport to close.
-CLOSE_TIMEOUT = 2.0
-
 
 _Pending = tuple[Command, "asyncio.Future[None]"]
 
@@ -74,29 +48,23 @@ class BaseLink(abc.ABC):
         store: StatusSink,
         *,
         reconnect: bool = True,
-        reconnect_initial: float = DEFAULT_RECONNECT_INITIAL,
-        reconnect_max: float = DEFAULT_RECONNECT_MAX,
-        stale_timeout: float | None = DEFAULT_STALE_TIMEOUT,
-        stale_reconnect: float | None = DEFAULT_STALE_RECONNECT,
-        min_command_interval: float = DEFAULT_MIN_COMMAND_INTERVAL,
-        drain_timeout: float = DEFAULT_DRAIN_TIMEOUT,
-        max_queued_commands: int = DEFAULT_MAX_QUEUED_COMMANDS,
+        reconnect_initial: float = _options.DEFAULT_RECONNECT_INITIAL,
+        reconnect_max: float = _options.DEFAULT_RECONNECT_MAX,
+        stale_timeout: float | None = _options.DEFAULT_STALE_TIMEOUT,
+        stale_reconnect: float | None = _options.DEFAULT_STALE_RECONNECT,
+        min_command_interval: float = _options.DEFAULT_MIN_COMMAND_INTERVAL,
+        drain_timeout: float = _options.DEFAULT_DRAIN_TIMEOUT,
+        max_queued_commands: int = _options.DEFAULT_MAX_QUEUED_COMMANDS,
     ) -> None:
-        if not 0 < reconnect_initial <= reconnect_max:
-            raise InvalidArgument("need 0 < reconnect_initial <= reconnect_max")
-        if stale_timeout is not None and stale_timeout <= 0:
-            raise InvalidArgument(f"stale_timeout must be positive or None, got {stale_timeout}")
-        if stale_reconnect is not None and not stale_reconnect >= 1:
-            raise InvalidArgument(
-                f"stale_reconnect must be >= 1 (times stale_timeout) or None, got {stale_reconnect}"
-            )
-        if min_command_interval < 0:
-            raise InvalidArgument(f"min_command_interval must be >= 0, got {min_command_interval}")
-        if not drain_timeout > 0:
-            raise InvalidArgument(f"drain_timeout must be positive, got {drain_timeout}")
-        queued = max_queued_commands
-        if isinstance(queued, bool) or not (isinstance(queued, int) and queued >= 1):
-            raise InvalidArgument(f"max_queued_commands must be an int >= 1, got {queued!r}")
+        _options.check_options(
+            reconnect_initial=reconnect_initial,
+            reconnect_max=reconnect_max,
+            stale_timeout=stale_timeout,
+            stale_reconnect=stale_reconnect,
+            min_command_interval=min_command_interval,
+            drain_timeout=drain_timeout,
+            max_queued_commands=max_queued_commands,
+        )
         self.store = store
         self.stats = LinkStats()
         self.reconnect = reconnect
@@ -199,12 +167,12 @@ class BaseLink(abc.ABC):
             for task in tasks:
                 task.cancel()
             if tasks:
-                await asyncio.wait(tasks, timeout=CLOSE_TIMEOUT)
+                await asyncio.wait(tasks, timeout=_options.CLOSE_TIMEOUT)
             self._writer_task = self._reconnect_task = None
             self._fail_pending(ConnectionLost("the link is closed"))
             self.stats.connected = False
             try:
-                await asyncio.wait_for(self._disconnect(), CLOSE_TIMEOUT)
+                await asyncio.wait_for(self._disconnect(), _options.CLOSE_TIMEOUT)
             except (asyncio.TimeoutError, GalileoConnectionError, OSError) as exc:
                 _log.warning("closing the transport failed: %r", exc)
             self.store.close()
@@ -362,7 +330,7 @@ class BaseLink(abc.ABC):
                         )
                     )
                     continue
-                await asyncio.sleep(DRAIN_POLL_INTERVAL)
+                await asyncio.sleep(_options.DRAIN_POLL_INTERVAL)
                 continue
             stalled_since = None
             queue.popleft()

@@ -11,8 +11,9 @@ from typing import Any, cast
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import StatusLayout
 from ..protocol import Command, StatusDecoder, encode
-from .base import CLOSE_TIMEOUT, BaseLink, StatusSink, frames_log
+from .base import BaseLink, StatusSink, frames_log
 from .connectors import Connector, translate_errors
+from .options import CLOSE_TIMEOUT
 
 __all__ = ["StreamLink"]
 

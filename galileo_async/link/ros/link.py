@@ -11,7 +11,8 @@ from urllib.parse import parse_qs, urlsplit
 from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ...models import GalileoStatus
 from ...protocol.commands import Command
-from ..base import DEFAULT_STALE_RECONNECT, BaseLink, StatusSink
+from ..base import BaseLink, StatusSink
+from ..options import DEFAULT_STALE_RECONNECT
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
