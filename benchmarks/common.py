@@ -65,17 +65,15 @@ def rss_bytes() -> int:
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 
 
-def pin_malloc(mode: str) -> bool:
+def pin_malloc() -> bool:
     """Pin glibc to serve asyncio's 256 KiB read buffers from the heap; False if impossible.
 
     A plain ``asyncio.Protocol`` gets a fresh bytes object per read, allocated at 256 KiB
     and shrunk to the bytes read. In an unpinned process that read cost about 9 µs per
     frame at some times and 15-16 µs at others, flipping unseen (BENCHMARKS.md §2); with
-    glibc's mmap threshold pinned above 256 KiB (``"heap"``, the trim threshold at twice
-    that, as glibc's own adjustment sets it) the cheap state holds. Only "heap" exists.
+    glibc's mmap threshold pinned above 256 KiB (the trim threshold at twice
+    that, as glibc's own adjustment sets it) the cheap state holds.
     """
-    if mode != "heap":
-        raise ValueError(f"unknown malloc mode {mode!r}")
     try:
         mallopt = ctypes.CDLL("libc.so.6").mallopt
     except (OSError, AttributeError):

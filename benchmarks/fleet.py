@@ -319,7 +319,7 @@ def run(
 ) -> list[Row]:
     """Measure the fleet for each N in ``sizes`` (``malloc``: see common.pin_malloc)."""
     raise_fd_limit()
-    pinned = malloc == "heap" and pin_malloc("heap")
+    pinned = malloc == "heap" and pin_malloc()
     print(f"  glibc read buffers: {'pinned to the heap' if pinned else 'not pinned'}", flush=True)
     rows: list[Row] = []
     for count in sizes or [10, 100, 1000]:

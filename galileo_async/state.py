@@ -33,7 +33,6 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
-_running_loop = asyncio.get_running_loop
 
 #: Statuses a Watch keeps before it drops the oldest.
 DEFAULT_WATCH_QUEUE = 256

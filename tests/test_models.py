@@ -98,7 +98,7 @@ def test_trusted_equals_validated() -> None:
 
 def test_builder_equals_validated_and_behaves_like_any_status() -> None:
     expected = v.V2_ACTIVE_STATUS
-    names = [name for name in STATUS_FIELDS]
+    names = list(STATUS_FIELDS)
     maps = {"nav_status": {1: NavStatus.OPEN}, "target_status": {1: TargetStatus.WORKING}}
     build = GalileoStatus.builder(StatusLayout.V2, names, maps)
     raw = tuple(int(getattr(expected, name)) if name in maps else getattr(expected, name)

@@ -7,7 +7,6 @@ import asyncio
 import logging
 import time
 from collections import deque
-from collections.abc import Sequence
 
 from ..errors import ConnectionLost, GalileoConnectionError, LinkStale
 from ..models import GalileoStatus
@@ -182,22 +181,18 @@ class BaseLink(abc.ABC):
     # --- called by subclasses --------------------------------------------------------------
 
     def _on_status(self, status: GalileoStatus) -> None:
-        """Count one valid status and hand it to the store (for links without a decoder)."""
+        """Count one valid status and hand it to the store (links without a decoder).
+
+        StreamLink's protocol does the same per read, its decoder having counted already.
+        """
         stats = self.stats
         stats.frames += 1
         stats.layout = status.layout
-        self._on_statuses((status,))
-
-    def _on_statuses(self, statuses: Sequence[GalileoStatus]) -> None:
-        """Hand the counted statuses of one read (at least one) to the store in order."""
-        stats = self.stats
-        # Only a timestamp per read: the watchdog timer re-arms itself from it (_check_stale).
+        # Only a timestamp per status: the watchdog timer re-arms itself from it (_check_stale).
         stats.last_frame_at = _monotonic()
         if stats.stale:
             self._fresh_again()
-        update = self.store.update
-        for status in statuses:
-            update(status)
+        self.store.update(status)
 
     def _fresh_again(self) -> None:
         """A valid frame came while the link was stale."""
@@ -390,7 +385,7 @@ class BaseLink(abc.ABC):
             return
         limit = self.stale_reconnect * timeout
         if silent < limit:
-            self._arm_watchdog(limit - silent)  # a fresh frame re-arms it (_on_statuses)
+            self._arm_watchdog(limit - silent)  # a fresh frame re-arms it (last_frame_at)
             return
         reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
         _log.warning("%s", reason)

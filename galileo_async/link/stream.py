@@ -65,8 +65,8 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
             frames_log.debug("rx %s", data.hex(" "))
         statuses = self._decoder.feed(data)  # counts into the link's stats itself
         if statuses:
-            # BaseLink._on_statuses inlined: at 1000 robots every object less touched per
-            # read counts (BENCHMARKS.md §2).
+            # BaseLink._on_status for a whole read, inlined: at 1000 robots every object
+            # less touched per read counts (BENCHMARKS.md §2).
             stats = self._stats
             stats.last_frame_at = _monotonic()
             if stats.stale:
