@@ -314,6 +314,24 @@ def test_bytearray_reads_decode_like_bytes_and_are_not_kept() -> None:
     assert decoder.stats.bytes_discarded == 0
 
 
+def test_feed_from_reads_only_the_first_size_bytes_of_a_reused_buffer() -> None:
+    frames = stamped(1, 2, 3)
+    size = len(frames) // 3
+    buffer = bytearray(HEADER * 100)  # a header-laden tail past `size`
+    decoder = StatusDecoder()
+    for stamp, start in ((1, 0), (2, size)):
+        buffer[:size] = frames[start : start + size]
+        assert [s.time_stamp for s in decoder.feed_from(buffer, size)] == [stamp]
+    # A partial read is held back as a copy; the buffer is then overwritten.
+    buffer[:50] = frames[2 * size : 2 * size + 50]
+    assert decoder.feed_from(buffer, 50) == []
+    assert decoder.buffered == 50
+    buffer[:] = b"\xff" * len(buffer)
+    assert [s.time_stamp for s in decoder.feed(frames[2 * size + 50 :])] == [3]
+    assert decoder.stats.bytes_discarded == 0
+    assert decoder.feed_from(buffer, 0) == []
+
+
 # --- resync -------------------------------------------------------------------------------
 
 

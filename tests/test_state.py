@@ -205,7 +205,7 @@ async def test_statuses_newest_only_and_starts_with_latest() -> None:
         store.update(st(stamp))
     # A consumer that fell behind gets the newest status, not a backlog.
     assert (await anext(stream)).time_stamp == 999
-    waiting = asyncio.create_task(anext(stream))
+    waiting = asyncio.ensure_future(anext(stream))
     await asyncio.sleep(0)
     assert not waiting.done()
     store.update(st(1000))
@@ -225,7 +225,7 @@ async def test_statuses_survive_reconnects_and_end_on_close() -> None:
     store.connection_restored()
     store.update(st(1))  # the counter restarts after a reconnect
     assert (await anext(stream)).time_stamp == 1
-    ending = asyncio.create_task(anext(stream))
+    ending = asyncio.create_task(stream.next())  # next(): a coroutine, for tasks
     await asyncio.sleep(0)
     store.close()
     with pytest.raises(StopAsyncIteration):
@@ -236,7 +236,7 @@ async def test_many_independent_consumers() -> None:
     store = StatusStore()
     streams = [store.statuses() for _ in range(200)]
     slow = store.statuses()  # never read
-    tasks = [asyncio.create_task(anext(s)) for s in streams]
+    tasks = [asyncio.ensure_future(anext(s)) for s in streams]
     await asyncio.sleep(0)
     store.update(st(5))
     results = await asyncio.wait_for(asyncio.gather(*tasks), STEP)
@@ -301,6 +301,42 @@ async def test_status_stream_refuses_a_second_concurrent_consumer() -> None:
     assert (await asyncio.wait_for(first, STEP)).time_stamp == 1
 
 
+async def test_status_stream_anext_is_a_future_and_next_a_coroutine() -> None:
+    store = StatusStore()
+    store.update(st(1))
+    stream = store.statuses()
+    ready = anext(stream)
+    assert isinstance(ready, asyncio.Future)
+    assert ready.done()  # the latest, at once
+    assert (await ready).time_stamp == 1
+    pending = anext(stream)
+    assert isinstance(pending, asyncio.Future)
+    assert not pending.done()
+    store.update(st(2))
+    assert (await asyncio.wait_for(pending, STEP)).time_stamp == 2
+    task = asyncio.create_task(stream.next(timeout=STEP))
+    await asyncio.sleep(0)
+    store.update(st(3))
+    assert (await task).time_stamp == 3
+    stream.close()
+    with pytest.raises(StopAsyncIteration):
+        await stream.next()
+
+
+async def test_status_stream_next_times_out_and_the_stream_goes_on() -> None:
+    store = StatusStore()
+    store.update(st(4))
+    stream = store.statuses()
+    assert (await stream.next(timeout=STEP)).time_stamp == 4
+    with pytest.raises(GalileoTimeout) as caught:
+        await stream.next(timeout=0.01)
+    assert caught.value.status is not None
+    assert caught.value.status.time_stamp == 4
+    store.update(st(5))  # the timed-out wait is skipped; the status stays unseen
+    assert (await stream.next(timeout=STEP)).time_stamp == 5
+    assert stream.dropped == 0
+
+
 async def test_status_stream_close_ends_a_waiting_consumer() -> None:
     store = StatusStore()
     stream = store.statuses()
@@ -338,9 +374,15 @@ async def test_dropped_subscriptions_unregister_themselves() -> None:
     store = StatusStore()
     events, watch = store.events(), store.watch()
     assert len(store._event_streams) == len(store._watches) == 1
+    # update() reads the snapshots the registries publish into the store's own slots.
+    assert len(store._event_refs) == len(store._watch_refs) == 1
     del events, watch
     gc.collect()
     assert len(store._event_streams) == len(store._watches) == 0
+    assert store._event_refs == store._watch_refs == ()
+    kept = store.watch()
+    kept.close()
+    assert store._watch_refs == ()
 
 
 async def test_slow_consumers_stay_bounded() -> None:

@@ -53,17 +53,20 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         return self._view
 
     def buffer_updated(self, nbytes: int) -> None:
-        # A copy of just the bytes read: the decoder keeps what it holds back, never this.
-        self.data_received(self._buffer[:nbytes])
+        # The decoder reads a whole frame in place and copies whatever it holds back.
+        self.data_received(self._buffer, nbytes)
 
-    def data_received(self, data: bytes | bytearray) -> None:
+    def data_received(self, data: bytes | bytearray, nbytes: int = -1) -> None:
+        """Decode the first ``nbytes`` of ``data`` (all of it if negative) into the store."""
         # The link's hot path, here rather than behind one more call: it runs per read.
         if not self.current:
             return  # a late callback from a transport already replaced or closed
-        self._stats.bytes_received += len(data)
+        if nbytes < 0:
+            nbytes = len(data)
+        self._stats.bytes_received += nbytes
         if frames_log.isEnabledFor(_DEBUG):
-            frames_log.debug("rx %s", data.hex(" "))
-        statuses = self._decoder.feed(data)  # counts into the link's stats itself
+            frames_log.debug("rx %s", data[:nbytes].hex(" "))
+        statuses = self._decoder.feed_from(data, nbytes)  # counts into the link's stats
         if statuses:
             # BaseLink._on_status for a whole read, inlined: at 1000 robots every object
             # less touched per read counts (BENCHMARKS.md §2).
