@@ -52,24 +52,37 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     def get_buffer(self, sizehint: int) -> memoryview:
         return self._view
 
-    def buffer_updated(self, nbytes: int) -> None:
-        # The decoder reads a whole frame in place and copies whatever it holds back.
-        self.data_received(self._buffer, nbytes)
+    # buffer_updated (sockets) and data_received (serial ports, pipes, custom connectors)
+    # are the link's hot path, each written out in full rather than behind one more call:
+    # one of them runs per read, 30 times a second per robot (BENCHMARKS.md §2).
 
-    def data_received(self, data: bytes | bytearray, nbytes: int = -1) -> None:
-        """Decode the first ``nbytes`` of ``data`` (all of it if negative) into the store."""
-        # The link's hot path, here rather than behind one more call: it runs per read.
+    def buffer_updated(self, nbytes: int) -> None:
         if not self.current:
             return  # a late callback from a transport already replaced or closed
-        if nbytes < 0:
-            nbytes = len(data)
         self._stats.bytes_received += nbytes
+        buffer = self._buffer
         if frames_log.isEnabledFor(_DEBUG):
-            frames_log.debug("rx %s", data[:nbytes].hex(" "))
-        statuses = self._decoder.feed_from(data, nbytes)  # counts into the link's stats
+            frames_log.debug("rx %s", buffer[:nbytes].hex(" "))
+        # Read in place: the decoder copies whatever it holds back, never keeps the buffer.
+        statuses = self._decoder.feed_from(buffer, nbytes)  # counts into the link's stats
         if statuses:
-            # BaseLink._on_status for a whole read, inlined: at 1000 robots every object
-            # less touched per read counts (BENCHMARKS.md §2).
+            # BaseLink._on_status for a whole read, inlined.
+            stats = self._stats
+            stats.last_frame_at = _monotonic()
+            if stats.stale:
+                self._link._fresh_again()
+            update = self._update
+            for status in statuses:
+                update(status)
+
+    def data_received(self, data: bytes | bytearray) -> None:
+        if not self.current:
+            return
+        self._stats.bytes_received += len(data)
+        if frames_log.isEnabledFor(_DEBUG):
+            frames_log.debug("rx %s", data.hex(" "))
+        statuses = self._decoder.feed_from(data, len(data))
+        if statuses:
             stats = self._stats
             stats.last_frame_at = _monotonic()
             if stats.stale:
