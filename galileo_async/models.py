@@ -255,52 +255,75 @@ class GalileoStatus(BaseModel):
         namespace: dict[str, Any] = {
             "new": _new_status, "cls": cls, "set_dict": _set_dict,
             "set_fields_set": _set_fields_set, "set_extra": _set_extra,
-            "set_private": _set_private,
-            "template": _compact_dict({**_FIELD_DEFAULTS, "layout": layout}),
+            "set_private": _set_private, "Compact": _Compact, "layout": layout,
             "fields_set": _ALL_FIELDS if len(names) + 1 == _FIELD_COUNT
             else _SharedFieldsSet((*names, "layout")),
         }  # fmt: skip
-        # Generated like dataclasses' __init__: a template copy and one store per field is
-        # about twice as fast as a 22-entry dict display (which CPython builds in chunks).
-        # Unpacking into locals first saves an index per field.
-        local = [f"v{index}" for index in range(len(names))]
-        lines = ["def build(values):", f"    {', '.join(local)}, = values" if names else "",
-                 "    fields = template.copy()"]  # fmt: skip
-        for name, value in zip(names, local, strict=True):
-            if name in maps:
-                namespace[f"map_{name}"] = maps[name]
-                value = f"map_{name}[{value}]"
-            lines.append(f"    fields[{name!r}] = {value}")
-        lines += [
-            "    status = new(cls)",
-            "    set_dict(status, fields)",
-            "    set_fields_set(status, fields_set)",
-            "    set_extra(status, None)",
-            "    set_private(status, None)",
-            "    return status",
-        ]
-        exec("\n".join(lines) + "\n", namespace)
+        exec(_builder_source(names, maps, namespace, fast=False), namespace)
+        namespace["build_any"] = namespace["build"]
+        exec(_builder_source(names, maps, namespace, fast=True), namespace)
         build: Callable[[tuple[Any, ...]], GalileoStatus] = namespace["build"]
         return build
 
 
-class _Compact:
-    """Its instances' dicts share one key table (CPython's split dicts)."""
+def _builder_source(
+    names: tuple[str, ...],
+    maps: Mapping[str, Mapping[int, Any]],
+    namespace: dict[str, Any],
+    *,
+    fast: bool,
+) -> str:
+    """Source of ``build(values)`` for GalileoStatus.builder (names of ``namespace``).
 
-
-def _compact_dict(items: dict[str, Any]) -> dict[str, Any]:
-    """A dict equal to ``items`` whose copies share one key table where CPython can.
-
-    A 22-field status dict then takes about 300 bytes instead of 830: less to allocate,
-    and less memory to touch when a robot's previous status is freed 30 times a second,
-    which dominates the per-frame cost of a large fleet (BENCHMARKS.md §2). Storing
-    existing keys keeps a copy compact; anything else falls back to an ordinary dict.
+    Generated like dataclasses' __init__. The fields are stored as attributes of a
+    ``_Compact`` instance, always in the model's order, and its ``__dict__`` becomes the
+    status's: CPython stores such attributes with specialised instructions, and their dict
+    shares one key table. ``fast`` looks enum values up in exact dicts, whose lookup CPython
+    also specialises, and falls back to ``build_any`` (the maps themselves, which make
+    pseudo-members of unknown values) on a value they lack.
     """
-    holder = _Compact()
-    for key, value in items.items():
-        setattr(holder, key, value)
-    compact = holder.__dict__
-    return compact if compact == items and list(compact) == list(items) else dict(items)
+    local = {name: f"v{index}" for index, name in enumerate(names)}
+    lines = ["def build(values):"]
+    if names:
+        lines.append(f"    {', '.join(local.values())}, = values")
+    mapped = [name for name in names if name in maps]
+    if fast and mapped:
+        lines.append("    try:")
+        for name in mapped:
+            namespace[f"known_{name}"] = dict(maps[name])
+            lines.append(f"        e_{name} = known_{name}[{local[name]}]")
+        lines += ["    except KeyError:", "        return build_any(values)"]
+    lines.append("    fields = new(Compact)")
+    for name in _FIELD_DEFAULTS:  # "layout" among them
+        if name == "layout":
+            value = "layout"
+        elif name in maps and name in local:
+            namespace[f"map_{name}"] = maps[name]
+            value = f"e_{name}" if fast else f"map_{name}[{local[name]}]"
+        elif name in local:
+            value = local[name]
+        else:
+            namespace[f"default_{name}"] = _FIELD_DEFAULTS[name]
+            value = f"default_{name}"
+        lines.append(f"    fields.{name} = {value}")
+    lines += [
+        "    status = new(cls)",
+        "    set_dict(status, fields.__dict__)",
+        "    set_fields_set(status, fields_set)",
+        "    set_extra(status, None)",
+        "    set_private(status, None)",
+        "    return status",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+class _Compact:
+    """Holds a status's fields as attributes; its instances' dicts share one key table.
+
+    CPython's split dicts: a 22-field status dict then takes about 250 bytes instead of
+    830, less to allocate and less memory to touch when a robot's previous status is
+    freed 30 times a second, which counts across a large fleet (BENCHMARKS.md §2).
+    """
 
 
 _new_status = object.__new__

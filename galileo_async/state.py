@@ -35,6 +35,7 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
+InvalidStateError = asyncio.InvalidStateError
 
 #: Statuses a Watch keeps before it drops the oldest.
 DEFAULT_WATCH_QUEUE = 256
@@ -120,12 +121,17 @@ class StatusStore:
         waiting = self._waiting_streams
         if waiting:
             self._waiting_streams = []
+            # A wake-up future is rarely done already (a cancelled wait): asking done()
+            # first would cost a call per subscriber on every frame, the try nothing.
             for stream in waiting:
                 wakeup = stream._wakeup
                 stream._wakeup = None
-                if wakeup is not None and not wakeup.done():  # not cancelled or ended
+                if wakeup is not None:
+                    try:
+                        wakeup.set_result(status)
+                    except InvalidStateError:
+                        continue  # its wait was cancelled or ended: the status stays unseen
                     stream._seen = updates
-                    wakeup.set_result(status)
         # _Queue._push inlined: this loop runs for every watch on every frame.
         for watch_ref in self._watch_refs:
             watch = watch_ref()
@@ -133,10 +139,12 @@ class StatusStore:
                 signal = watch._wakeup
                 if signal is not None:
                     watch._wakeup = None
-                    if not signal.done():
+                    try:
                         # Its consumer waits, so nothing is buffered: hand the status over.
                         signal.set_result(status)
                         continue
+                    except InvalidStateError:
+                        pass  # woken already or cancelled: queue the status
                 buffer = watch.buffer
                 if len(buffer) == buffer.maxlen:
                     watch.dropped += 1

@@ -119,6 +119,21 @@ def test_builder_equals_validated_and_behaves_like_any_status() -> None:
         assert sys.getsizeof(built.__dict__) < sys.getsizeof(dict(built.__dict__))
 
 
+def test_builder_falls_back_to_the_maps_for_values_they_only_make_on_demand() -> None:
+    class OnDemand(dict[int, Any]):
+        def __missing__(self, raw: int) -> Any:
+            return NavStatus(raw)
+
+    build = GalileoStatus.builder(
+        StatusLayout.V1, ["nav_status", "power"], {"nav_status": OnDemand({1: NavStatus.OPEN})}
+    )
+    assert build((1, 12.5)).nav_status is NavStatus.OPEN
+    unknown = build((9, 12.5)).nav_status  # not in the map: made by __missing__
+    assert int(unknown) == 9
+    assert unknown.known is False
+    assert build((1, 13.0)).nav_status is NavStatus.OPEN  # nothing cached from the miss
+
+
 def test_builder_for_a_layout_with_fewer_fields() -> None:
     build = GalileoStatus.builder(StatusLayout.V1, ["nav_status", "power"], {})
     built = build((1, 12.5))
