@@ -84,7 +84,6 @@ _V2 = _CONVERTERS[StatusLayout.V2]
 _V2_NAME = StatusLayout.V2
 _V2_UNPACK = _V2.unpack_from
 _V2_BUILD = _V2.build
-_V2_START = HEADER + bytes((LENGTH_V2,))
 # What the single-frame path reads in place (it keeps nothing of ``data``).
 _FLAT = (bytes, bytearray)
 _V2_STAMP = LAYOUTS[StatusLayout.V2].fields.index("time_stamp")
@@ -155,8 +154,10 @@ class StatusDecoder:
             and not self._held
             and type(buffer) in _FLAT
             and buffer[_V2_SIZE - 1] == 0
-            and buffer.startswith(_V2_START)  # type: ignore[union-attr]
-            and buffer.find(HEADER, _HEADER_SIZE, _V2_SIZE) < 0  # type: ignore[union-attr]
+            and buffer[3] == LENGTH_V2
+            # The last header in the frame is its first: it starts there, none inside it
+            # (a header cannot overlap its own first three bytes).
+            and buffer.rfind(HEADER, 0, _V2_SIZE) == 0  # type: ignore[union-attr]
             and (self._detected is _V2_NAME or self._v2_first())
         ):
             values = _V2_UNPACK(buffer, _HEADER_SIZE)
