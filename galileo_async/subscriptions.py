@@ -220,7 +220,7 @@ class StatusStream:
     and a waiting consumer is handed the status itself (no buffer).
     """
 
-    __slots__ = ("_seen", "_store", "_wakeup", "closed", "dropped")
+    __slots__ = ("_loop", "_seen", "_store", "_wakeup", "closed", "dropped")
 
     def __init__(self, store: StatusStore) -> None:
         self._store = store
@@ -231,6 +231,15 @@ class StatusStream:
         self._wakeup: asyncio.Future[GalileoStatus] | None = None
         self.dropped = 0
         self.closed = store.closed
+        # The loop of its last wait: on CPython 3.11, asking asyncio for the running loop
+        # makes a getpid() system call, about 0.1 µs per status.
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    def _running_loop(self) -> asyncio.AbstractEventLoop:
+        loop = self._loop
+        if loop is None or loop.is_closed():  # first use, or a new asyncio.run()
+            loop = self._loop = _running_loop()
+        return loop
 
     def __aiter__(self) -> StatusStream:
         return self
@@ -248,7 +257,7 @@ class StatusStream:
             assert status is not None
             self.dropped += updates - self._seen - 1
             self._seen = updates
-            ready: asyncio.Future[GalileoStatus] = _running_loop().create_future()
+            ready: asyncio.Future[GalileoStatus] = self._running_loop().create_future()
             ready.set_result(status)
             return ready
         if store.closed:
@@ -257,7 +266,7 @@ class StatusStream:
         wakeup = self._wakeup
         if wakeup is not None and not wakeup.done():
             raise RuntimeError("another task is already waiting on this status stream")
-        fresh: asyncio.Future[GalileoStatus] = _running_loop().create_future()
+        fresh: asyncio.Future[GalileoStatus] = self._running_loop().create_future()
         self._wakeup = fresh
         if wakeup is None:
             store._waiting_streams.append(self)

@@ -337,6 +337,21 @@ async def test_status_stream_next_times_out_and_the_stream_goes_on() -> None:
     assert stream.dropped == 0
 
 
+def test_status_stream_follows_a_new_event_loop() -> None:
+    store = StatusStore()
+    stream = store.statuses()
+
+    async def next_after_update(stamp: int) -> int | None:
+        waiting = asyncio.ensure_future(anext(stream))
+        await asyncio.sleep(0)
+        store.update(st(stamp))
+        return (await asyncio.wait_for(waiting, STEP)).time_stamp
+
+    assert asyncio.run(next_after_update(1)) == 1
+    # The first loop is closed: the stream's next wait belongs to the running one.
+    assert asyncio.run(next_after_update(2)) == 2
+
+
 async def test_status_stream_close_ends_a_waiting_consumer() -> None:
     store = StatusStore()
     stream = store.statuses()
