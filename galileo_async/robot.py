@@ -39,7 +39,7 @@ from .protocol import (
     StartNavigation,
     StopNavigation,
 )
-from .state import StatusStore
+from .state import StatusStore, StatusStream
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -161,7 +161,7 @@ class Robot(RobotServices):
         check_timeout("timeout", seconds)
         return await self._store.wait_until(predicate, seconds)
 
-    def statuses(self) -> AsyncIterator[GalileoStatus]:
+    def statuses(self) -> StatusStream:
         """Iterate over statuses, newest only: a slow consumer skips to the latest."""
         return self._store.statuses()
 

@@ -115,6 +115,8 @@ async def test_statuses_events_and_wait_until() -> None:
         statuses = robot.statuses()
         first = await anext(statuses)
         assert first.nav_status == 0
+        following = await statuses.next(timeout=2)  # the stream's coroutine, with a timeout
+        assert following.time_stamp != first.time_stamp
         events = robot.events()
         await robot.start_navigation(timeout=2)
         seen: list[Event] = []
