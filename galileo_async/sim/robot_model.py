@@ -12,6 +12,21 @@ from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from ..protocol import commands as cmd
 from .config import FRAME_RATE, SimConfig
 from .motion import Body, turn_toward, wrap_angle
+from .services import ServiceCommands
+from .states import (
+    ACTIVE,
+    CHARGE_FREE,
+    CHARGED,
+    CHARGING,
+    DOCKING,
+    EPSILON,
+    ERROR,
+    FINDING,
+    FREE,
+    INVALID,
+    PAUSED,
+    WORKING,
+)
 
 __all__ = ["FRAME_TIME", "WIRE_FIELDS", "RobotModel", "WireValues"]
 
@@ -22,14 +37,10 @@ WIRE_FIELDS: tuple[str, ...] = tuple(f for f in STATUS_FIELDS if f != "time_stam
 #: Status values in WIRE_FIELDS order.
 WireValues = tuple[Any, ...]
 
-FREE, WORKING, PAUSED, ERROR, INVALID = 0, 1, 2, 3, -1
-_ACTIVE = (WORKING, PAUSED)
-CHARGE_FREE, CHARGING, CHARGED, FINDING, DOCKING = 0, 1, 2, 3, 4
 _UNKNOWN_POSE = (-1.0, -1.0, -1.0)
-_EPSILON = 1e-9  # simulated time is a sum of 1/30 steps
 
 
-class RobotModel(Body):
+class RobotModel(ServiceCommands, Body):
     """One Galileo robot: feed it commands with ``submit`` and advance it with ``step``."""
 
     def __init__(self, config: SimConfig | None = None) -> None:
@@ -104,7 +115,7 @@ class RobotModel(Body):
     @property
     def busy(self) -> bool:
         """busy_status: commands wait until it ends."""
-        return self.time + _EPSILON < self.busy_until
+        return self.time + EPSILON < self.busy_until
 
     @property
     def pending(self) -> int:
@@ -123,7 +134,7 @@ class RobotModel(Body):
             return self.rotate_status
         if self.target_status == FREE:
             return 1
-        return 0 if self.target_status in _ACTIVE else -1
+        return 0 if self.target_status in ACTIVE else -1
 
     def wire_values(self) -> WireValues:
         """The status as sent now: the 20 v2 fields in struct order, time_stamp left out."""
@@ -177,7 +188,7 @@ class RobotModel(Body):
         if self.shutdown:
             return
         self.time += dt
-        if self._visual_ready_at is not None and self.time + _EPSILON >= self._visual_ready_at:
+        if self._visual_ready_at is not None and self.time + EPSILON >= self._visual_ready_at:
             self._visual_ready_at = None
             self.visual_status = 1
         if self._pending and not self.busy:
@@ -212,7 +223,7 @@ class RobotModel(Body):
         elif (
             self.charge_status == DOCKING
             and self._docked_at is not None
-            and self.time + _EPSILON - self._docked_at >= config.docking_time
+            and self.time + EPSILON - self._docked_at >= config.docking_time
         ):
             self.charge_status = CHARGING
         self.integrate(dt)
@@ -246,11 +257,11 @@ class RobotModel(Body):
             self.power = max(0.0, self.power - config.power_drain * dt)
 
     def _step_patrol(self) -> None:
-        if not self.loop_status or self.target_status in _ACTIVE or not self.visual_initialised:
+        if not self.loop_status or self.target_status in ACTIVE or not self.visual_initialised:
             return
         if self._patrol_resume_at is None:  # a leg just ended: dwell at the target
             self._patrol_resume_at = self.time + self.patrol_dwell
-        if self.time + _EPSILON < self._patrol_resume_at or not self.targets:
+        if self.time + EPSILON < self._patrol_resume_at or not self.targets:
             return
         target_id = self._patrol_next % len(self.targets)
         self._patrol_next = target_id + 1
@@ -271,7 +282,7 @@ class RobotModel(Body):
 
     def _stop_navigation(self, _: object) -> None:
         # 'm' 4 stops navigation, patrol and the goal, and zeroes the speed (PROTOCOL.md §2.a).
-        if self.target_status in _ACTIVE:
+        if self.target_status in ACTIVE:
             self._drop_goal()
         self.nav_status, self.loop_status = 0, 0
         if self.map_status == 0:
@@ -296,7 +307,7 @@ class RobotModel(Body):
     def _begin_goal(self, target_id: int) -> None:
         self._goal_issued = True
         self._rotate_goal = None
-        if self.target_status in _ACTIVE:
+        if self.target_status in ACTIVE:
             self._drop_goal()
         if target_id >= len(self.targets):
             # Firmware reports the error as -1 and keeps the id (PROTOCOL.md §2.b).
@@ -353,71 +364,9 @@ class RobotModel(Body):
             return  # no published firmware handles 'a' (PROTOCOL.md §2.g)
         if not self.visual_initialised:
             return
-        if self.target_status in _ACTIVE:
+        if self.target_status in ACTIVE:
             self.rotate_status = 2
             return
         self._rotate_goal = wrap_angle(math.radians(command.degrees))
         self.rotate_status = 0
         self._fresh = True
-
-    # ------------------------------------------------------------------ patrol
-    def _start_patrol(self, _: object) -> None:
-        if self.nav_status == 1 and not self.loop_status:
-            self.loop_status = 1
-            self._patrol_resume_at = self.time  # first leg starts at once
-
-    def _stop_patrol(self, _: object) -> None:
-        if not self.config.real_firmware:
-            return  # the document stops patrol with 'm' 4 only
-        if self.loop_status:
-            self.loop_status = 0
-            if self.target_status in _ACTIVE:
-                self._drop_goal()
-
-    def _set_patrol_dwell(self, command: cmd.SetPatrolDwell) -> None:
-        self.patrol_dwell = float(command.seconds)
-        if self.config.real_firmware:
-            self._start_patrol(None)  # firmware: 'm' 5 TT also starts patrol (PROTOCOL.md §2.g)
-
-    # ------------------------------------------------------------------ mapping
-    def _start_mapping(self, _: object) -> None:
-        if self.map_status == 1:
-            return
-        self._stop_navigation(None)  # PROTOCOL.md §2.h: start mapping also stops navigation
-        self.map_status, self.visual_status = 1, 1
-
-    def _stop_mapping(self, _: object) -> None:
-        if self.map_status == 1:
-            self.map_status, self.visual_status = 0, -1
-            self.set_busy(self.config.busy_on_map_stop)
-
-    def _save_map(self, _: object) -> None:
-        if not self.config.ignore_save_map:
-            self.set_busy(self.config.busy_on_save)
-
-    def _update_map(self, _: object) -> None:
-        if self.map_status == 0:
-            self._start_mapping(None)
-
-    # ------------------------------------------------------------------ charging & misc
-    def _start_charging(self, _: object) -> None:
-        if self.charge_status in (CHARGE_FREE, 5):
-            if self.target_status in _ACTIVE:
-                self._drop_goal()
-            self.loop_status = 0
-            self.charge_status = FINDING
-
-    def _stop_charging(self, _: object) -> None:
-        if self.charge_status != CHARGE_FREE:
-            self.charge_status, self._docked_at = CHARGE_FREE, None
-            self.control_v = self.control_w = 0.0
-
-    def _save_dock(self, _: object) -> None:
-        self.dock = (self.x, self.y)
-
-    def _greeting(self, command: cmd.Greeting) -> None:
-        self.greeting = command.enabled
-
-    def _shutdown(self, _: object) -> None:
-        self.shutdown = True
-        self.halt()
