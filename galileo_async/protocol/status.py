@@ -102,8 +102,8 @@ class StatusDecoder:
     # Attributes inside the object: one memory block less to fetch per frame, which counts
     # across a fleet (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_buffer", "_detected", "_held", "_in_sync", "_last_time_stamp",
-        "_pinned", "_run", "stats",
+        "__weakref__", "_buffer", "_detected", "_in_sync", "_last_time_stamp", "_pinned",
+        "_run", "_steady", "stats",
     )  # fmt: skip
 
     def __init__(
@@ -112,11 +112,12 @@ class StatusDecoder:
         """Decode ``layout`` (None: detect it), counting into ``stats`` (a new one if None)."""
         self._pinned = StatusLayout(layout) if layout is not None else None
         self._detected: StatusLayout | None = self._pinned
-        self._run = 0  # frames of the detected layout decoded in a row
+        self._run = 0  # frames of the detected layout decoded in a row, until trusted
         self._buffer = bytearray()
-        # len(_buffer), kept beside the other slots: the per-frame check reads no other object.
-        self._held = 0
         self._in_sync = True
+        # Whether a whole clean v2 frame may take feed_from's shortcut, which keeps no books
+        # but the counters: nothing held back, in sync, v2 detected and trusted.
+        self._steady = False
         self._last_time_stamp: int | None = None
         if stats is None:
             stats = DecoderStats()
@@ -137,9 +138,9 @@ class StatusDecoder:
     def reset(self) -> None:
         """Forget partial data and the frame counter (after a reconnect)."""
         self._buffer.clear()
-        self._held = 0
         self._last_time_stamp = None
         self._in_sync = True
+        self._steady = self._is_steady()
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[GalileoStatus]:
         """Consume bytes; return every complete status frame found in order."""
@@ -148,26 +149,19 @@ class StatusDecoder:
     def feed_from(self, buffer: bytes | bytearray | memoryview, size: int) -> list[GalileoStatus]:
         """Like ``feed(buffer[:size])``; a whole clean frame is read in place, not copied."""
         # The commonest read, 30 times a second per robot, inlined: one whole clean v2 frame
-        # and nothing held back, tested exactly as _frames' own single-frame branch does.
+        # in a steady stream, tested exactly as _frames' own single-frame branch does.
         if (
             size == _V2_SIZE
-            and not self._held
+            and self._steady
             and type(buffer) in _FLAT
             and buffer[_V2_SIZE - 1] == 0
             and buffer[3] == LENGTH_V2
             # The last header in the frame is its first: it starts there, none inside it
             # (a header cannot overlap its own first three bytes).
             and buffer.rfind(HEADER, 0, _V2_SIZE) == 0  # type: ignore[union-attr]
-            and (self._detected is _V2_NAME or self._v2_first())
         ):
             values = _V2_UNPACK(buffer, _HEADER_SIZE)
-            stats = self.stats
-            stats.frames += 1
-            self._in_sync = True
-            if self._detected is not _V2_NAME:
-                self._detected = stats.layout = _V2_NAME
-                self._run = 0
-            self._run += 1
+            self.stats.frames += 1
             time_stamp = values[_V2_STAMP]
             last, self._last_time_stamp = self._last_time_stamp, time_stamp
             if last is not None and time_stamp != last + 1:
@@ -250,7 +244,7 @@ class StatusDecoder:
         if len(held) > MAX_BUFFER:  # unreachable with valid lengths; kept as a hard bound
             self._discard(len(held) - MAX_BUFFER)
             del held[: len(held) - MAX_BUFFER]
-        self._held = len(held)
+        self._steady = self._is_steady()
         return out
 
     def _v2_run(self, buf: bytes | bytearray, pos: int, size: int, out: list[RawFrame]) -> int:
@@ -314,6 +308,11 @@ class StatusDecoder:
             self.stats.lost_frames += gap
         else:
             self.stats.counter_resets += 1
+
+    def _is_steady(self) -> bool:
+        # What _count would then change for a v2 frame is already so: in sync, v2 detected
+        # (so v2 is tried first), and a longer run would not change _trusted().
+        return not self._buffer and self._in_sync and self._detected is _V2_NAME and self._trusted()
 
     def _v2_first(self) -> bool:
         """Whether _frame_at would try the v2 layout first for a 0x55 length byte."""
