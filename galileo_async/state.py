@@ -86,9 +86,7 @@ class StatusStore:
         # Only streams whose consumer waits: the others read `status` when they ask.
         self._waiting_streams: list[StatusStream] = []
         self._event_refs: tuple[weakref.ref[EventStream], ...] = ()
-        self._event_streams: _Subscribers[EventStream] = _Subscribers(
-            partial(setattr, self, "_event_refs")
-        )
+        self._event_streams: _Subscribers[EventStream] = _Subscribers(self._set_event_refs)
         self._link_error: GalileoConnectionError | None = None
 
     @property
@@ -100,22 +98,19 @@ class StatusStore:
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
-        prev = self.status
-        self.status = status
-        self.updates = updates = self.updates + 1
-        self.last_update = self._clock()
         if self._event_refs:
             key = _EVENT_KEY(status)
             if key != self._event_key:
                 self._event_key = key
+                prev = self.status
                 if prev is not None:
                     for event in derive_events(
                         prev, status, arrive_tolerance=self._arrive_tolerance
                     ):
                         self._emit(event)
-        elif self._event_key is not None:
-            # Nobody listens: forget the key so the next listener compares prev and cur.
-            self._event_key = None
+        self.status = status
+        self.updates = updates = self.updates + 1
+        self.last_update = self._clock()
         if self._waiters:
             self._check_waiters(status)
         waiting = self._waiting_streams
@@ -239,6 +234,13 @@ class StatusStore:
         return self._subscribe(EventStream(self, self._event_streams, maxlen))
 
     # --- internals ---------------------------------------------------------------------
+
+    def _set_event_refs(self, refs: tuple[weakref.ref[EventStream], ...]) -> None:
+        self._event_refs = refs
+        if not refs:
+            # Nobody listens: forget the key so that the next listener compares the status
+            # before its first frame with that frame.
+            self._event_key = None
 
     def _subscribe(self, subscription: _Sub) -> _Sub:
         if self.closed:

@@ -98,7 +98,7 @@ class _Queue(Generic[_T]):
                 raise StopAsyncIteration
             # _wait(None) inlined: one coroutine frame less on every status of every stream.
             # No clean-up needed: whoever wakes it clears _wakeup, and a cancelled future
-            # left behind is done, which every waker checks.
+            # left behind is done, which every waker allows for.
             self._wakeup = wakeup = _running_loop().create_future()
             await wakeup  # nothing hands an item over here: only watches get handoffs
 
@@ -266,7 +266,10 @@ class StatusStream:
         wakeup = self._wakeup
         if wakeup is not None and not wakeup.done():
             raise RuntimeError("another task is already waiting on this status stream")
-        fresh: asyncio.Future[GalileoStatus] = self._running_loop().create_future()
+        loop = self._loop  # self._running_loop() inlined: this runs per status
+        if loop is None or loop.is_closed():
+            loop = self._loop = _running_loop()
+        fresh: asyncio.Future[GalileoStatus] = loop.create_future()
         self._wakeup = fresh
         if wakeup is None:
             store._waiting_streams.append(self)
