@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import copy
+import gc
 import os
 import pickle
 import random
@@ -36,8 +37,8 @@ from galileo_async.sim import Simulator
 SQUARE = ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.0, 0.0))
 #: Real seconds any single operation in these tests may take.
 GOAL_TIMEOUT = 5.0
-#: How long the soak runs (real seconds); CI keeps it under a minute.
-SOAK_SECONDS = float(os.environ.get("GALILEO_SOAK_SECONDS", "40"))
+#: How long the soak runs (real seconds): about a minute, as issue #5 asks.
+SOAK_SECONDS = float(os.environ.get("GALILEO_SOAK_SECONDS", "60"))
 
 
 # --- fast paths agree with the general ones -----------------------------------------------
@@ -211,6 +212,7 @@ async def test_fault_injected_patrol_of_fifty_goals() -> None:
                         tracemalloc.start()
                     outcomes[await _patrol_goal(robot, goal % len(SQUARE))] += 1
                     if goal in (25, 49):  # once the working set is built up, and at the end
+                        gc.collect()  # what is still referenced, not cycles awaiting collection
                         memory.append(tracemalloc.get_traced_memory()[0])
             finally:
                 tracemalloc.stop()
@@ -226,7 +228,7 @@ async def test_fault_injected_patrol_of_fifty_goals() -> None:
         assert device.frames_dropped > 0
         assert device.bit_flips > 0
         assert device.disconnects >= 2
-        assert memory[1] - memory[0] < 192 * 1024, memory
+        assert memory[1] - memory[0] < 64 * 1024, memory
 
 
 # --- flood ----------------------------------------------------------------------------------
@@ -444,7 +446,7 @@ async def test_soak_keeps_tasks_memory_and_latency_flat() -> None:
     print(f"soak windows {windows}")
     first, last = windows[1], windows[-1]  # window 0 warms caches and the allocator
     assert last["tasks"] <= first["tasks"], windows
-    assert last["memory"] - first["memory"] < 256 * 1024, windows
+    assert last["memory"] - first["memory"] < 64 * 1024, windows
     assert last["frame_latency"] <= 2 * first["frame_latency"] + 0.001, windows
     assert last["goal_time"] <= 1.5 * first["goal_time"], windows
     assert all(w["goals"] >= 5 for w in windows), windows
@@ -476,6 +478,7 @@ async def _soak_window(
             arrived = robot.link.last_frame_at
             assert arrived is not None
             frame_latencies.append(time.monotonic() - arrived)
+    gc.collect()  # memory still referenced, not cycles awaiting collection
     return {
         "goals": len(goal_times),
         "goal_time": statistics.median(goal_times),
