@@ -298,8 +298,11 @@ def _builder_source(
         if name == "layout":
             value = "layout"
         elif name in maps and name in local:
-            namespace[f"map_{name}"] = maps[name]
-            value = f"e_{name}" if fast else f"map_{name}[{local[name]}]"
+            if fast:
+                value = f"e_{name}"
+            else:
+                namespace[f"map_{name}"] = maps[name]
+                value = f"map_{name}[{local[name]}]"
         elif name in local:
             value = local[name]
         else:

@@ -7,7 +7,6 @@ import logging
 import time
 import weakref
 from collections.abc import Callable
-from functools import partial
 from operator import attrgetter
 from typing import Any, TypeVar
 
@@ -82,7 +81,7 @@ class StatusStore:
         # update() reads the registries' snapshots from the store's own slots: at 1000
         # robots, two objects fewer touched per frame (BENCHMARKS.md §2).
         self._watch_refs: tuple[weakref.ref[Watch], ...] = ()
-        self._watches: _Subscribers[Watch] = _Subscribers(partial(setattr, self, "_watch_refs"))
+        self._watches: _Subscribers[Watch] = _Subscribers(self._set_watch_refs)
         # Only streams whose consumer waits: the others read `status` when they ask.
         self._waiting_streams: list[StatusStream] = []
         self._event_refs: tuple[weakref.ref[EventStream], ...] = ()
@@ -234,6 +233,9 @@ class StatusStore:
         return self._subscribe(EventStream(self, self._event_streams, maxlen))
 
     # --- internals ---------------------------------------------------------------------
+
+    def _set_watch_refs(self, refs: tuple[weakref.ref[Watch], ...]) -> None:
+        self._watch_refs = refs
 
     def _set_event_refs(self, refs: tuple[weakref.ref[EventStream], ...]) -> None:
         self._event_refs = refs
