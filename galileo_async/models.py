@@ -293,7 +293,7 @@ def _builder_source(
             namespace[f"known_{name}"] = dict(maps[name])
             lines.append(f"        e_{name} = known_{name}[{local[name]}]")
         lines += ["    except KeyError:", "        return build_any(values)"]
-    lines.append("    fields = new(Compact)")
+    lines.append("    fields = Compact()")  # a plain call: object.__new__ parses its arguments
     for name in _FIELD_DEFAULTS:  # "layout" among them
         if name == "layout":
             value = "layout"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import itertools
 import logging
 import socket
@@ -24,7 +25,7 @@ from galileo_async.errors import (
 )
 from galileo_async.link import BaseLink, StreamLink, open_link
 from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
-from galileo_async.link.stream import READ_SIZE
+from galileo_async.link.stream import READ_SIZE, _read_buffer
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
@@ -487,7 +488,7 @@ async def test_socket_links_turn_tcp_keepalive_on(
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT) == KEEPALIVE_COUNT
 
 
-async def test_socket_links_read_into_their_own_buffer(
+async def test_socket_links_read_into_their_loops_read_buffer(
     device: FakeDevice, links: list[BaseLink]
 ) -> None:
     link, store = await connect(device, links)
@@ -506,6 +507,50 @@ async def test_socket_links_read_into_their_own_buffer(
     assert (await asyncio.wait_for(anext(stream), STEP)).time_stamp == 201
     assert (link.stats.frames, link.stats.lost_frames, link.stats.resyncs) == (201, 0, 0)
     assert link.stats.bytes_received == len(burst) + len(status_frame(201))
+
+
+async def test_links_of_one_loop_share_a_read_buffer_and_keep_their_own_partial_frames(
+    links: list[BaseLink],
+) -> None:
+    _, link_a = await in_memory(links)
+    _, link_b = await in_memory(links)
+    protocol_a, protocol_b = link_a._protocol, link_b._protocol
+    assert protocol_a is not None and protocol_b is not None
+    assert protocol_a.get_buffer(-1) is protocol_b.get_buffer(-1)
+
+    def read(protocol: asyncio.BufferedProtocol, data: bytes) -> None:
+        # What a socket transport does per read: into the protocol's buffer, then notify.
+        view = protocol.get_buffer(-1)
+        view[: len(data)] = data
+        protocol.buffer_updated(len(data))
+
+    frame_a, frame_b = status_frame(7, power=11.5), status_frame(40, power=22.5)
+    read(protocol_a, frame_a[:50])
+    read(protocol_b, frame_b[:30])
+    # b's bytes in between overwrote the buffer: a's held-back half must be a copy.
+    read(protocol_a, frame_a[50:] + status_frame(8, power=12.5))
+    read(protocol_b, frame_b[30:])
+    assert (link_a.stats.frames, link_a.stats.lost_frames, link_a.stats.resyncs) == (2, 0, 0)
+    assert (link_b.stats.frames, link_b.stats.resyncs, link_b.stats.bytes_discarded) == (1, 0, 0)
+    assert link_a.stats.bytes_discarded == 0
+    assert link_a.store.status is not None and link_b.store.status is not None
+    assert (link_a.store.status.time_stamp, link_a.store.status.power) == (8, 12.5)
+    assert (link_b.store.status.time_stamp, link_b.store.status.power) == (40, 22.5)
+
+
+def test_event_loops_in_other_threads_get_read_buffers_of_their_own() -> None:
+    async def buffer() -> memoryview:
+        return _read_buffer(asyncio.get_running_loop())[1]
+
+    async def twice() -> tuple[memoryview, memoryview]:
+        return await buffer(), await buffer()
+
+    first, again = asyncio.run(twice())
+    assert first is again
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        other = pool.submit(asyncio.run, buffer()).result(timeout=STEP)
+    assert other is not first
+    assert len(other) == len(first) == READ_SIZE
 
 
 async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseLink]) -> None:

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import threading
 import time
+import weakref
 from collections.abc import Awaitable, Callable
 from typing import Any, cast
 
@@ -23,11 +25,35 @@ _monotonic = time.monotonic
 #: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
 READ_SIZE = 4096
 
+# One read buffer per event loop, shared by all its links. A loop runs one read callback at
+# a time and the decoder has taken what it needs before buffer_updated returns, so a loop
+# needs no more; its links then read into memory the cache holds, where a buffer per link
+# would be cold again by the link's next frame, a thirtieth of a second and a fleet of
+# reads later (BENCHMARKS.md §2). Per loop, not per process: loops in other threads read
+# concurrently.
+_read_buffers: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, tuple[bytearray, memoryview]]
+_read_buffers = weakref.WeakKeyDictionary()
+_read_buffers_lock = threading.Lock()
+
+
+def _read_buffer(loop: asyncio.AbstractEventLoop) -> tuple[bytearray, memoryview]:
+    """The read buffer of ``loop``'s links and a view of it (made on first use)."""
+    with _read_buffers_lock:
+        try:
+            pair = _read_buffers.get(loop)
+            if pair is None:
+                buffer = bytearray(READ_SIZE)
+                pair = _read_buffers[loop] = (buffer, memoryview(buffer))
+        except TypeError:  # a loop that takes no weak reference: a buffer of its own
+            buffer = bytearray(READ_SIZE)
+            pair = (buffer, memoryview(buffer))
+    return pair
+
 
 class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     """Forwards one transport's bytes and its loss to the link that made it.
 
-    Sockets read into the protocol's own buffer (BufferedProtocol): a plain Protocol is
+    Sockets read into their loop's read buffer (BufferedProtocol): a plain Protocol is
     handed a fresh bytes object per read, which asyncio allocates at 256 KiB and shrinks,
     and which glibc serves by mmap until its threshold adapts: up to 6 µs a read at 30 Hz
     per robot (BENCHMARKS.md §2). It is a Protocol too: serial ports, pipes and custom
@@ -46,8 +72,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         #: False once the link has replaced or dropped this protocol: late reads are ignored.
         self.current = True
         self.lost: asyncio.Future[None] = loop.create_future()
-        self._buffer = bytearray(READ_SIZE)
-        self._view = memoryview(self._buffer)
+        self._buffer, self._view = _read_buffer(loop)
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self._view
