@@ -114,7 +114,6 @@ class StatusStore:
             self._check_waiters(status)
         waiting = self._waiting_streams
         if waiting:
-            self._waiting_streams = []
             # A wake-up future is rarely done already (a cancelled wait): asking done()
             # first would cost a call per subscriber on every frame, the try nothing.
             for stream in waiting:
@@ -126,6 +125,9 @@ class StatusStore:
                     except InvalidStateError:
                         continue  # its wait was cancelled or ended: the status stays unseen
                     stream._seen = updates
+            # Emptied in place, not replaced: set_result only schedules its callbacks, so
+            # no stream joins the list meanwhile, and a fleet frees no list per frame.
+            waiting.clear()
         # _Queue._push inlined: this loop runs for every watch on every frame.
         for watch_ref in self._watch_refs:
             watch = watch_ref()
