@@ -1,4 +1,7 @@
-"""``python -m benchmarks [--quick] [ingest latency fleet] [--fleet 10,100,1000] [--rounds R]``."""
+"""``python -m benchmarks [--quick] [ingest latency fleet] [--fleet 10,100,1000] [--rounds R]``.
+
+``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +15,8 @@ from pathlib import Path
 from .common import Row, machine, render_table
 
 BENCHMARKS = ("ingest", "latency", "fleet")
+#: Run only when named: analysis, not targets.
+EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
@@ -21,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "names",
         nargs="*",
-        choices=[*BENCHMARKS, []],
+        choices=[*BENCHMARKS, *EXTRA, []],
         metavar="NAME",
         help=f"benchmarks to run (default: all of {', '.join(BENCHMARKS)})",
     )
@@ -51,6 +56,11 @@ def main(argv: list[str] | None = None) -> int:
         help="fleet: pin glibc to serve asyncio's read buffers from the heap (default), "
         "or leave it as it is (benchmarks/common.py pin_malloc)",
     )
+    parser.add_argument(
+        "--instructions",
+        action="store_true",
+        help="breakdown: also count instructions and L2 misses per frame (valgrind)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
     names = args.names or list(BENCHMARKS)
@@ -69,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
             options["seconds"] = args.seconds or (3.0 if args.quick else 6.0)
             options["repeats"] = args.rounds
             options["malloc"] = args.malloc
+        if name == "breakdown":
+            options["instructions"] = args.instructions
         rows += module.run(**options)
     print()
     print(render_table(rows))
