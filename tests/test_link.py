@@ -515,7 +515,8 @@ async def test_links_of_one_loop_share_a_read_buffer_and_keep_their_own_partial_
     _, link_a = await in_memory(links)
     _, link_b = await in_memory(links)
     protocol_a, protocol_b = link_a._protocol, link_b._protocol
-    assert protocol_a is not None and protocol_b is not None
+    assert protocol_a is not None
+    assert protocol_b is not None
     assert protocol_a.get_buffer(-1) is protocol_b.get_buffer(-1)
 
     def read(protocol: asyncio.BufferedProtocol, data: bytes) -> None:
@@ -533,7 +534,8 @@ async def test_links_of_one_loop_share_a_read_buffer_and_keep_their_own_partial_
     assert (link_a.stats.frames, link_a.stats.lost_frames, link_a.stats.resyncs) == (2, 0, 0)
     assert (link_b.stats.frames, link_b.stats.resyncs, link_b.stats.bytes_discarded) == (1, 0, 0)
     assert link_a.stats.bytes_discarded == 0
-    assert link_a.store.status is not None and link_b.store.status is not None
+    assert link_a.store.status is not None
+    assert link_b.store.status is not None
     assert (link_a.store.status.time_stamp, link_a.store.status.power) == (8, 12.5)
     assert (link_b.store.status.time_stamp, link_b.store.status.power) == (40, 22.5)
 
