@@ -30,7 +30,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -73,18 +72,10 @@ async def _feed(robots: int, frames: list[bytes], consumers: bool) -> dict[str, 
     from galileo_async.link import StreamLink
     from galileo_async.state import StatusStore
 
-    from .ingest import _NullTransport
+    from .ingest import null_connector
 
     protocols: list[Any] = []
-
-    async def connector(
-        loop: asyncio.AbstractEventLoop, factory: Callable[[], asyncio.Protocol]
-    ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
-        protocol = factory()
-        transport = _NullTransport(protocol)
-        protocol.connection_made(transport)
-        protocols.append(protocol)
-        return transport, protocol
+    connector = null_connector(protocols)
 
     links: list[StreamLink] = []
     stores: list[StatusStore] = []

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from galileo_async.link import StreamLink
+from galileo_async.link import Connector, StreamLink
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.protocol import HEADER, LAYOUTS, StatusDecoder, encode_status
 from galileo_async.protocol import commands as cmd
@@ -24,7 +24,7 @@ from galileo_async.state import StatusStore
 
 from .common import Row
 
-__all__ = ["make_frames", "run"]
+__all__ = ["make_frames", "null_connector", "run"]
 
 #: Statuses() consumers, watches and wait_until waiters on the store in the full path.
 STREAMS, WATCHES, WAITERS = 3, 1, 1
@@ -114,16 +114,8 @@ class _NullTransport(asyncio.WriteTransport):
         self.close()
 
 
-async def _full_path(
-    frames: list[bytes],
-    repeats: int,
-    *,
-    streams: int = STREAMS,
-    watches: int = WATCHES,
-    waiters: int = WAITERS,
-) -> tuple[float, float]:
-    """(s in data_received per frame, s per frame including the consumers' wake-ups)."""
-    protocols: list[asyncio.Protocol] = []
+def null_connector(protocols: list[Any]) -> Connector:
+    """A connector of links over a _NullTransport; each protocol it makes joins ``protocols``."""
 
     async def connector(
         loop: asyncio.AbstractEventLoop, factory: Callable[[], asyncio.Protocol]
@@ -134,8 +126,21 @@ async def _full_path(
         protocols.append(protocol)
         return transport, protocol
 
+    return connector
+
+
+async def _full_path(
+    frames: list[bytes],
+    repeats: int,
+    *,
+    streams: int = STREAMS,
+    watches: int = WATCHES,
+    waiters: int = WAITERS,
+) -> tuple[float, float]:
+    """(s in data_received per frame, s per frame including the consumers' wake-ups)."""
+    protocols: list[asyncio.Protocol] = []
     store = StatusStore()
-    link = StreamLink(store, connector, stale_timeout=None, reconnect=False)
+    link = StreamLink(store, null_connector(protocols), stale_timeout=None, reconnect=False)
     await link.open()
     received = [0] * (streams + watches)
 
