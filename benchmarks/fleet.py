@@ -8,7 +8,10 @@ Per N, phases on the same server and the same kind of streams, in every round:
 * **driver, sampled**: the same robots without those tasks; one task reads every robot's
   ``status`` ten times a second (a dashboard), so only the driver itself runs per frame;
 * **bare BufferedProtocol**: the byte count again, reading into a buffer of its own as
-  the driver's link does (a reference figure, not a baseline of any target).
+  the driver's link does (a reference figure, not a baseline of any target);
+* **bare + a task per connection**: the byte count, and a task per connection woken
+  through a future on every read: what asyncio alone charges for a task per robot (a
+  reference figure).
 
 glibc is pinned to serve asyncio's 256 KiB read buffers from the heap (common.pin_malloc;
 ``--malloc default`` leaves it be): left alone, the bare baseline's own cost flipped
@@ -41,6 +44,7 @@ import subprocess
 import sys
 import time
 import tracemalloc
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -133,6 +137,27 @@ class _BufferedCounter(asyncio.BufferedProtocol):
             self.lost.set_result(None)
 
 
+class _WakingCounter(_Counter):
+    """Counts bytes and wakes a task of its own on every read (the asyncio floor)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.waiter: asyncio.Future[None] | None = None
+
+    def data_received(self, data: bytes) -> None:
+        self.bytes += len(data)
+        waiter = self.waiter
+        if waiter is not None and not waiter.done():
+            waiter.set_result(None)
+
+    async def wait_forever(self) -> None:
+        """The task: wait for the next read, again and again."""
+        loop = asyncio.get_running_loop()
+        while True:
+            self.waiter = loop.create_future()
+            await self.waiter
+
+
 @dataclass
 class _Phase:
     cpu: float = 0.0
@@ -157,9 +182,13 @@ async def _window(seconds: float, server: _Server) -> tuple[float, float, float]
     return cpu, wall, server_after["cpu"] - server_before["cpu"]
 
 
-async def _bare(server: _Server, seconds: float, *, buffered: bool = False) -> _Phase:
+async def _bare(server: _Server, seconds: float, *, kind: str = "protocol") -> _Phase:
+    """Bare counters: ``kind`` "protocol", "buffered" or "tasks" (a woken task each)."""
     loop = asyncio.get_running_loop()
-    factory = _BufferedCounter if buffered else _Counter
+    factories: dict[str, Callable[[], _Counter | _BufferedCounter]] = {
+        "protocol": _Counter, "buffered": _BufferedCounter, "tasks": _WakingCounter
+    }  # fmt: skip
+    factory = factories[kind]
     counters: list[_Counter | _BufferedCounter] = []
     transports: list[asyncio.BaseTransport] = []
     for start in range(0, len(server.ports), CONNECT_BATCH):
@@ -170,14 +199,24 @@ async def _bare(server: _Server, seconds: float, *, buffered: bool = False) -> _
         for made_transport, protocol in made:
             transports.append(made_transport)
             counters.append(protocol)
-    await asyncio.sleep(WARMUP)
-    before = sum(c.bytes for c in counters)
-    phase = _Phase()
-    phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)
-    phase.frames = (sum(c.bytes for c in counters) - before) // FRAME_SIZE
-    for each in transports:
-        each.close()
-    await asyncio.wait_for(asyncio.gather(*(c.lost for c in counters)), 10)
+    tasks = [
+        asyncio.create_task(counter.wait_forever())
+        for counter in counters
+        if isinstance(counter, _WakingCounter)
+    ]
+    try:
+        await asyncio.sleep(WARMUP)
+        before = sum(c.bytes for c in counters)
+        phase = _Phase()
+        phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)
+        phase.frames = (sum(c.bytes for c in counters) - before) // FRAME_SIZE
+    finally:
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        for each in transports:
+            each.close()
+        await asyncio.wait_for(asyncio.gather(*(c.lost for c in counters)), 10)
     return phase
 
 
@@ -301,8 +340,9 @@ async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phas
             bare = await _bare(server, seconds)
             driver = await _driver(server, seconds, consumers=True)
             sampled = await _driver(server, seconds, consumers=False)
-            buffered = await _bare(server, seconds, buffered=True)
-            rounds.append((bare, driver, sampled, buffered))
+            buffered = await _bare(server, seconds, kind="buffered")
+            waking = await _bare(server, seconds, kind="tasks")
+            rounds.append((bare, driver, sampled, buffered, waking))
         rounds[0][1].traced_per_robot = await _traced(server)
     finally:
         await asyncio.get_running_loop().run_in_executor(None, server.close)
@@ -333,19 +373,24 @@ def run(
         rows += _rows(name, count, bares, [r[1] for r in rounds], "statuses() task per robot")
         rows += _rows(name, count, bares, [r[2] for r in rounds], "no task, app samples status",
                       memory=False)  # fmt: skip
-        rows.append(_buffered_row(name, bares, [r[3] for r in rounds]))
+        rows.append(_reference_row(name, bares, [r[3] for r in rounds],
+                                   "bare BufferedProtocol CPU (for reference)"))  # fmt: skip
+        rows.append(_reference_row(name, bares, [r[4] for r in rounds],
+                                   "bare + a task per connection CPU (for reference)"))  # fmt: skip
     return rows
 
 
-def _buffered_row(name: str, bares: list[_Phase], buffered: list[_Phase]) -> Row:
-    """A BufferedProtocol that only counts: what reading into one's own buffer costs."""
+def _reference_row(name: str, bares: list[_Phase], phases: list[_Phase], metric: str) -> Row:
+    """A bare variant's CPU next to the bare Protocol's (no target: a reference)."""
     return Row(
-        name, "bare BufferedProtocol CPU (for reference)",
-        100 * statistics.median(b.cpu / b.wall for b in buffered), "% of a core",
+        name, metric,
+        100 * statistics.median(p.cpu / p.wall for p in phases), "% of a core",
         100 * statistics.median(b.cpu / b.wall for b in bares), "bare Protocol", "", None,
-        {"us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2) for b in buffered],
+        {"us_per_frame_rounds": [round(1e6 * p.cpu / max(1, p.frames), 2) for p in phases],
          "bare_us_per_frame_rounds": [round(1e6 * b.cpu / max(1, b.frames), 2)
-                                      for b in bares]},
+                                      for b in bares],
+         "ratios": [round((p.cpu / p.wall) / (b.cpu / b.wall), 2)
+                    for b, p in zip(bares, phases, strict=True)]},
     )  # fmt: skip
 
 
