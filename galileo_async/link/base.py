@@ -13,6 +13,7 @@ from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
 from .stats import LinkStats, StatusSink
+from .watchdog import TICKS_PER_TIMEOUT, StaleClock, Ticket, stale_clock
 
 __all__ = [
     "BaseLink",
@@ -36,7 +37,7 @@ class BaseLink(abc.ABC):
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_closed", "_closing", "_connected_at", "_last_write", "_opened",
-        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_watchdog",
+        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_stale_clock", "_watchdog",
         "_writer_task", "drain_timeout", "max_queued_commands", "min_command_interval",
         "reconnect", "reconnect_initial", "reconnect_max", "stale_reconnect", "stale_timeout",
         "stats", "store",
@@ -79,7 +80,9 @@ class BaseLink(abc.ABC):
         self._queue_ready = asyncio.Event()
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
-        self._watchdog: asyncio.TimerHandle | None = None
+        #: The ticket of the stale check armed on the loop's StaleClock, if any.
+        self._watchdog: Ticket | None = None
+        self._stale_clock: StaleClock | None = None  # the clock of its last check
         self._last_write: float | None = None
         self._connected_at = 0.0
         self._opened = False
@@ -188,7 +191,7 @@ class BaseLink(abc.ABC):
         stats = self.stats
         stats.frames += 1
         stats.layout = status.layout
-        # Only a timestamp per status: the watchdog timer re-arms itself from it (_check_stale).
+        # Only a timestamp per status: the watchdog re-arms itself from it (_check_stale).
         stats.last_frame_at = _monotonic()
         if stats.stale:
             self._fresh_again()
@@ -354,15 +357,27 @@ class BaseLink(abc.ABC):
         self._make_room()
 
     def _arm_watchdog(self, delay: float | None) -> None:
+        """Check for silence ``delay`` s from now (up to a sixteenth of stale_timeout later)."""
         self._cancel_watchdog()
-        if delay is None or self._closing:
+        timeout = self.stale_timeout
+        if delay is None or timeout is None or self._closing:
             return
-        self._watchdog = asyncio.get_running_loop().call_later(delay, self._check_stale)
+        # The clock of the last check, unless stale_timeout changed: a link runs on one loop.
+        resolution = timeout / TICKS_PER_TIMEOUT
+        clock = self._stale_clock
+        if clock is None or clock.resolution != resolution:
+            clock = self._stale_clock = stale_clock(resolution)
+        self._watchdog = clock.arm(self, _monotonic() + delay)
 
     def _cancel_watchdog(self) -> None:
-        if self._watchdog is not None:
-            self._watchdog.cancel()
+        ticket = self._watchdog
+        if ticket is not None:
             self._watchdog = None
+            ticket.cancel(self)
+
+    def _stale_due(self, ticket: Ticket) -> None:
+        if ticket is self._watchdog:
+            self._check_stale()
 
     def _check_stale(self) -> None:
         self._watchdog = None
