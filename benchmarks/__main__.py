@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
         "--rounds",
         type=int,
         default=None,
-        help="fleet rounds of bare/driver phases (default 3, --quick 1)",
+        help="fleet rounds of bare/driver phases (default 5 at N >= 1000, else 3; --quick 1)",
     )
     parser.add_argument(
         "--malloc",
