@@ -9,10 +9,11 @@ import logging
 import socket
 from collections.abc import Awaitable, Callable, Iterator
 from types import ModuleType
-from typing import Any
+from typing import Any, cast
 from urllib.parse import urlsplit
 
 from ..errors import GalileoConnectionError, GalileoError, InvalidArgument
+from .sockets import open_socket
 
 __all__ = [
     "DEFAULT_BAUDRATE",
@@ -103,10 +104,10 @@ def socket_connector(
     ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
         with translate_errors(f"cannot connect to {host}:{port}"):
             transport, protocol = await asyncio.wait_for(
-                loop.create_connection(factory, host, port), connect_timeout
+                open_socket(loop, factory, host, port), connect_timeout
             )
         set_keepalive(transport)
-        return transport, protocol
+        return transport, cast(asyncio.Protocol, protocol)
 
     return connect
 
