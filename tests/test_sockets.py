@@ -115,6 +115,12 @@ class SelfReader(BufferedRecorder):
             self.transport.read_eof()
 
 
+async def closes_cleanly(transport: asyncio.BaseTransport, protocol: Recorder) -> None:
+    """close() ends the connection with connection_lost(None)."""
+    transport.close()
+    assert await asyncio.wait_for(protocol.lost, STEP) is None
+
+
 async def connect(port: int, factory: Callable[[], Any]) -> tuple[SocketTransport, Any]:
     loop = asyncio.get_running_loop()
     transport, protocol = await open_socket(loop, factory, "127.0.0.1", port)
@@ -138,8 +144,7 @@ async def test_reads_reach_every_kind_of_protocol(
         assert protocol.get_buffer_calls == 0
     elif isinstance(protocol, BufferedRecorder):
         assert protocol.get_buffer_calls >= len(payload) // 64
-    transport.close()
-    assert await asyncio.wait_for(protocol.lost, STEP) is None
+    await closes_cleanly(transport, protocol)
 
 
 @pytest.mark.parametrize("factory", [Recorder, SelfReader])
@@ -165,8 +170,7 @@ async def test_eof_received_true_keeps_the_transport_open(peer: tuple[Peer, int]
     await asyncio.wait_for(protocol.eof.wait(), STEP)
     assert not transport.is_closing()
     assert not transport.is_reading()
-    transport.close()
-    assert await asyncio.wait_for(protocol.lost, STEP) is None
+    await closes_cleanly(transport, protocol)
 
 
 async def test_a_reset_is_reported_with_its_error(peer: tuple[Peer, int]) -> None:
@@ -193,8 +197,7 @@ async def test_what_the_socket_does_not_take_waits_and_goes_out_in_order(
     received = await asyncio.wait_for(reader.readexactly(len(payload)), 10 * STEP)
     assert received == payload
     assert transport.get_write_buffer_size() == 0
-    transport.close()
-    assert await asyncio.wait_for(protocol.lost, STEP) is None
+    await closes_cleanly(transport, protocol)
 
 
 async def test_close_sends_what_is_pending_first(peer: tuple[Peer, int]) -> None:
@@ -260,8 +263,7 @@ async def test_pause_resume_and_a_new_protocol(peer: tuple[Peer, int]) -> None:
     await second.wait_for(len(b"for the second"))
     assert second.data == b"for the second"
     assert first.data == b""
-    transport.close()
-    assert await asyncio.wait_for(second.lost, STEP) is None
+    await closes_cleanly(transport, second)
 
 
 async def test_a_loop_without_reader_callbacks_gets_asyncios_transport(
@@ -282,8 +284,7 @@ async def test_a_loop_without_reader_callbacks_gets_asyncios_transport(
     _, writer = await side.ready()
     writer.write(b"still works")
     await protocol.wait_for(len(b"still works"))
-    transport.close()
-    assert await asyncio.wait_for(protocol.lost, STEP) is None
+    await closes_cleanly(transport, protocol)
 
 
 def closed_port() -> int:
