@@ -15,11 +15,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/galileo demo
 
-# As root, .ci/ros-setup installs Debian's ROS 1 for the ros:// tests (idempotent), and
-# the ros:// tests must then run; elsewhere they are skipped with the reason.
+# As root, .ci/setup installs the tests' real peers from Debian (ROS 1, Mosquitto, tmux;
+# idempotent), and their tests must then run; elsewhere they are skipped with the reason.
 test: $(STAMP)
-	@if [ "$$(id -u)" = 0 ]; then .ci/ros-setup; fi
-	@if [ "$$(id -u)" = 0 ]; then export GALILEO_REQUIRE_ROS=1; fi; $(BIN)/python -m pytest -q
+	@if [ "$$(id -u)" = 0 ]; then .ci/setup; fi
+	@if [ "$$(id -u)" = 0 ]; then export GALILEO_REQUIRE_PEERS=1; fi; $(BIN)/python -m pytest -q
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check galileo_async tests examples benchmarks

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import pytest
+from peers import missing_peer
 
 #: Debian's ROS 1 runs under the system interpreter, not the project's venv.
 SYSTEM_PYTHON = "/usr/bin/python3"
@@ -21,19 +22,12 @@ START_TIMEOUT = 10.0
 STOP_TIMEOUT = 3.0
 
 
-#: Set to 1 where ROS 1 was installed (CI, ``make test`` after .ci/ros-setup): a missing
-#: ROS then fails the ROS tests instead of skipping them.
-REQUIRE_ROS_VARIABLE = "GALILEO_REQUIRE_ROS"
-NOT_INSTALLED = "ROS 1 is not installed: run .ci/ros-setup (as root) first"
-
-
 def require_ros() -> str:
-    """The rosmaster executable; skip when ROS 1 is missing, fail if GALILEO_REQUIRE_ROS=1."""
+    """The rosmaster executable; skip when ROS 1 is missing, fail if GALILEO_REQUIRE_PEERS=1."""
     rosmaster = shutil.which("rosmaster")
     if rosmaster is None or not os.path.exists(SYSTEM_PYTHON):
-        if os.environ.get(REQUIRE_ROS_VARIABLE) == "1":
-            pytest.fail(f"{NOT_INSTALLED} ({REQUIRE_ROS_VARIABLE}=1)")
-        pytest.skip(NOT_INSTALLED)
+        missing_peer("ROS 1")
+    assert rosmaster is not None
     return rosmaster
 
 

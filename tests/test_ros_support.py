@@ -1,4 +1,4 @@
-"""The ROS tests skip where ROS 1 is missing, unless GALILEO_REQUIRE_ROS=1 demands it."""
+"""The ROS tests skip where ROS 1 is missing, unless GALILEO_REQUIRE_PEERS=1 demands it."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import os
 import shutil
 from pathlib import Path
 
+import peers
 import pytest
 import ros_support
 from _pytest.outcomes import Failed, Skipped
@@ -18,8 +19,8 @@ def no_ros(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.usefixtures("no_ros")
 def test_missing_ros_skips_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(ros_support.REQUIRE_ROS_VARIABLE, raising=False)
-    with pytest.raises(Skipped, match=r"\.ci/ros-setup"):
+    monkeypatch.delenv(peers.REQUIRE_PEERS_VARIABLE, raising=False)
+    with pytest.raises(Skipped, match=r"ROS 1 .*\.ci/setup"):
         ros_support.require_ros()
 
 
@@ -28,21 +29,21 @@ def test_missing_ros_skips_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_missing_ros_skips_unless_the_variable_is_1(
     monkeypatch: pytest.MonkeyPatch, value: str
 ) -> None:
-    monkeypatch.setenv(ros_support.REQUIRE_ROS_VARIABLE, value)
+    monkeypatch.setenv(peers.REQUIRE_PEERS_VARIABLE, value)
     with pytest.raises(Skipped):
         ros_support.require_ros()
 
 
 @pytest.mark.usefixtures("no_ros")
 def test_missing_ros_fails_when_required(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(ros_support.REQUIRE_ROS_VARIABLE, "1")
-    with pytest.raises(Failed, match=r"\.ci/ros-setup.*GALILEO_REQUIRE_ROS=1"):
+    monkeypatch.setenv(peers.REQUIRE_PEERS_VARIABLE, "1")
+    with pytest.raises(Failed, match=r"ROS 1 .*\.ci/setup.*GALILEO_REQUIRE_PEERS=1"):
         ros_support.require_ros()
 
 
 @pytest.mark.usefixtures("no_ros")
 def test_fixtures_that_need_ros_skip_too(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.delenv(ros_support.REQUIRE_ROS_VARIABLE, raising=False)
+    monkeypatch.delenv(peers.REQUIRE_PEERS_VARIABLE, raising=False)
     with pytest.raises(Skipped):
         ros_support.RosMaster(tmp_path)
     with pytest.raises(Skipped):
