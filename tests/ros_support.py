@@ -229,8 +229,6 @@ def genpy_script(code: str, stdin: str = "") -> str:
 
 __all__ = [
     "NODE_SCRIPT",
-    "NOT_INSTALLED",
-    "REQUIRE_ROS_VARIABLE",
     "SYSTEM_PYTHON",
     "RobotNode",
     "RosMaster",
