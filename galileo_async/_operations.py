@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
+    "CLEANUP_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
@@ -39,6 +40,7 @@ __all__ = [
     "Operations",
     "RobotDefault",
     "check_timeout",
+    "finish_shielded",
     "or_default",
 ]
 
@@ -50,6 +52,8 @@ DEFAULT_TIMEOUT = 10.0
 ROTATE_TIMEOUT = 20.0
 #: Longest a shielded cancel (``i 2``) sent on the way out of an operation may take.
 CANCEL_SEND_TIMEOUT = 1.0
+#: Longest a caller waits for a cleanup (close) it cannot cancel; its steps bound themselves.
+CLEANUP_TIMEOUT = 8.0
 
 Predicate = Callable[[GalileoStatus], bool]
 _T = TypeVar("_T")
@@ -81,6 +85,36 @@ def check_timeout(name: str, value: float | None, *, allow_none: bool = True) ->
         raise InvalidArgument(f"{name} must be a number of seconds, got {value!r}")
     if not math.isfinite(value) or value <= 0:
         raise InvalidArgument(f"{name} must be positive and finite, got {value!r}")
+
+
+async def finish_shielded(task: asyncio.Task[None], what: str) -> None:
+    """Wait for ``task`` (at most CLEANUP_TIMEOUT s) whatever cancels the caller, then re-raise.
+
+    Neither asyncio's ``task.cancel()`` nor an anyio cancel scope interrupts the wait; the
+    cancellation that arrived meanwhile is raised once ``task`` is done, so cleanup such as
+    close() completes on every exit path and the caller still sees its cancellation.
+    """
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + CLEANUP_TIMEOUT
+    cancelled: asyncio.CancelledError | None = None
+    # The anyio shield stops an anyio scope from cancelling the wait again and again; the
+    # loop absorbs asyncio cancellations (task.cancel(), asyncio.timeout).
+    with anyio.CancelScope(shield=True):
+        while not task.done():
+            remaining = deadline - loop.time()
+            if remaining <= 0:
+                _log.warning("%s did not finish within %s s", what, CLEANUP_TIMEOUT)
+                break
+            try:
+                await asyncio.wait((task,), timeout=remaining)
+            except asyncio.CancelledError as exc:
+                cancelled = exc
+    if task.done() and not task.cancelled() and task.exception() is not None:
+        if cancelled is None:
+            task.result()  # raises the cleanup's own error
+        _log.warning("%s failed: %r", what, task.exception())
+    if cancelled is not None:
+        raise cancelled
 
 
 class Deadline:

@@ -26,6 +26,19 @@ __all__ = [
 #: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11).
 ARRIVED_DISTANCE = 0.01
 
+#: What the vendor's serial node sends, with a counting time_stamp, until the navigation
+#: system's first status reaches it, and again after it restarts: its constructor's
+#: defaults (PROTOCOL.md §1). The robot's own status never has all of them at once: its
+#: pose is -1 when unknown and its supply voltage is not 0.
+_PLACEHOLDER: dict[str, float] = {
+    "nav_status": 0, "visual_status": 0, "map_status": 0, "gc_status": 0, "gba_status": 0,
+    "charge_status": 0, "loop_status": 0, "power": 0.0, "target_num_id": -1,
+    "target_status": -1, "target_distance": -1.0, "angle_goal_status": -1,
+    "control_speed_x": 0.0, "control_speed_theta": 0.0, "current_speed_x": 0.0,
+    "current_speed_theta": 0.0, "current_pose_x": 0.0, "current_pose_y": 0.0,
+    "current_angle": 0.0, "busy_status": 0,
+}  # fmt: skip
+
 
 class _TolerantIntEnum(enum.IntEnum):
     """IntEnum that turns an unknown wire value into a pseudo-member instead of raising."""
@@ -203,6 +216,17 @@ class GalileoStatus(BaseModel):
             and self.target_distance is not None
             and abs(self.target_distance) < ARRIVED_DISTANCE
         )
+
+    @property
+    def is_placeholder(self) -> bool:
+        """The vendor serial node's start-up defaults, not the robot's status (PROTOCOL.md §1)."""
+        if self.power != 0.0:
+            return False
+        for name, default in _PLACEHOLDER.items():
+            value = getattr(self, name)
+            if value is not None and value != default:
+                return False
+        return True
 
     @property
     def pose(self) -> Pose | None:

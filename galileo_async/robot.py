@@ -19,6 +19,7 @@ from ._operations import (
     Operations,
     RobotDefault,
     check_timeout,
+    finish_shielded,
     or_default,
 )
 from ._services import MAX_TARGET_ID, RobotServices
@@ -26,7 +27,6 @@ from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
     InvalidArgument,
-    LinkStale,
     UnconfirmedOperation,
 )
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event
@@ -129,7 +129,7 @@ class Robot(RobotServices):
         self._targets = DynamicTargets(link)
         self._goal: GoalHandle | None = None
         self._closed = False
-        self._closing: asyncio.Future[None] | None = None
+        self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------
 
@@ -254,18 +254,25 @@ class Robot(RobotServices):
     # --- lifecycle -----------------------------------------------------------------------
 
     async def close(self) -> None:
-        """Close the link and end every iterator and waiter; idempotent and bounded."""
-        if self._closing is not None:
-            await asyncio.shield(self._closing)
-            return
-        self._closed = True
-        self._closing = asyncio.get_running_loop().create_future()
+        """Close the link and end every iterator and waiter; idempotent and bounded.
+
+        Cancelling the caller does not interrupt it: the link is closed (within a few
+        seconds at most), then the cancellation is raised.
+        """
+        task = self._close_task
+        if task is None:
+            self._closed = True
+            task = self._close_task = asyncio.get_running_loop().create_task(
+                self._shutdown(), name=f"close {self._link!r}"
+            )
+        await finish_shielded(task, "close()")
+
+    async def _shutdown(self) -> None:
         try:
             await self._link.close()
             await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:
             self._store.close()
-            self._closing.set_result(None)
 
     async def __aenter__(self) -> Robot:
         return self
@@ -341,7 +348,8 @@ class Connection:
         try:
             robot = Robot(link, store, **robot_options)
         except BaseException:
-            await link.close()
+            closing = asyncio.get_running_loop().create_task(link.close())
+            await finish_shielded(closing, "closing the link")
             raise
         try:
             await link.open()
@@ -356,8 +364,8 @@ class Connection:
 
 async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
     try:
-        await store.wait_until(lambda _status: True, timeout=timeout)
-    except (GalileoTimeout, LinkStale):
+        await store.first_frame(timeout)
+    except GalileoTimeout:
         raise GalileoConnectionError(
             f"connected to {url}, but no valid status frame arrived within {timeout} s "
             "(wrong port, baud rate or device?)"

@@ -58,8 +58,9 @@ class StatusStore:
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_link_error", "_waiters", "_waiting_streams", "_watch_refs",
-        "_watches", "closed", "last_update", "status", "updates",
+        "_event_streams", "_frame_waiters", "_link_error", "_waiters", "_waiting_streams",
+        "_watch_refs", "_watches", "closed", "last_update", "placeholder_frames", "status",
+        "updates",
     )  # fmt: skip
 
     def __init__(
@@ -71,6 +72,8 @@ class StatusStore:
         self.status: GalileoStatus | None = None
         #: How many statuses update() has recorded.
         self.updates = 0
+        #: Placeholder frames of the vendor's serial node seen (GalileoStatus.is_placeholder).
+        self.placeholder_frames = 0
         self.last_update: float | None = None
         self.closed = False
         self._clock = clock
@@ -87,6 +90,13 @@ class StatusStore:
         self._event_refs: tuple[weakref.ref[EventStream], ...] = ()
         self._event_streams: _Subscribers[EventStream] = _Subscribers(self._set_event_refs)
         self._link_error: GalileoConnectionError | None = None
+        # Futures of first_frame(): resolved by any valid frame, placeholders included.
+        self._frame_waiters: list[asyncio.Future[None]] = []
+
+    @property
+    def awaiting_robot(self) -> bool:
+        """True while frames arrive but only the serial node's placeholders: no robot status."""
+        return self.status is None and self.placeholder_frames > 0
 
     @property
     def link_error(self) -> GalileoConnectionError | None:
@@ -97,6 +107,11 @@ class StatusStore:
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
+        if status.power == 0.0 and status.is_placeholder:
+            self._placeholder()
+            return
+        if self._frame_waiters:
+            self._wake_frame_waiters()
         if self._event_refs:
             key = _EVENT_KEY(status)
             if key != self._event_key:
@@ -146,6 +161,23 @@ class StatusStore:
                     watch.dropped += 1
                 buffer.append(status)
 
+    def _placeholder(self) -> None:
+        """A placeholder frame: the link is up, but the robot's state is unknown (again)."""
+        self.placeholder_frames += 1
+        if self.status is not None:
+            _log.info("placeholder frames: the navigation system has not reported (again)")
+            # The serial node restarted: its last status is not the robot's state any more.
+            self.status = None
+            self._event_key = None
+        if self._frame_waiters:
+            self._wake_frame_waiters()
+
+    def _wake_frame_waiters(self) -> None:
+        waiters, self._frame_waiters = self._frame_waiters, []
+        for future in waiters:
+            if not future.done():
+                future.set_result(None)
+
     def connection_lost(self, exc: GalileoConnectionError) -> None:
         """The transport dropped: fail every waiter and watch at once with ``exc``."""
         was_lost = isinstance(self._link_error, ConnectionLost)
@@ -182,7 +214,12 @@ class StatusStore:
         if self.closed:
             return
         self.closed = True
-        self._fail_waiters(ConnectionLost("the status store is closed"))
+        closed = ConnectionLost("the status store is closed")
+        self._fail_waiters(closed)
+        frame_waiters, self._frame_waiters = self._frame_waiters, []
+        for future in frame_waiters:
+            if not future.done():
+                future.set_exception(closed)
         for subscriptions in (self._watches, self._event_streams):
             for subscription in subscriptions:
                 subscription._close()
@@ -218,6 +255,26 @@ class StatusStore:
                 timer.cancel()
             if waiter in self._waiters:
                 self._waiters.remove(waiter)
+
+    async def first_frame(self, timeout: float | None) -> None:
+        """Return once a valid frame (a placeholder too) came; stale or lost links do not end it."""
+        if self.closed:
+            raise ConnectionLost("the status store is closed")
+        if self.status is not None or self.placeholder_frames:
+            return
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[None] = loop.create_future()
+        self._frame_waiters.append(future)
+        timer = None if timeout is None else loop.call_later(timeout, _expire, future)
+        try:
+            await future
+        except TimeoutError:
+            raise GalileoTimeout(f"no valid frame within {timeout} s") from None
+        finally:
+            if timer is not None:
+                timer.cancel()
+            if future in self._frame_waiters:
+                self._frame_waiters.remove(future)
 
     def watch(self, *, maxlen: int = DEFAULT_WATCH_QUEUE) -> Watch:
         """Register now (before sending) for every later status; a context manager."""

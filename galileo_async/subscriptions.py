@@ -246,9 +246,9 @@ class StatusStream:
             raise StopAsyncIteration
         store = self._store
         updates = store.updates
-        if updates != self._seen:
-            status = store.status
-            assert status is not None
+        status = store.status
+        # None after a status: placeholder frames (a restarted serial node) came since.
+        if updates != self._seen and status is not None:
             self.dropped += updates - self._seen - 1
             self._seen = updates
             # The consumer was busy, not waiting: asked for the loop as plain asyncio does.

@@ -14,8 +14,8 @@ __all__ = ["FakeDevice", "MemoryConnector", "RecordingTransport", "make_status",
 
 
 def make_status(**fields: Any) -> GalileoStatus:
-    """A v2 status: firmware defaults overridden by ``fields``."""
-    return GalileoStatus(**{**V2_DEFAULTS, **fields})
+    """A v2 status of a robot at 24 V: firmware defaults overridden by ``fields``."""
+    return GalileoStatus(**{**V2_DEFAULTS, "power": 24.0, **fields})
 
 
 def status_frame(time_stamp: int, **fields: Any) -> bytes:

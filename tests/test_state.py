@@ -18,7 +18,8 @@ STEP = 2.0  # upper bound for anything that should happen at once
 
 
 def st(time_stamp: int, **fields: Any) -> GalileoStatus:
-    return GalileoStatus(**{**V2_DEFAULTS, "time_stamp": time_stamp, **fields})
+    # A robot's status: all V2_DEFAULTS with 0 V would be the serial node's placeholder.
+    return GalileoStatus(**{**V2_DEFAULTS, "power": 24.0, "time_stamp": time_stamp, **fields})
 
 
 async def test_latest_status_and_clock() -> None:
