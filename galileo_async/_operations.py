@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Final, TypeVar
 
 import anyio
+import anyio.lowlevel
 
 from .errors import (
     ConnectionLost,
@@ -115,6 +116,8 @@ async def finish_shielded(task: asyncio.Task[None], what: str) -> None:
         _log.warning("%s failed: %r", what, task.exception())
     if cancelled is not None:
         raise cancelled
+    # An anyio scope cancelled meanwhile raises here, as its next checkpoint would.
+    await anyio.lowlevel.checkpoint_if_cancelled()
 
 
 class Deadline:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Callable
 
@@ -21,6 +22,7 @@ from .errors import (
     LinkStale,
     NotReady,
     UnconfirmedOperation,
+    WrongEventLoop,
 )
 from .models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
 from .protocol import (
@@ -64,6 +66,7 @@ class RobotServices:
 
     _ops: Operations
     _closed: bool
+    _loop: asyncio.AbstractEventLoop
     _goal: GoalHandle | None
     _targets: DynamicTargets
     map_targets: int | None
@@ -287,6 +290,7 @@ class RobotServices:
         self._targets.reset_done()
 
     def _require_map_targets(self, what: str) -> int:
+        self._ensure_open()
         if self.map_targets is None:
             raise NotReady(
                 f"{what}: the number of targets in the robot's map is unknown (the serial "
@@ -297,8 +301,24 @@ class RobotServices:
         return self.map_targets
 
     def _ensure_open(self) -> None:
+        self._ensure_loop()
         if self._closed:
             raise GalileoConnectionError("this Robot is closed")
+
+    def _ensure_loop(self) -> None:
+        """Raise WrongEventLoop unless called on the loop that connected this Robot."""
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            loop = None
+        if loop is not self._loop:
+            # Its transport, timers and futures live on that loop: from another one a call
+            # would hang until some unrelated timer fired, or corrupt the link's state.
+            raise WrongEventLoop(
+                "this Robot is bound to the event loop that connected it and was called "
+                + ("from another event loop" if loop is not None else "with no event loop")
+                + "; use asyncio.run_coroutine_threadsafe() to call it from another thread"
+            )
 
     def _require(self, ok: Callable[[GalileoStatus], bool], message: str) -> GalileoStatus:
         self._ensure_open()

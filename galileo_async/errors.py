@@ -23,6 +23,7 @@ __all__ = [
     "OperationFailed",
     "OperationTimeout",
     "UnconfirmedOperation",
+    "WrongEventLoop",
 ]
 
 
@@ -35,6 +36,10 @@ class GalileoError(Exception):
 
 class InvalidArgument(GalileoError, ValueError):
     """An argument is out of range or of the wrong kind; nothing was sent."""
+
+
+class WrongEventLoop(GalileoError, RuntimeError):
+    """A Robot was called from another event loop or thread than the one that connected it."""
 
 
 # --- link --------------------------------------------------------------------

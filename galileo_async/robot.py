@@ -130,13 +130,23 @@ class Robot(RobotServices):
         self._goal: GoalHandle | None = None
         self._closed = False
         self._close_task: asyncio.Task[None] | None = None
+        self._loop = asyncio.get_running_loop()
 
     # --- state -----------------------------------------------------------------------
 
     @property
     def status(self) -> GalileoStatus | None:
-        """The latest status, or None before the first frame."""
+        """The latest status of the robot, or None before its first (placeholders are not one)."""
         return self._store.status
+
+    @property
+    def awaiting_robot(self) -> bool:
+        """True while the link is up but the serial node sends only placeholder frames.
+
+        The vendor's serial node sends its defaults until the navigation system's first
+        status reaches it, and again after it restarts; ``status`` is None meanwhile.
+        """
+        return self._store.awaiting_robot
 
     @property
     def link(self) -> LinkStats:
@@ -159,14 +169,17 @@ class Robot(RobotServices):
         """
         seconds = or_default(timeout, self.wait_timeout)
         check_timeout("timeout", seconds)
+        self._ensure_loop()
         return await self._store.wait_until(predicate, seconds)
 
     def statuses(self) -> StatusStream:
         """Iterate over statuses, newest only: a slow consumer skips to the latest."""
+        self._ensure_loop()
         return self._store.statuses()
 
     def events(self) -> AsyncIterator[Event]:
         """Iterate over typed transition events (goal reached, visual lost, link stale …)."""
+        self._ensure_loop()
         return self._store.events()
 
     async def send(self, command: Command, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -259,6 +272,7 @@ class Robot(RobotServices):
         Cancelling the caller does not interrupt it: the link is closed (within a few
         seconds at most), then the cancellation is raised.
         """
+        self._ensure_loop()
         task = self._close_task
         if task is None:
             self._closed = True

@@ -12,7 +12,8 @@ PUBLIC = {
     "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
     "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
-    "UnconfirmedOperation", "VisualStatus", "__version__", "connect", "discover", "errors",
+    "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
+    "discover", "errors",
     "protocol",
 }  # fmt: skip
 
