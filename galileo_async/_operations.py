@@ -5,18 +5,17 @@ from __future__ import annotations
 import asyncio
 import enum
 import logging
-import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Final, TypeVar
 
 import anyio
 import anyio.lowlevel
 
+from ._checks import check_timeout
 from .errors import (
     ConnectionLost,
     GalileoError,
     GalileoTimeout,
-    InvalidArgument,
     LinkStale,
     NotReady,
     OperationFailed,
@@ -76,16 +75,6 @@ ROBOT_DEFAULT: Final = RobotDefault.ROBOT_DEFAULT
 def or_default(value: _T | RobotDefault, default: _T) -> _T:
     """``default`` when ``value`` is ROBOT_DEFAULT, else ``value``."""
     return default if isinstance(value, RobotDefault) else value
-
-
-def check_timeout(name: str, value: float | None, *, allow_none: bool = True) -> None:
-    """Raise InvalidArgument unless ``value`` is a positive finite number (or None if allowed)."""
-    if value is None and allow_none:
-        return
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgument(f"{name} must be a number of seconds, got {value!r}")
-    if not math.isfinite(value) or value <= 0:
-        raise InvalidArgument(f"{name} must be positive and finite, got {value!r}")
 
 
 async def finish_shielded(task: asyncio.Task[None], what: str) -> None:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import asyncio
-import math
 from collections.abc import Callable
 
+from ._checks import check_number
 from ._goal import GoalHandle
 from ._operations import (
     DEFAULT_TIMEOUT,
@@ -107,11 +107,7 @@ class RobotServices:
 
     async def rotate_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
         """Rotate to ``degrees`` (-180..180, rounded) in the map frame; wait angle_goal_status."""
-        if isinstance(degrees, bool) or not isinstance(degrees, (int, float)):
-            raise InvalidArgument(f"degrees must be a number, got {degrees!r}")
-        if not math.isfinite(degrees):
-            raise InvalidArgument(f"degrees must be finite, got {degrees!r}")
-        command = RotateTo(round(degrees))
+        command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         self._require(
             lambda s: s.visual_initialised and not s.goal_active,

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any
 
+from ._checks import check_bool
+from ._connect_options import ROBOT_OPTIONS, check_connect_options, check_robot_options
 from ._goal import GoalHandle, GoalResult, run_goal
 from ._operations import (
     DEFAULT_TIMEOUT,
@@ -22,7 +23,8 @@ from ._operations import (
     finish_shielded,
     or_default,
 )
-from ._services import MAX_TARGET_ID, RobotServices
+from ._runtime import running_loop
+from ._services import RobotServices
 from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
@@ -70,13 +72,6 @@ DEFAULT_WAIT_TIMEOUT = 30.0
 NAVIGATION_TIMEOUT = 60.0
 #: Seconds ``connect`` waits for the first status frame.
 FIRST_STATUS_TIMEOUT = 3.0
-_ROBOT_OPTIONS = (
-    "map_targets",
-    "accept_timeout",
-    "arrive_tolerance",
-    "goal_timeout",
-    "wait_timeout",
-)
 
 
 def _navigating(status: GalileoStatus) -> bool:
@@ -104,19 +99,15 @@ class Robot(RobotServices):
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
-        if map_targets is not None and (
-            not isinstance(map_targets, int)
-            or isinstance(map_targets, bool)
-            or not 0 <= map_targets <= MAX_TARGET_ID
-        ):
-            raise InvalidArgument(f"map_targets must be an int in 0..255, got {map_targets!r}")
-        check_timeout("accept_timeout", accept_timeout, allow_none=False)
-        check_timeout("goal_timeout", goal_timeout)
-        check_timeout("wait_timeout", wait_timeout)
-        if isinstance(arrive_tolerance, bool) or not isinstance(arrive_tolerance, (int, float)):
-            raise InvalidArgument(f"arrive_tolerance must be metres, got {arrive_tolerance!r}")
-        if not math.isfinite(arrive_tolerance) or arrive_tolerance < 0:
-            raise InvalidArgument(f"arrive_tolerance must be ≥ 0, got {arrive_tolerance!r}")
+        check_robot_options(
+            {
+                "map_targets": map_targets,
+                "accept_timeout": accept_timeout,
+                "arrive_tolerance": arrive_tolerance,
+                "goal_timeout": goal_timeout,
+                "wait_timeout": wait_timeout,
+            }
+        )
         self._link = link
         self._store = store
         self._ops = Operations(link, store)
@@ -167,6 +158,8 @@ class Robot(RobotServices):
 
         Left out, ``timeout`` is the Robot's ``wait_timeout`` (30 s unless set); None: no limit.
         """
+        if not callable(predicate):
+            raise InvalidArgument(f"predicate must be a function of a status, got {predicate!r}")
         seconds = or_default(timeout, self.wait_timeout)
         check_timeout("timeout", seconds)
         self._ensure_loop()
@@ -242,6 +235,7 @@ class Robot(RobotServices):
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
+        check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
         return await self._goto(target_id, Deadline(seconds), accept, cancel_on_exit)
 
@@ -257,6 +251,7 @@ class Robot(RobotServices):
         command = AddTarget(x, y)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
+        check_bool("cancel_on_exit", cancel_on_exit)
         self._require_map_targets("goto_point")
         self._require(_goal_ready, "goto_point: " + _GOAL_READY)
         deadline = Deadline(seconds)
@@ -326,6 +321,9 @@ class Connection:
     """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
 
     def __init__(self, url: str, options: dict[str, Any]) -> None:
+        if not isinstance(url, str) or not url:
+            raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
+        check_connect_options(url, options)
         self.url = url
         self._options = options
         self._robot: Robot | None = None
@@ -347,10 +345,10 @@ class Connection:
             await self._robot.close()
 
     async def _open(self) -> Robot:
+        running_loop(f"connect({self.url!r})")
         options = dict(self._options)
-        robot_options = {name: options.pop(name) for name in _ROBOT_OPTIONS if name in options}
+        robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
-        check_timeout("first_status_timeout", first_status_timeout)
         store = StatusStore(
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
         )
@@ -395,8 +393,10 @@ def connect(url: str, **options: Any) -> Connection:
     ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
     ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
-    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``.
+    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
+    their own (docs/ros.md). Every option is checked here, before anything is opened: an
+    unknown name or a bad value (NaN, inf, a negative or zero time, a str or bool for a
+    number) raises InvalidArgument naming it. Connecting needs a running asyncio loop
+    (AsyncioRequired otherwise).
     """
-    if not isinstance(url, str) or not url:
-        raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
     return Connection(url, options)

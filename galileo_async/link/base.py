@@ -57,6 +57,7 @@ class BaseLink(abc.ABC):
         max_queued_commands: int = _options.DEFAULT_MAX_QUEUED_COMMANDS,
     ) -> None:
         _options.check_options(
+            reconnect=reconnect,
             reconnect_initial=reconnect_initial,
             reconnect_max=reconnect_max,
             stale_timeout=stale_timeout,

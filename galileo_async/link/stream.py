@@ -197,7 +197,9 @@ class StreamLink(BaseLink):
             raise
         if protocol.lost.done() or self._protocol is not protocol:
             transport.close()
-            raise GalileoConnectionError("the connection closed while it was being opened")
+            raise GalileoConnectionError(
+                f"{self.name or 'the device'}: the connection closed while it was being opened"
+            )
         self._transport = cast(asyncio.WriteTransport, transport)
 
     def _write(self, command: Command) -> None:

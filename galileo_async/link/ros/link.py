@@ -5,14 +5,16 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from ..._checks import check_names, check_seconds
 from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ...models import GalileoStatus
 from ...protocol.commands import Command
 from ..base import BaseLink, StatusSink
-from ..options import DEFAULT_STALE_RECONNECT
+from ..options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -26,7 +28,9 @@ from .node import (
 __all__ = [
     "DEFAULT_MASTER_PORT",
     "DEFAULT_STALE_RECONNECT",
+    "ROS_OPTIONS",
     "RosLink",
+    "check_ros_options",
     "open_ros_link",
     "parse_ros_url",
 ]
@@ -37,6 +41,49 @@ DEFAULT_MASTER_PORT = 11311
 _QUERY_OPTIONS = {"host": str, "node_name": str, "connect_timeout": float}
 # Serial-only options a generic caller may pass along; they mean nothing over ROS.
 _IGNORED_OPTIONS = ("baudrate", "serial_options")
+#: Options of a ros:// link on top of every link's (LINK_OPTIONS).
+ROS_OPTIONS = (
+    "host", "bind", "node_name", "connect_timeout", "rpc_timeout", "master_check_interval",
+    "layout", *_IGNORED_OPTIONS,
+)  # fmt: skip
+
+
+def _check_name(name: str, value: object) -> None:
+    if value is not None and not (isinstance(value, str) and value):
+        raise InvalidArgument(f"{name} must be a non-empty string or None, got {value!r}")
+
+
+def _check_layout(name: str, value: object) -> None:
+    if value is not None and str(value) != "ros":
+        raise InvalidArgument(
+            f"{name} {value!r} does not apply to ros:// (status is decoded by name)"
+        )
+
+
+_ROS_CHECKS: dict[str, Callable[[str, Any], object]] = {
+    "host": _check_name,
+    "bind": _check_name,
+    "node_name": _check_name,
+    "connect_timeout": check_seconds,
+    "rpc_timeout": check_seconds,
+    "master_check_interval": check_seconds,
+    "layout": _check_layout,
+}
+
+
+def check_ros_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
+    """Raise InvalidArgument for a bad ros:// URL, an unknown option or a bad value; opens nothing.
+
+    ``also``: further option names the caller takes itself.
+    """
+    _, url_options = parse_ros_url(url)
+    check_names(f"connect({url!r})", options, {*LINK_OPTIONS, *ROS_OPTIONS, *also})
+    merged = {**url_options, **options}
+    check_values(merged)
+    for name, value in merged.items():
+        check = _ROS_CHECKS.get(name)
+        if check is not None:
+            check(name, value)
 
 
 def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
@@ -112,10 +159,8 @@ class RosLink(BaseLink):
         self._counted = NodeStats()
         try:
             await node.start()
-        except GalileoConnectionError:
-            raise
-        except OSError as exc:  # foreign errors are translated at the link edge
-            raise GalileoConnectionError(f"cannot connect to {self.master_uri}: {exc}") from exc
+        except (GalileoConnectionError, OSError) as exc:  # foreign errors: at the link edge
+            raise GalileoConnectionError(f"cannot connect to {self.name}: {exc}") from exc
         self.node = node
         _log.info("connected to %s as %s", self.master_uri, node.name)
 
@@ -156,12 +201,8 @@ class RosLink(BaseLink):
 
 def open_ros_link(url: str, store: StatusSink, **options: Any) -> RosLink:
     """A RosLink (not yet opened) for ``ros://host[:port]``; options as RosLink and BaseLink."""
+    check_ros_options(url, options)
     master_uri, url_options = parse_ros_url(url)
-    for key in _IGNORED_OPTIONS:
+    for key in (*_IGNORED_OPTIONS, "layout"):
         options.pop(key, None)
-    layout = options.pop("layout", None)
-    if layout is not None and str(layout) != "ros":
-        raise InvalidArgument(
-            f"layout {layout!r} does not apply to ros:// (status is decoded by name)"
-        )
     return RosLink(store, master_uri, name=url, **(url_options | options))
