@@ -5,10 +5,11 @@ Pure (no I/O, no asyncio): protocol/ uses them too.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import math
 import numbers
-from collections.abc import Collection, Iterable
+from collections.abc import Collection, Iterable, Iterator
 
 from .errors import InvalidArgument
 
@@ -19,6 +20,7 @@ __all__ = [
     "check_number",
     "check_seconds",
     "check_timeout",
+    "naming",
 ]
 
 
@@ -80,7 +82,7 @@ def check_timeout(name: str, value: object, *, allow_none: bool = True) -> float
     return check_seconds(name, value)
 
 
-def check_names(what: str, given: Iterable[str], accepted: Collection[str]) -> None:
+def check_names(given: Iterable[str], accepted: Collection[str]) -> None:
     """Raise InvalidArgument for the first name not in ``accepted``, with a near miss if any."""
     for name in given:
         if name in accepted:
@@ -88,7 +90,18 @@ def check_names(what: str, given: Iterable[str], accepted: Collection[str]) -> N
         close = difflib.get_close_matches(name, list(accepted), n=1)
         known = ", ".join(sorted(accepted))
         hint = f"; did you mean {close[0]!r}?" if close else f" (known: {known})"
-        raise InvalidArgument(f"{what}: unknown option {name!r}{hint}")
+        raise InvalidArgument(f"unknown option {name!r}{hint}")
+
+
+@contextlib.contextmanager
+def naming(url: str, what: str) -> Iterator[None]:
+    """Put ``what`` in front of an InvalidArgument raised inside that does not name ``url``."""
+    try:
+        yield
+    except InvalidArgument as exc:
+        if url in str(exc):
+            raise
+        raise InvalidArgument(f"{what}: {exc}") from exc
 
 
 def _short(value: object) -> str:

@@ -6,7 +6,7 @@ import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from ._checks import check_int, check_number, check_timeout
+from ._checks import check_int, check_number, check_timeout, naming
 from ._services import MAX_TARGET_ID
 from .link import check_link_options
 
@@ -56,5 +56,6 @@ def check_connect_options(url: str, options: Mapping[str, Any]) -> None:
     """
     own = {name: value for name, value in options.items() if name in CONNECT_OPTIONS}
     link = {name: value for name, value in options.items() if name not in CONNECT_OPTIONS}
-    check_link_options(url, link, also=CONNECT_OPTIONS)
-    check_robot_options(own)
+    with naming(url, f"connect({url!r})"):
+        check_link_options(url, link, also=CONNECT_OPTIONS)
+        check_robot_options(own)

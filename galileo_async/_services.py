@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from ._checks import check_number
+from ._checks import check_int, check_number
 from ._goal import GoalHandle
 from ._operations import (
     DEFAULT_TIMEOUT,
@@ -180,6 +180,8 @@ class RobotServices:
         self, dwell: int | None = None, *, timeout: float | None = DEFAULT_TIMEOUT
     ) -> None:
         """Start auto-patrol (``dwell`` s at each target if given); return once loop_status is 1."""
+        if dwell is not None:
+            check_int("dwell", dwell, 0, 255)
         command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
         check_timeout("timeout", timeout)
         self._require(_navigating, "start_patrol: navigation must be open")

@@ -8,7 +8,7 @@ from types import ModuleType
 from typing import Any
 from urllib.parse import urlsplit
 
-from .._checks import check_names
+from .._checks import check_names, naming
 from ..errors import GalileoConnectionError, InvalidArgument
 from .base import BaseLink, LinkStats, StatusSink
 from .connectors import (
@@ -80,8 +80,8 @@ def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection
     accepted = {*LINK_OPTIONS, *STREAM_OPTIONS, *also}
     for name in options:
         if name not in accepted and name in _ros_module(url).ROS_OPTIONS:
-            raise InvalidArgument(f"connect({url!r}): {name} applies to ros:// links only")
-    check_names(f"connect({url!r})", options, accepted)
+            raise InvalidArgument(f"{name} applies to ros:// links only")
+    check_names(options, accepted)
     check_values(options)
     if kind == "socket":
         parse_socket_url(url)
@@ -89,7 +89,12 @@ def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection
 
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     """A link (not yet opened) for a serial path, ``socket://``, ``sim://`` or ``ros://`` URL."""
-    check_link_options(url, options)
+    with naming(url, repr(url)):
+        check_link_options(url, options)
+        return _open_link(url, store, options)
+
+
+def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
     scheme = link_kind(url)
     if scheme == "ros":
         return _ros_link(url, store, options)

@@ -77,13 +77,13 @@ def check_ros_options(url: str, options: Mapping[str, Any], *, also: Collection[
     ``also``: further option names the caller takes itself.
     """
     _, url_options = parse_ros_url(url)
-    check_names(f"connect({url!r})", options, {*LINK_OPTIONS, *ROS_OPTIONS, *also})
+    check_names(options, {*LINK_OPTIONS, *ROS_OPTIONS, *also})
     merged = {**url_options, **options}
-    check_values(merged)
     for name, value in merged.items():
         check = _ROS_CHECKS.get(name)
         if check is not None:
             check(name, value)
+    check_values({name: value for name, value in merged.items() if name not in _ROS_CHECKS})
 
 
 def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
