@@ -199,6 +199,15 @@ def test_ros_url_options_are_checked_too(query: str) -> None:
         galileo.connect(f"ros://127.0.0.1:1?{query}")
 
 
+@pytest.mark.parametrize(
+    "query", ["arrival_distance=nan", "power=inf", "start_pose=nan,0,0", "speed=-1", "drop=nan"]
+)
+async def test_sim_url_options_are_checked_before_the_simulator_is_built(query: str) -> None:
+    url = f"sim://?{query}"
+    with anyio.fail_after(5), pytest.raises(InvalidArgument, match=query.partition("=")[0]):
+        await galileo.connect(url)
+
+
 # --- numeric arguments of every Robot method (item 8) ------------------------------------
 
 Call = Callable[[galileo.Robot, Any], Awaitable[object]]
