@@ -350,6 +350,26 @@ async def test_an_unreachable_ros_master_names_the_url() -> None:
         await galileo.connect(url, reconnect=False, connect_timeout=1.0, rpc_timeout=1.0)
 
 
+async def test_a_silent_ros_master_names_the_url_and_the_wait() -> None:
+    held: list[asyncio.StreamWriter] = []
+
+    async def hold(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        held.append(writer)  # read nothing, answer nothing
+
+    server = await asyncio.start_server(hold, "127.0.0.1", 0)
+    url = f"ros://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+    try:
+        with anyio.fail_after(10), pytest.raises(GalileoConnectionError) as caught:
+            await galileo.connect(url, reconnect=False, rpc_timeout=0.2)
+    finally:
+        for writer in held:
+            writer.close()
+        server.close()
+        await server.wait_closed()
+    assert url in str(caught.value)
+    assert "no reply within 0.2 s (rpc_timeout)" in str(caught.value)
+
+
 # --- asyncio only (item 10) -----------------------------------------------------------------
 
 

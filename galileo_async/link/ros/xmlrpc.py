@@ -91,7 +91,9 @@ async def xmlrpc_call(uri: str, method: str, *params: Any, timeout: float) -> An
         (result,), _ = xmlrpc.client.loads(reply)
     except RosApiError:
         raise
-    except (OSError, asyncio.TimeoutError, asyncio.IncompleteReadError) as exc:
+    except asyncio.TimeoutError:
+        raise RosApiError(f"{method} at {uri}: no reply within {timeout} s (rpc_timeout)") from None
+    except (OSError, asyncio.IncompleteReadError) as exc:
         raise RosApiError(f"{method} at {uri} failed: {exc!r}") from exc
     except (xmlrpc.client.Fault, xmlrpc.client.ResponseError, ValueError) as exc:
         raise RosApiError(f"{method} at {uri}: bad reply: {exc!r}") from exc
