@@ -21,8 +21,10 @@ import pytest
 from scripted_robot import connected, nothing_was_sent_before_marker
 
 import galileo_async as galileo
-from galileo_async import AsyncioRequired, GalileoConnectionError, InvalidArgument
+from galileo_async import AsyncioRequired, GalileoConnectionError, InvalidArgument, link
+from galileo_async._connect_options import CONNECT_OPTIONS
 from galileo_async._runtime import running_loop
+from galileo_async.link import ros
 from galileo_async.protocol import Stop
 
 #: What a careless caller passes: not finite, beyond float range, negative, a str, a bool.
@@ -114,6 +116,13 @@ async def url_of(kind: str) -> AsyncIterator[tuple[str, Listener | None]]:
 
 
 # --- connect() options (issue 14, item 7) ----------------------------------------------
+
+
+def test_the_cases_cover_every_option_the_driver_takes() -> None:
+    assert set(ROBOT_OPTIONS) == set(CONNECT_OPTIONS)
+    assert set(LINK_OPTIONS) == set(link.LINK_OPTIONS)
+    assert set(STREAM_OPTIONS) == set(link.STREAM_OPTIONS)
+    assert set(ROS_OPTIONS) == set(ros.ROS_OPTIONS)
 
 
 @pytest.mark.parametrize(
