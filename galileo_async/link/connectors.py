@@ -22,7 +22,6 @@ __all__ = [
     "DEFAULT_CONNECT_TIMEOUT",
     "Connector",
     "ProtocolFactory",
-    "describe",
     "parse_socket_url",
     "serial_backend",
     "serial_connector",
@@ -61,10 +60,10 @@ def translate_errors(what: str) -> Iterator[None]:
         raise
     # serial.SerialException subclasses OSError; asyncio.TimeoutError is separate before 3.11.
     except (OSError, EOFError, asyncio.TimeoutError) as exc:
-        raise GalileoConnectionError(f"{what}: {describe(exc)}") from exc
+        raise GalileoConnectionError(f"{what}: {_describe(exc)}") from exc
 
 
-def describe(exc: BaseException) -> str:
+def _describe(exc: BaseException) -> str:
     """The message of ``exc``, or its kind when it has none (``str(TimeoutError())`` is empty)."""
     text = str(exc)
     if isinstance(exc, (TimeoutError, asyncio.TimeoutError)):

@@ -95,10 +95,6 @@ def _check_serial_options(name: str, value: object) -> None:
         raise InvalidArgument(f"{name} must be a dict of pyserial settings, got {value!r}")
 
 
-def _check_connect_timeout(name: str, value: object) -> None:
-    check_seconds(name, value)
-
-
 #: The check of each option of LINK_OPTIONS and STREAM_OPTIONS: (name, value) -> None or raise.
 OPTION_CHECKS: dict[str, Callable[[str, Any], object]] = {
     "reconnect": check_bool,
@@ -112,7 +108,7 @@ OPTION_CHECKS: dict[str, Callable[[str, Any], object]] = {
     "layout": _check_layout,
     "baudrate": _check_baudrate,
     "serial_options": _check_serial_options,
-    "connect_timeout": _check_connect_timeout,
+    "connect_timeout": check_seconds,
 }
 
 
