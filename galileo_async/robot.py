@@ -394,9 +394,7 @@ def connect(url: str, **options: Any) -> Connection:
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
     ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
     ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
-    their own (docs/ros.md). Every option is checked here, before anything is opened: an
-    unknown name or a bad value (NaN, inf, a negative or zero time, a str or bool for a
-    number) raises InvalidArgument naming it. Connecting needs a running asyncio loop
-    (AsyncioRequired otherwise).
+    their own. All are checked here, before anything opens (InvalidArgument naming one);
+    connecting needs a running asyncio loop (AsyncioRequired otherwise).
     """
     return Connection(url, options)
