@@ -14,6 +14,7 @@ import anyio.lowlevel
 
 from .errors import (
     ConnectionLost,
+    GalileoConnectionError,
     GalileoError,
     GalileoTimeout,
     InvalidArgument,
@@ -24,7 +25,7 @@ from .errors import (
     UnconfirmedOperation,
 )
 from .models import GalileoStatus
-from .protocol import Cancel, Command
+from .protocol import Cancel, Command, Goto
 
 if TYPE_CHECKING:
     from .link import BaseLink
@@ -231,22 +232,38 @@ class Operations:
                 if done(status):
                     return status
 
-    async def send_cancel_shielded(self) -> None:
-        """Send Cancel (``i 2``) even while the calling task is being cancelled; bounded."""
+    def queue_exit_cancel(self) -> asyncio.Future[bool] | None:
+        """Queue Cancel (``i 2``) now, in call order; a goal (``g``) queued after it drops it.
+
+        A dropped exit cancel is not needed: the newer goal replaces the old one on the
+        robot (PROTOCOL.md §2.b), and written after it the cancel would stop the new goal.
+        """
         if self.link.closed:
-            return  # a closed link cannot carry it
-        # Its own task: asyncio's task.cancel() (even twice) cannot stop the send, which an
+            return None  # a closed link cannot carry it
+        try:
+            return self.link.enqueue(Cancel(), superseded_by=(Goto,))
+        except GalileoConnectionError as exc:
+            _log.warning("the cancel (i 2) could not be queued: %r", exc)
+            return None
+
+    async def send_cancel_shielded(self) -> None:
+        """Queue Cancel before any await, then wait for its write even while cancelled; bounded."""
+        written = self.queue_exit_cancel()
+        if written is None:
+            return
+        # Its own task: asyncio's task.cancel() (even twice) cannot stop the wait, which an
         # anyio shield alone does not prevent; the task bounds itself by CANCEL_SEND_TIMEOUT.
-        task = asyncio.ensure_future(self._send_cancel())
+        task = asyncio.ensure_future(self._await_cancel(written))
         self._cancels.add(task)
         task.add_done_callback(self._cancels.discard)
         with anyio.CancelScope(shield=True):
             await asyncio.shield(task)
 
-    async def _send_cancel(self) -> None:
+    async def _await_cancel(self, written: asyncio.Future[bool]) -> None:
         try:
-            await asyncio.wait_for(self.link.send(Cancel()), CANCEL_SEND_TIMEOUT)
-        except (GalileoError, TimeoutError) as exc:
+            if not await asyncio.wait_for(written, CANCEL_SEND_TIMEOUT):
+                _log.info("the cancel (i 2) was dropped: a newer goal replaces the goal")
+        except (GalileoError, TimeoutError, asyncio.TimeoutError) as exc:
             _log.warning("the cancel (i 2) could not be sent: %r", exc)
 
     async def aclose(self) -> None:
