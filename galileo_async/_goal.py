@@ -10,6 +10,7 @@ from typing import NoReturn
 from ._operations import Deadline, Operations
 from .errors import (
     AcceptTimeout,
+    ConnectionLost,
     GalileoTimeout,
     GoalAborted,
     GoalCancelled,
@@ -252,11 +253,14 @@ async def run_goal(
     """Send ``g N`` (registered first) and follow the goal to its end; see Robot.goto."""
     loop = asyncio.get_running_loop()
     target_id = handle.target_id
+    sent = False
     with ops.store.watch() as watch:
         tracker = GoalTracker(target_id, before=ops.store.status, arrive_tolerance=arrive_tolerance)
         ops.check_link(f"goto({target_id})")  # below, LinkStale means the goal was sent
+        ops.goal_started()
         try:
             await ops.link.send(Goto(target_id))
+            sent = True
             sent_at = loop.time()
             accept_by = sent_at + accept_timeout
             while True:
@@ -288,13 +292,16 @@ async def run_goal(
                     )
                 if tracker.accepted and not was_accepted:
                     _log.debug("goal %d accepted", target_id)
-        except (asyncio.CancelledError, GalileoTimeout, LinkStale):
+        except (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost) as exc:
             # Leaving while the robot may still drive: stop it, unless a newer goal of
             # this Robot already replaced this one (a cancel would stop the new goal).
-            # A stale link may still transmit; a lost one cannot (ConnectionLost: no cancel).
             if cancel_on_exit and not handle.preempted:
-                _log.info("goal %d left before its end: sending cancel", target_id)
-                await ops.send_cancel_shielded()
+                if sent and isinstance(exc, (LinkStale, ConnectionLost)):
+                    ops.abandon(target_id)  # unseen, it may drive on: check once back
+                # A stale link may still transmit; a lost one cannot.
+                if not isinstance(exc, ConnectionLost):
+                    _log.info("goal %d left before its end: sending cancel", target_id)
+                    await ops.send_cancel_shielded()
             raise
 
 

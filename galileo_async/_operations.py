@@ -24,6 +24,7 @@ from .errors import (
     OperationTimeout,
     UnconfirmedOperation,
 )
+from .events import AbandonedGoalCancelled
 from .models import GalileoStatus
 from .protocol import Cancel, Command, Goto
 
@@ -150,6 +151,38 @@ class Operations:
         self.store = store
         # Exit cancels still being written; held here so they finish and close() awaits them.
         self._cancels: set[asyncio.Future[None]] = set()
+        #: Goals started through this object (goal_started); an abandoned goal's follow-up
+        #: does nothing once a newer goal was started.
+        self.goals_started = 0
+
+    def goal_started(self) -> None:
+        """A goal of this Robot is about to be sent: it replaces every earlier one."""
+        self.goals_started += 1
+
+    def abandon(self, target_id: int) -> None:
+        """Goal ``target_id`` failed with the link down: cancel it if it runs once it is back.
+
+        The robot may go on driving while the host cannot see it (the serial node died, the
+        navigation computer did not). The first status after this call (the link has
+        recovered then: a lost or stale link carries none) decides: goal ``target_id`` still
+        working or paused, and no newer goal started here, gets ``i 2`` and an
+        AbandonedGoalCancelled event.
+        """
+        started = self.goals_started
+
+        def check(status: GalileoStatus) -> None:
+            if started != self.goals_started or self.link.closed:
+                return
+            if status.target_num_id != target_id or not status.goal_active:
+                return
+            written = self.queue_exit_cancel()
+            if written is None:
+                return
+            written.add_done_callback(_log_unsent_cancel)
+            _log.warning("goal %d was abandoned but still runs: sending cancel", target_id)
+            self.store.emit(AbandonedGoalCancelled(status=status, target_id=target_id))
+
+        self.store.call_on_next_status(check)
 
     def check_link(self, what: str) -> None:
         """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
@@ -270,6 +303,11 @@ class Operations:
         """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
         if self._cancels:
             await asyncio.wait(set(self._cancels), timeout=CANCEL_SEND_TIMEOUT)
+
+
+def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:
+    if not written.cancelled() and written.exception() is not None:
+        _log.warning("the cancel (i 2) could not be sent: %r", written.exception())
 
 
 class DynamicTargets:
