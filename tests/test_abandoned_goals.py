@@ -260,3 +260,16 @@ async def _rest(events: Any) -> list[ev.Event]:
     assert isinstance(events, EventStream)
     events.close()
     return [event async for event in events]
+
+
+async def test_closing_while_an_abandoned_goal_waits_for_the_link_leaves_nothing() -> None:
+    async with robot_via_relay() as (robot, relay, sim, log):
+        goal = await _driving_to_far(robot)
+        relay.to_host = False
+        relay.go_away()
+        with anyio.fail_after(WAIT), pytest.raises(ConnectionLost):
+            await goal
+        await robot.close()  # the check for the abandoned goal is dropped with the store
+        relay.to_host = True
+        assert _sim_goal_active(sim)
+    assert [command for command, _ in log] == [Goto(FAR)]
