@@ -32,11 +32,11 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: Frames in a row after ``g N`` showing goal N free within arrive_tolerance, with no
-#: working frame, that count as "already there" ...
+#: Frames in a row after ``g N`` that must show goal N free within arrive_tolerance, none
+#: working, before the goal counts as done "already there" (GoalTracker.stood_there).
 ALREADY_THERE_FRAMES = 10
-#: ... once at least this many seconds passed since the write (10 frames at 30 Hz): frames
-#: that arrive in a burst may all predate the robot reading the command.
+#: Seconds after the write before "already there" may be decided (10 frames at 30 Hz):
+#: frames that arrive in a burst may all predate the robot reading the command.
 ALREADY_THERE_TIME = ALREADY_THERE_FRAMES / 30
 
 
