@@ -21,6 +21,7 @@ from .errors import (
     InvalidArgument,
     LinkStale,
     NotReady,
+    OperationFailed,
     UnconfirmedOperation,
     WrongEventLoop,
 )
@@ -59,6 +60,32 @@ MAX_TARGET_ID = 255
 
 def _navigating(status: GalileoStatus) -> bool:
     return status.navigating
+
+
+class _Rotation:
+    """Tells from the statuses after ``a`` whether the rotation rotate_to sent is done."""
+
+    __slots__ = ("_goal_id", "_started", "_what")
+
+    def __init__(self, what: str, before: GalileoStatus) -> None:
+        self._what = what
+        self._goal_id = before.target_num_id
+        self._started = False
+
+    def done(self, status: GalileoStatus) -> bool:
+        """True once the rotation is done; OperationFailed once a navigation goal ran."""
+        if status.goal_active or status.target_num_id != self._goal_id:
+            # A goal replaces a rotation, and real firmware derives angle_goal_status from
+            # the goal state (PROTOCOL.md §1 field 12): its 0 then 1 would look like ours.
+            raise OperationFailed(
+                f"{self._what}: navigation goal {status.target_num_id} started while "
+                "waiting for the rotation; a goal replaces a rotation, and angle_goal_status "
+                "then follows the goal",
+                status,
+            )
+        # A stale 1 (done) shows before the rotation starts: wait for 0 then 1.
+        self._started = self._started or status.angle_goal_status == AngleGoalStatus.NOT_DONE
+        return self._started and status.angle_goal_status == AngleGoalStatus.DONE
 
 
 class RobotServices:
@@ -106,27 +133,24 @@ class RobotServices:
             ) from None
 
     async def rotate_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
-        """Rotate to ``degrees`` (-180..180, rounded) in the map frame; wait angle_goal_status."""
+        """Rotate to ``degrees`` (-180..180, rounded) in the map frame; wait angle_goal_status.
+
+        Returns once angle_goal_status shows this rotation done (0, then 1). A navigation
+        goal that runs meanwhile (this Robot's or another host's) raises OperationFailed:
+        it replaces the rotation, and on real firmware angle_goal_status follows it.
+        """
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
-        self._require(
+        what = f"rotate_to({degrees})"
+        before = self._require(
             lambda s: s.visual_initialised and not s.goal_active,
             "rotate_to: the visual system must be initialised and no goal active",
         )
-        seen_not_done = False
-
-        def done(status: GalileoStatus) -> bool:
-            # The firmware derives angle_goal_status from the goal state, so a stale 1
-            # (done) shows before the rotation starts: wait for 0 then 1 (PROTOCOL.md §1).
-            nonlocal seen_not_done
-            seen_not_done = seen_not_done or status.angle_goal_status == AngleGoalStatus.NOT_DONE
-            return seen_not_done and status.angle_goal_status == AngleGoalStatus.DONE
-
+        rotation = _Rotation(what, before)
         try:
             await self._ops.send_confirmed(
-                command, done, field="angle_goal_status", deadline=Deadline(timeout),
-                what=f"rotate_to({degrees})",
-                failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
+                command, rotation.done, field="angle_goal_status", deadline=Deadline(timeout),
+                what=what, failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
             )  # fmt: skip
         except UnconfirmedOperation as exc:
             # No published firmware handles 'a' (PROTOCOL.md §2.g).

@@ -229,7 +229,9 @@ class Robot(RobotServices):
         ``goal_timeout``, 600 s unless set; None: no limit), ConnectionLost or LinkStale
         (on a lost or stale link before the send: nothing is sent). When the call is
         cancelled, times out or the link goes stale, Cancel (``i 2``) is sent first unless
-        ``cancel_on_exit`` is False.
+        ``cancel_on_exit`` is False; a goal left on a lost or stale link that still runs
+        once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
+        at the target already: a GoalResult with ``already_there`` True.
         """
         Goto(target_id)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
