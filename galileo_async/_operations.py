@@ -198,6 +198,25 @@ class Operations:
             raise NotReady(message, status)
         return status
 
+    async def ready(self, ok: Predicate, message: str, deadline: Deadline) -> GalileoStatus:
+        """As require(), first waiting within ``deadline`` for the robot's first status.
+
+        Before it, the link may be up with only the serial node's placeholder frames
+        (PROTOCOL.md §1): after a node restart navigation is open, just not reported yet.
+        """
+        if self.store.status is None:
+            self.check_link(message.partition(":")[0])
+            try:
+                await self.store.wait_until(lambda _status: True, timeout=deadline.remaining())
+            except GalileoTimeout:
+                raise NotReady(
+                    f"{message}: the navigation system has not reported within "
+                    f"{deadline.timeout} s"
+                    + (" (only placeholder frames came)" if self.store.awaiting_robot else ""),
+                    None,
+                ) from None
+        return self.require(ok, message)
+
     async def wait_not_busy(self, deadline: Deadline, what: str) -> None:
         """Wait while busy_status is 1 (the robot would only queue the command), within deadline."""
         status = self.store.status

@@ -142,14 +142,16 @@ class RobotServices:
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         what = f"rotate_to({degrees})"
-        before = self._require(
+        deadline = Deadline(timeout)
+        before = await self._require(
             lambda s: s.visual_initialised and not s.goal_active,
             "rotate_to: the visual system must be initialised and no goal active",
+            deadline,
         )
         rotation = _Rotation(what, before)
         try:
             await self._ops.send_confirmed(
-                command, rotation.done, field="angle_goal_status", deadline=Deadline(timeout),
+                command, rotation.done, field="angle_goal_status", deadline=deadline,
                 what=what, failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
             )  # fmt: skip
         except UnconfirmedOperation as exc:
@@ -208,21 +210,23 @@ class RobotServices:
             check_int("dwell", dwell, 0, 255)
         command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
         check_timeout("timeout", timeout)
-        self._require(_navigating, "start_patrol: navigation must be open")
+        deadline = Deadline(timeout)
+        await self._require(_navigating, "start_patrol: navigation must be open", deadline)
         await self._ops.send_confirmed(
-            command, lambda s: s.patrolling, field="loop_status", deadline=Deadline(timeout),
+            command, lambda s: s.patrolling, field="loop_status", deadline=deadline,
             what="start_patrol",
         )  # fmt: skip
 
     async def stop_patrol(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop auto-patrol, keep navigation (``m 6``); return once loop_status is 0."""
         check_timeout("timeout", timeout)
-        self._require(lambda s: True, "stop_patrol")
+        deadline = Deadline(timeout)
+        await self._require(lambda s: True, "stop_patrol", deadline)
         # The document's 'm' 4 would stop navigation; firmware stops patrol with 'm' 6
         # (PROTOCOL.md §2.g).
         await self._ops.send_confirmed(
             StopPatrol(), lambda s: not s.patrolling, field="loop_status",
-            deadline=Deadline(timeout), what="stop_patrol",
+            deadline=deadline, what="stop_patrol",
         )  # fmt: skip
 
     async def set_patrol_dwell(
@@ -231,8 +235,9 @@ class RobotServices:
         """Set the patrol wait at each target (0-255 s); the firmware also starts patrol."""
         command = SetPatrolDwell(seconds)
         check_timeout("timeout", timeout)
-        self._require(_navigating, "set_patrol_dwell: navigation must be open")
-        await self._send(command, timeout, "set_patrol_dwell")
+        deadline = Deadline(timeout)
+        await self._require(_navigating, "set_patrol_dwell: navigation must be open", deadline)
+        await self._send(command, timeout, "set_patrol_dwell", deadline)
 
     async def start_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Start building a map; return once map_status is 1. Navigation must be closed."""
@@ -245,22 +250,29 @@ class RobotServices:
     async def save_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Save the map; the status cannot confirm it and some firmware ignores it."""
         check_timeout("timeout", timeout)
-        self._require(lambda s: not s.navigating, "save_map: navigation must be closed")
-        await self._send(SaveMap(), timeout, "save_map")
+        deadline = Deadline(timeout)
+        await self._require(
+            lambda s: not s.navigating, "save_map: navigation must be closed", deadline
+        )
+        await self._send(SaveMap(), timeout, "save_map", deadline)
 
     async def update_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Update the map; the status cannot confirm it."""
         check_timeout("timeout", timeout)
-        self._require(lambda s: not s.navigating, "update_map: navigation must be closed")
-        await self._send(UpdateMap(), timeout, "update_map")
+        deadline = Deadline(timeout)
+        await self._require(
+            lambda s: not s.navigating, "update_map: navigation must be closed", deadline
+        )
+        await self._send(UpdateMap(), timeout, "update_map", deadline)
 
     async def start_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> ChargeStatus:
         """Go to the dock and charge; return the charge_status once it leaves FREE."""
         check_timeout("timeout", timeout)
-        self._require(lambda s: True, "start_charging")
+        deadline = Deadline(timeout)
+        await self._require(lambda s: True, "start_charging", deadline)
         status = await self._ops.send_confirmed(
             StartCharging(), lambda s: s.charge_status not in (None, ChargeStatus.FREE),
-            field="charge_status", deadline=Deadline(timeout), what="start_charging",
+            field="charge_status", deadline=deadline, what="start_charging",
             failed=lambda s: s.charge_status == ChargeStatus.ERROR,
         )  # fmt: skip
         assert status.charge_status is not None
@@ -269,10 +281,11 @@ class RobotServices:
     async def stop_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop charging; return once charge_status is FREE."""
         check_timeout("timeout", timeout)
-        self._require(lambda s: True, "stop_charging")
+        deadline = Deadline(timeout)
+        await self._require(lambda s: True, "stop_charging", deadline)
         await self._ops.send_confirmed(
             StopCharging(), lambda s: s.charge_status == ChargeStatus.FREE,
-            field="charge_status", deadline=Deadline(timeout), what="stop_charging",
+            field="charge_status", deadline=deadline, what="stop_charging",
         )  # fmt: skip
 
     async def save_dock(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -292,7 +305,7 @@ class RobotServices:
 
     async def _add_target(self, command: AddTarget, deadline: Deadline) -> int:
         map_targets = self._require_map_targets("add_target")
-        self._require(_navigating, "add_target: navigation must be open")
+        await self._require(_navigating, "add_target: navigation must be open", deadline)
         await self._ops.wait_not_busy(deadline, "add_target")
         self._ops.check_link("add_target")
         target_id = self._targets.reserve(map_targets, self._ops.store.status, MAX_TARGET_ID)
@@ -304,7 +317,7 @@ class RobotServices:
         return target_id
 
     async def _reset_targets(self, deadline: Deadline) -> None:
-        self._require(_navigating, "reset_targets: navigation must be open")
+        await self._require(_navigating, "reset_targets: navigation must be open", deadline)
         await self._ops.wait_not_busy(deadline, "reset_targets")
         self._ops.check_link("reset_targets")
         self._targets.resetting()
@@ -342,23 +355,30 @@ class RobotServices:
                 + "; use asyncio.run_coroutine_threadsafe() to call it from another thread"
             )
 
-    def _require(self, ok: Callable[[GalileoStatus], bool], message: str) -> GalileoStatus:
+    async def _require(
+        self, ok: Callable[[GalileoStatus], bool], message: str, deadline: Deadline
+    ) -> GalileoStatus:
         self._ensure_open()
-        return self._ops.require(ok, message)
+        return await self._ops.ready(ok, message, deadline)
 
-    async def _send(self, command: Command, timeout: float | None, what: str) -> None:
+    async def _send(
+        self, command: Command, timeout: float | None, what: str, deadline: Deadline | None = None
+    ) -> None:
         check_timeout("timeout", timeout)
         self._ensure_open()
-        await self._ops.send(command, Deadline(timeout), what)
+        await self._ops.send(command, deadline or Deadline(timeout), what)
 
     async def _mapping_command(
         self, command: Command, mapping: bool, timeout: float | None, what: str
     ) -> None:
         check_timeout("timeout", timeout)
-        self._require(lambda s: not s.navigating, f"{what}: navigation must be closed")
+        deadline = Deadline(timeout)
+        await self._require(
+            lambda s: not s.navigating, f"{what}: navigation must be closed", deadline
+        )
         await self._ops.send_confirmed(
             command, lambda s: s.mapping == mapping, field="map_status",
-            deadline=Deadline(timeout), what=what,
+            deadline=deadline, what=what,
         )  # fmt: skip
 
     async def _goal_command(
@@ -366,11 +386,13 @@ class RobotServices:
     ) -> None:
         what = type(command).__name__.lower()
         check_timeout("timeout", timeout)
-        self._require(
+        deadline = Deadline(timeout)
+        await self._require(
             lambda s: s.target_status == needed,
             f"{what}: the goal must be {needed.name.lower()}",
+            deadline,
         )
         await self._ops.send_confirmed(
             command, lambda s: s.target_status == result, field="target_status",
-            deadline=Deadline(timeout), what=what,
+            deadline=deadline, what=what,
         )  # fmt: skip

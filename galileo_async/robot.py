@@ -187,8 +187,10 @@ class Robot(RobotServices):
         """Open navigation; return once it is open and the visual system is initialised."""
         check_timeout("timeout", timeout)
         what = "start_navigation"
-        status = self._require(lambda s: not s.mapping, f"{what}: the robot is building a map")
         deadline = Deadline(timeout)
+        status = await self._require(
+            lambda s: not s.mapping, f"{what}: the robot is building a map", deadline
+        )
         if not status.navigating:
             # The firmware ignores a start within 5-30 s of the previous one (PROTOCOL.md §2.a).
             await self._ops.send_confirmed(
@@ -207,11 +209,12 @@ class Robot(RobotServices):
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop navigation (also patrol and the goal); return once it is closed."""
         check_timeout("timeout", timeout)
-        status = self._require(lambda s: True, "stop_navigation")
+        deadline = Deadline(timeout)
+        status = await self._require(lambda s: True, "stop_navigation", deadline)
         if status.navigating:
             await self._ops.send_confirmed(
                 StopNavigation(), lambda s: not s.navigating, field="nav_status",
-                deadline=Deadline(timeout), what="stop_navigation",
+                deadline=deadline, what="stop_navigation",
             )  # fmt: skip
 
     async def goto(
@@ -255,8 +258,8 @@ class Robot(RobotServices):
         check_timeout("timeout", seconds)
         check_bool("cancel_on_exit", cancel_on_exit)
         self._require_map_targets("goto_point")
-        self._require(_goal_ready, "goto_point: " + _GOAL_READY)
         deadline = Deadline(seconds)
+        await self._require(_goal_ready, "goto_point: " + _GOAL_READY, deadline)
         await self._reset_targets(deadline)
         target_id = await self._add_target(command, deadline)
         return await self._goto(target_id, deadline, self.accept_timeout, cancel_on_exit)
@@ -302,9 +305,9 @@ class Robot(RobotServices):
         self, target_id: int, deadline: Deadline, accept_timeout: float, cancel_on_exit: bool
     ) -> GoalResult:
         what = f"goto({target_id})"
-        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
         await self._ops.wait_not_busy(deadline, what)
-        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
         if self._goal is not None:
             self._goal.preempted = True
         handle = GoalHandle(target_id)

@@ -12,8 +12,15 @@ from collections.abc import Callable
 
 import anyio
 import pytest
-from scripted_robot import DEFAULTS, READY, ScriptedRobot, connected
+from scripted_robot import (
+    DEFAULTS,
+    READY,
+    ScriptedRobot,
+    connected,
+    nothing_was_sent_before_marker,
+)
 
+from galileo_async.errors import NotReady
 from galileo_async.events import Event, NavigationOpened
 from galileo_async.models import GalileoStatus
 from galileo_async.protocol import V2_DEFAULTS
@@ -108,3 +115,43 @@ async def test_placeholder_shape_with_a_voltage_is_a_status(power: float) -> Non
     async with connected(fake) as (robot, fake):
         await frames_until(fake, lambda: robot.link.frames >= 3)
         assert (robot.status is None) is (power == 0.0)
+
+
+async def test_goto_after_a_node_restart_waits_for_the_robot_then_drives() -> None:
+    async with connected() as (robot, fake):
+        fake.set(**DEFAULTS)  # the serial node restarted; navigation is still open
+        await frames_until(fake, lambda: robot.status is None)
+        going = asyncio.ensure_future(robot.goto(1, timeout=STEP))
+        frames = robot.link.frames
+        await frames_until(fake, lambda: robot.link.frames >= frames + 3)
+        assert not going.done()
+        assert fake.received == []  # nothing is sent on a placeholder's word
+        fake.set(**READY)
+        result = await going
+        assert result.target_id == 1
+        assert [type(command).__name__ for command in fake.received] == ["Goto"]
+
+
+async def test_an_operation_gives_up_within_its_own_timeout_and_sends_nothing() -> None:
+    async with connected(ScriptedRobot(**DEFAULTS)) as (robot, fake):
+        with pytest.raises(NotReady, match=r"has not reported within 0\.3 s") as caught:
+            await robot.start_patrol(timeout=0.3)
+        assert "placeholder" in str(caught.value)
+        assert caught.value.status is None
+        await nothing_was_sent_before_marker(robot, fake)
+
+
+@pytest.mark.parametrize("route", ["task.cancel()", "anyio.move_on_after"])
+async def test_waiting_for_the_robot_can_be_cancelled(route: str) -> None:
+    async with connected(ScriptedRobot(**DEFAULTS)) as (robot, fake):
+        if route == "task.cancel()":
+            going = asyncio.ensure_future(robot.goto(1, timeout=STEP))
+            await fake.frames(2)
+            going.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await going
+        else:
+            with anyio.move_on_after(0.1) as scope:
+                await robot.goto(1, timeout=STEP)
+            assert scope.cancelled_caught
+        await nothing_was_sent_before_marker(robot, fake)
