@@ -8,6 +8,9 @@ after it restarts. The scripted robot sends exactly those (scripted_robot.DEFAUL
 from __future__ import annotations
 
 import asyncio
+import json
+import os
+import sys
 from collections.abc import Callable
 
 import anyio
@@ -20,6 +23,7 @@ from scripted_robot import (
     nothing_was_sent_before_marker,
 )
 
+from galileo_async.cli import ExitCode
 from galileo_async.errors import NotReady
 from galileo_async.events import Event, NavigationOpened
 from galileo_async.models import GalileoStatus
@@ -155,3 +159,45 @@ async def test_waiting_for_the_robot_can_be_cancelled(route: str) -> None:
                 await robot.goto(1, timeout=STEP)
             assert scope.cancelled_caught
         await nothing_was_sent_before_marker(robot, fake)
+
+
+async def run_galileo(url: str, *args: str) -> tuple[int, str, str]:
+    """Run the galileo command against ``url``; its exit code, stdout and stderr."""
+    process = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "galileo_async", "-p", url, *args,
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1"},
+    )  # fmt: skip
+    try:
+        out, err = await asyncio.wait_for(process.communicate(), 60)
+    finally:
+        if process.returncode is None:
+            process.kill()
+            await process.wait()
+    assert process.returncode is not None
+    return process.returncode, out.decode(), err.decode()
+
+
+async def test_cli_status_says_the_navigation_system_has_not_reported() -> None:
+    fake = await ScriptedRobot(**DEFAULTS).start()
+    try:
+        code, _out, err = await run_galileo(fake.url, "status")
+    finally:
+        await fake.close()
+    assert code == ExitCode.NOT_READY, err
+    assert "navigation system has not reported yet" in err
+    assert "nav start" not in err  # not the hint for a closed navigation
+
+
+async def test_cli_status_waits_for_the_first_report() -> None:
+    fake = await ScriptedRobot(**DEFAULTS).start()
+    loop = asyncio.get_running_loop()
+    report = loop.call_later(1.0, lambda: fake.set(**READY))
+    try:
+        code, out, err = await run_galileo(fake.url, "status", "--json")
+    finally:
+        report.cancel()
+        await fake.close()
+    assert code == 0, err
+    assert "waiting for the navigation system" in err
+    assert json.loads(out)["status"]["power"] == 24.0
