@@ -15,6 +15,7 @@ from ...models import GalileoStatus
 from ...protocol.commands import Command
 from ..base import BaseLink, StatusSink
 from ..options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
+from .hosts import parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -38,19 +39,29 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 DEFAULT_MASTER_PORT = 11311
-_QUERY_OPTIONS = {"host": str, "node_name": str, "connect_timeout": float}
+_QUERY_OPTIONS: dict[str, Any] = {
+    "host": str,
+    "node_name": str,
+    "connect_timeout": float,
+    "hosts": parse_hosts,
+}
 # Serial-only options a generic caller may pass along; they mean nothing over ROS.
 _IGNORED_OPTIONS = ("baudrate", "serial_options")
 #: Options of a ros:// link on top of every link's (LINK_OPTIONS).
 ROS_OPTIONS = (
     "host", "bind", "node_name", "connect_timeout", "rpc_timeout", "master_check_interval",
-    "layout", *_IGNORED_OPTIONS,
+    "hosts", "layout", *_IGNORED_OPTIONS,
 )  # fmt: skip
 
 
 def _check_name(name: str, value: object) -> None:
     if value is not None and not (isinstance(value, str) and value):
         raise InvalidArgument(f"{name} must be a non-empty string or None, got {value!r}")
+
+
+def _check_hosts(name: str, value: Any) -> None:
+    if value is not None:
+        parse_hosts(value)
 
 
 def _check_layout(name: str, value: object) -> None:
@@ -67,6 +78,7 @@ _ROS_CHECKS: dict[str, Callable[[str, Any], object]] = {
     "connect_timeout": check_seconds,
     "rpc_timeout": check_seconds,
     "master_check_interval": check_seconds,
+    "hosts": _check_hosts,
     "layout": _check_layout,
 }
 
@@ -87,7 +99,7 @@ def check_ros_options(url: str, options: Mapping[str, Any], *, also: Collection[
 
 
 def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
-    """``ros://host[:port][?host=…&node_name=…]`` → (master URI, options from the query)."""
+    """``ros://host[:port][?host=…&node_name=…&hosts=name=ip,…]`` → (master URI, options)."""
     parts = urlsplit(url)
     if parts.scheme.lower() != "ros" or not parts.hostname:
         raise InvalidArgument(f"not a ros://host[:port] URL: {url!r}")
@@ -102,8 +114,8 @@ def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
             raise InvalidArgument(f"unknown option {key!r} in {url!r}")
         try:
             options[key] = _QUERY_OPTIONS[key](values[-1])
-        except ValueError as exc:
-            raise InvalidArgument(f"bad value for {key} in {url!r}") from exc
+        except ValueError as exc:  # InvalidArgument is one too
+            raise InvalidArgument(f"bad value for {key} in {url!r}: {exc}") from exc
     return f"http://{host}:{port}/", options
 
 
@@ -121,9 +133,12 @@ class RosLink(BaseLink):
         connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
         rpc_timeout: float = DEFAULT_RPC_TIMEOUT,
         master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
+        hosts: str | Mapping[str, str] | None = None,
         name: str | None = None,
         **base_options: Any,
     ) -> None:
+        #: Host name → IP for peers' advertised names (else: the name, or the master's address).
+        self.hosts = {} if hosts is None else parse_hosts(hosts)
         super().__init__(store, **base_options)
         self.master_uri = master_uri
         # Like rospy: an explicit option, else ROS_IP / ROS_HOSTNAME, else the route's address.
@@ -155,13 +170,16 @@ class RosLink(BaseLink):
             connect_timeout=self.connect_timeout,
             rpc_timeout=self.rpc_timeout,
             master_check_interval=self.master_check_interval,
+            hosts=self.hosts,
         )
         self._counted = NodeStats()
+        # Kept even if start() fails: a start cancelled by an anyio scope cannot finish the
+        # node's close (unregistering), so _drop_node finishes it when the link closes.
+        self.node = node
         try:
             await node.start()
         except (GalileoConnectionError, OSError) as exc:  # foreign errors: at the link edge
             raise GalileoConnectionError(f"cannot connect to {self.name}: {exc}") from exc
-        self.node = node
         _log.info("connected to %s as %s", self.master_uri, node.name)
 
     def _status_from_node(self, status: GalileoStatus) -> None:
