@@ -328,8 +328,9 @@ class RobotServices:
         self._ensure_open()
         if self.map_targets is None:
             raise NotReady(
-                f"{what}: the number of targets in the robot's map is unknown (the serial "
-                "link cannot read it); pass map_targets=N to connect() "
+                f"{what}: the number of targets in the robot's map is unknown (a serial "
+                "link cannot read it; ros:// reads /galileo/goal_num, which the robot has "
+                "not set); pass map_targets=N to connect() "
                 "(galileo CLI: --map-targets N or GALILEO_MAP_TARGETS)",
                 self._ops.store.status,
             )

@@ -358,10 +358,6 @@ class Connection:
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
         )
         link = open_link(self.url, store, **options)
-        simulator = getattr(link, "simulator", None)
-        if simulator is not None and "map_targets" not in robot_options:
-            # An in-process simulator knows its map: sim:// needs no map_targets option.
-            robot_options["map_targets"] = len(simulator.config.targets)
         try:
             robot = Robot(link, store, **robot_options)
         except BaseException:
@@ -370,6 +366,8 @@ class Connection:
             raise
         try:
             await link.open()
+            if "map_targets" not in robot_options:  # sim:// and ros:// can tell
+                robot.map_targets = link.map_target_count()
             if first_status_timeout is not None:
                 await _first_status(store, first_status_timeout, self.url)
         except BaseException:

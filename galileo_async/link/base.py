@@ -114,6 +114,10 @@ class BaseLink(CommandQueue, abc.ABC):
     async def _disconnect(self) -> None:
         """Close the transport, if any, and release what the link owns (bounded)."""
 
+    def map_target_count(self) -> int | None:
+        """How many targets the robot's map has, when the link can tell (once open); else None."""
+        return None
+
     def _current_transport(self) -> asyncio.WriteTransport | None:
         """The asyncio transport written to, if any (default: ``self._transport`` if it is one)."""
         transport = getattr(self, "_transport", None)

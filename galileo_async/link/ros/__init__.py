@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from .link import (
     DEFAULT_MASTER_PORT,
+    GOAL_NUM_PARAM,
     ROS_OPTIONS,
     RosLink,
     check_ros_options,
@@ -27,6 +28,7 @@ __all__ = [
     "CMDS_TOPIC",
     "CMDS_TYPE",
     "DEFAULT_MASTER_PORT",
+    "GOAL_NUM_PARAM",
     "ROS_OPTIONS",
     "STATUS_MD5",
     "STATUS_TOPIC",

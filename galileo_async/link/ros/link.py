@@ -25,10 +25,12 @@ from .node import (
     default_node_name,
     local_address_for,
 )
+from .xmlrpc import RosApiError
 
 __all__ = [
     "DEFAULT_MASTER_PORT",
     "DEFAULT_STALE_RECONNECT",
+    "GOAL_NUM_PARAM",
     "ROS_OPTIONS",
     "RosLink",
     "check_ros_options",
@@ -39,6 +41,10 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 DEFAULT_MASTER_PORT = 11311
+#: The robot's target count, kept by its navigation node and read by the vendor's SDK.
+GOAL_NUM_PARAM = "/galileo/goal_num"
+#: Goal ids are one byte (PROTOCOL.md §2.b).
+_MAX_TARGETS = 255
 _QUERY_OPTIONS: dict[str, Any] = {
     "host": str,
     "node_name": str,
@@ -153,9 +159,14 @@ class RosLink(BaseLink):
         #: Undecodable status messages over the link's life (their bytes are in bytes_discarded).
         self.decode_errors = 0
         self._counted = NodeStats()
+        self._goal_num: int | None = None
 
     def __repr__(self) -> str:
         return f"<RosLink {self.name}>"
+
+    def map_target_count(self) -> int | None:
+        """``/galileo/goal_num`` as read at the last connect (dynamic targets included)."""
+        return self._goal_num
 
     async def _connect(self) -> None:
         await self._drop_node()
@@ -181,6 +192,24 @@ class RosLink(BaseLink):
         except (GalileoConnectionError, OSError) as exc:  # foreign errors: at the link edge
             raise GalileoConnectionError(f"cannot connect to {self.name}: {exc}") from exc
         _log.info("connected to %s as %s", self.master_uri, node.name)
+        await self._read_goal_num(node)
+
+    async def _read_goal_num(self, node: RosNode) -> None:
+        try:
+            value = await node.get_param(GOAL_NUM_PARAM)
+        except RosApiError as exc:  # keep what the last connect read
+            _log.warning("cannot read %s from %s: %s", GOAL_NUM_PARAM, self.master_uri, exc)
+            return
+        # The vendor's navigation node stores it as a string ("5"); the SDK accepts an int too.
+        if isinstance(value, str) and value.strip().isdigit():
+            value = int(value)
+        if value is None or isinstance(value, bool) or not isinstance(value, int):
+            count = None
+        else:
+            count = value if 0 <= value <= _MAX_TARGETS else None
+        if count is None and value is not None:
+            _log.warning("ignoring %s = %r on %s", GOAL_NUM_PARAM, value, self.master_uri)
+        self._goal_num = count
 
     def _status_from_node(self, status: GalileoStatus) -> None:
         if self.node is not None:

@@ -316,6 +316,10 @@ class RosNode:
             except RosApiError as exc:
                 _log.debug("master %s unreachable: %s", self.master_uri, exc)
 
+    async def get_param(self, key: str) -> Any:
+        """A parameter from the master's parameter server; None when it is not set."""
+        return await self._master.get_param(key)
+
     def publish(self, command: Command) -> None:
         """Publish one command as GalileoNativeCmds; raise ConnectionLost if nobody listens."""
         if not self._up:

@@ -141,6 +141,15 @@ class MasterClient:
         """Withdraw a subscription."""
         await self._call("unregisterSubscriber", topic, caller_api)
 
+    async def get_param(self, key: str) -> Any:
+        """A parameter's value; None when the parameter server does not have it."""
+        result = await xmlrpc_call(
+            self.master_uri, "getParam", self.caller_id, key, timeout=self.timeout
+        )
+        if isinstance(result, (list, tuple)) and len(result) == 3 and result[0] == -1:
+            return None  # rosmaster: "Parameter [key] is not set"
+        return _value("getParam", result)
+
     async def get_pid(self) -> int:
         """The master's process id (changes when the master restarts)."""
         return int(await self._call("getPid"))
