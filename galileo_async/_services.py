@@ -266,7 +266,11 @@ class RobotServices:
         await self._send(UpdateMap(), timeout, "update_map", deadline)
 
     async def start_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> ChargeStatus:
-        """Go to the dock and charge; return the charge_status once it leaves FREE."""
+        """Dock and charge (``j 0``); return the charge_status once it leaves FREE.
+
+        This is the local infrared docking only: it does not cross the map. The robot must
+        already be near the dock with navigation open; drive it there first (``goto_point``).
+        """
         check_timeout("timeout", timeout)
         deadline = Deadline(timeout)
         await self._require(lambda s: True, "start_charging", deadline)

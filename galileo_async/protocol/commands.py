@@ -176,7 +176,7 @@ class UpdateMap(_Fixed):
 
 @dataclass(frozen=True, slots=True)
 class StartCharging(_Fixed):
-    """Go to the dock and charge ('j' 0)."""
+    """Dock and charge ('j' 0): local infrared docking, the robot near the dock, navigating."""
 
     data: ClassVar[bytes] = b"j\x00"
 
