@@ -240,10 +240,14 @@ class RosLink(BaseLink):
         await self._drop_node()
 
     async def _drop_node(self) -> None:
-        node, self.node = self.node, None
+        node = self.node
         if node is not None:
             self._count(node)
-            await node.close()
+            try:
+                await node.close()
+            finally:  # kept until closed: a cancelled drop is finished by the next one
+                if self.node is node:
+                    self.node = None
 
 
 def open_ros_link(url: str, store: StatusSink, **options: Any) -> RosLink:
