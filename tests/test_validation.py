@@ -39,7 +39,7 @@ LINK_OPTIONS = (
     "min_command_interval", "drain_timeout", "max_queued_commands",
 )  # fmt: skip
 STREAM_OPTIONS = ("layout", "baudrate", "serial_options", "connect_timeout")
-ROS_OPTIONS = ("host", "bind", "node_name", "connect_timeout", "rpc_timeout",
+ROS_OPTIONS = ("host", "bind", "node_name", "connect_timeout", "rpc_timeout", "hosts",
                "master_check_interval", "layout", "baudrate", "serial_options")  # fmt: skip
 #: Values among BAD_VALUES that an option does take.
 ACCEPTED: dict[str, tuple[Any, ...]] = {
