@@ -1,0 +1,22 @@
+"""VDA 5050 2.0 vehicle adapter: a Galileo robot as a vehicle of any VDA 5050 master control.
+
+Needs the ``vda5050`` extra (aiomqtt). See docs/vda5050.md.
+"""
+
+from __future__ import annotations
+
+from .config import MAX_VISUALIZATION_RATE, BrokerAddress, VehicleConfig, parse_broker_url
+from .order import OrderProgress, Rejection, check_order
+from .vehicle import Vehicle, run_vehicles
+
+__all__ = [
+    "MAX_VISUALIZATION_RATE",
+    "BrokerAddress",
+    "OrderProgress",
+    "Rejection",
+    "Vehicle",
+    "VehicleConfig",
+    "check_order",
+    "parse_broker_url",
+    "run_vehicles",
+]

@@ -1,0 +1,112 @@
+"""instantActions: actionStates WAITING → RUNNING → FINISHED / FAILED, and their handlers."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Awaitable, Callable
+from typing import TYPE_CHECKING
+
+from ..errors import GalileoError
+from .models import Action, ActionState, ActionStatus, Error
+from .order import Rejection
+
+if TYPE_CHECKING:
+    from .vehicle import Vehicle
+
+__all__ = ["MAX_ACTION_ERRORS", "ActionRunner"]
+
+_log = logging.getLogger(__name__)
+
+#: Errors of failed actions kept in state.errors (the newest); a new order clears them.
+MAX_ACTION_ERRORS = 10
+
+
+class ActionRunner:
+    """Runs one vehicle's instant actions and remembers their states."""
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self._vehicle = vehicle
+        self._states: dict[str, ActionState] = {}
+        self.errors: list[Error] = []
+        robot, executor = vehicle.robot, vehicle.executor
+        self._handlers: dict[str, Callable[[], Awaitable[object]]] = {
+            "startPause": executor.pause,
+            "stopPause": executor.resume,
+            "stateRequest": vehicle.publish_state,
+            "factsheetRequest": vehicle.publish_factsheet,
+            "startCharging": robot.start_charging,
+            "stopCharging": robot.stop_charging,
+            "startNavigation": robot.start_navigation,
+            "stopNavigation": robot.stop_navigation,
+        }
+
+    def states(self) -> list[ActionState]:
+        """state.actionStates."""
+        return list(self._states.values())
+
+    def add_error(self, rejection: Rejection) -> None:
+        """Report ``rejection`` in state.errors (the newest MAX_ACTION_ERRORS are kept)."""
+        self.errors = [*self.errors, rejection.error][-MAX_ACTION_ERRORS:]
+
+    def forget_finished(self) -> None:
+        """A new order: finished and failed actions and their errors leave the state."""
+        self._states = {
+            key: state
+            for key, state in self._states.items()
+            if state.actionStatus not in ("FINISHED", "FAILED")
+        }
+        self.errors = []
+
+    def _set(self, action: Action, status: ActionStatus, result: str | None = None) -> None:
+        self._states[action.actionId] = ActionState(
+            actionId=action.actionId, actionType=action.actionType,
+            actionDescription=action.actionDescription, actionStatus=status,
+            resultDescription=result,
+        )  # fmt: skip
+        self._vehicle.changed()
+
+    def queue(self, actions: list[Action]) -> None:
+        """Show every action of a message as WAITING."""
+        for action in actions:
+            self._set(action, "WAITING")
+
+    async def run(self, actions: list[Action]) -> None:
+        """Run ``actions`` one after the other."""
+        for action in actions:
+            await self._run_one(action)
+
+    async def _run_one(self, action: Action) -> None:
+        self._set(action, "RUNNING")
+        try:
+            await self._dispatch(action)
+        except Rejection as exc:
+            self.add_error(exc)
+            self._set(action, "FAILED", str(exc))
+        except GalileoError as exc:
+            _log.info("action %s (%s) failed: %s", action.actionId, action.actionType, exc)
+            self.add_error(
+                Rejection(
+                    "actionFailed", f"{action.actionType}: {type(exc).__name__}: {exc}",
+                    [("actionId", action.actionId), ("actionType", action.actionType)],
+                )
+            )  # fmt: skip
+            self._set(action, "FAILED", f"{type(exc).__name__}: {exc}")
+        else:
+            self._set(action, "FINISHED")
+
+    async def _dispatch(self, action: Action) -> None:
+        refs = [("actionId", action.actionId), ("actionType", action.actionType)]
+        if action.actionType == "cancelOrder":
+            executor = self._vehicle.executor
+            if not (self._vehicle.progress.active or executor.moving):
+                raise Rejection("noOrderToCancel", "there is no order to cancel", refs)
+            await executor.cancel_order()
+            return
+        handler = self._handlers.get(action.actionType)
+        if handler is None:
+            raise Rejection(
+                "unsupportedAction",
+                f"instant action {action.actionType!r} is not supported on this vehicle",
+                refs,
+            )
+        await handler()

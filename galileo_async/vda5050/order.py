@@ -1,0 +1,269 @@
+"""Order validation and the vehicle's order memory (stitching, traversal): pure, no I/O."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .models import Edge, EdgeState, Error, ErrorReference, Node, NodeState, Order
+
+__all__ = [
+    "MAX_TARGET_NUMBER",
+    "OrderProgress",
+    "Rejection",
+    "check_order",
+    "target_number",
+]
+
+#: Map target numbers the goto command accepts (PROTOCOL.md §2).
+MAX_TARGET_NUMBER = 255
+
+Decision = Literal["ignore", "new", "stitch"]
+
+
+class Rejection(Exception):
+    """An order or action the vehicle refuses; ``error`` is what state.errors reports."""
+
+    def __init__(
+        self, error_type: str, description: str, references: Iterable[tuple[str, str]]
+    ) -> None:
+        super().__init__(description)
+        self.error = Error(
+            errorType=error_type,
+            errorDescription=description,
+            errorLevel="WARNING",
+            errorReferences=[
+                ErrorReference(referenceKey=k, referenceValue=v) for k, v in references
+            ],
+        )
+
+
+def target_number(node_id: str) -> int | None:
+    """The map target a position-less node names (``"3"`` → 3), or None."""
+    if not node_id.isascii() or not node_id.isdigit():
+        return None
+    number = int(node_id)
+    return number if number <= MAX_TARGET_NUMBER else None
+
+
+def _order_refs(order: Order) -> list[tuple[str, str]]:
+    return [("orderId", order.orderId), ("orderUpdateId", str(order.orderUpdateId))]
+
+
+def _check_structure(order: Order) -> None:
+    """Sequence ids, edges joining the nodes, base before horizon (validationError)."""
+    refs = _order_refs(order)
+
+    def invalid(message: str, *more: tuple[str, str]) -> Rejection:
+        return Rejection("validationError", message, [*refs, *more])
+
+    nodes, edges = order.nodes, order.edges
+    if not nodes:
+        raise invalid("an order needs at least one node")
+    if len(edges) != len(nodes) - 1:
+        raise invalid(f"{len(nodes)} nodes need {len(nodes) - 1} edges, got {len(edges)}")
+    first = nodes[0].sequenceId
+    if first % 2:
+        raise invalid("node sequenceIds must be even", ("nodeId", nodes[0].nodeId))
+    for index, node in enumerate(nodes):
+        if node.sequenceId != first + 2 * index:
+            raise invalid(
+                f"node sequenceId {node.sequenceId} should be {first + 2 * index}",
+                ("nodeId", node.nodeId),
+            )
+    for index, edge in enumerate(edges):
+        start, end = nodes[index], nodes[index + 1]
+        if edge.sequenceId != start.sequenceId + 1:
+            raise invalid(
+                f"edge sequenceId {edge.sequenceId} should be {start.sequenceId + 1}",
+                ("edgeId", edge.edgeId),
+            )
+        if (edge.startNodeId, edge.endNodeId) != (start.nodeId, end.nodeId):
+            raise invalid(
+                f"edge {edge.edgeId} joins {edge.startNodeId} → {edge.endNodeId}, "
+                f"not {start.nodeId} → {end.nodeId}",
+                ("edgeId", edge.edgeId),
+            )
+        if edge.released != end.released:
+            raise invalid(
+                f"edge {edge.edgeId} and its end node {end.nodeId} must both be released or not",
+                ("edgeId", edge.edgeId),
+            )
+    if not nodes[0].released:
+        raise invalid("the first node must be released", ("nodeId", nodes[0].nodeId))
+    released = [node.released for node in nodes]
+    if released != sorted(released, reverse=True):
+        horizon = next(n for n, r in zip(nodes, released, strict=True) if not r)
+        raise invalid("a released node follows the horizon", ("nodeId", horizon.nodeId))
+
+
+def _check_capabilities(order: Order, map_id: str) -> None:
+    """Actions, trajectories, maps and nodes this vehicle cannot use (orderError)."""
+    refs = _order_refs(order)
+    items: list[tuple[str, Node | Edge]] = [
+        *(("nodeId", node) for node in order.nodes),
+        *(("edgeId", edge) for edge in order.edges),
+    ]
+    for key, item in items:
+        name = item.nodeId if isinstance(item, Node) else item.edgeId
+        for action in item.actions:
+            raise Rejection(
+                "orderError",
+                f"{key} {name}: action {action.actionType!r} is not supported on this vehicle",
+                [*refs, (key, name), ("actionId", action.actionId),
+                 ("actionType", action.actionType)],
+            )  # fmt: skip
+    for edge in order.edges:
+        if edge.trajectory is not None:
+            raise Rejection(
+                "orderError",
+                f"edge {edge.edgeId}: trajectories are not supported (the robot plans its path)",
+                [*refs, ("edgeId", edge.edgeId), ("field", "trajectory")],
+            )
+    for node in order.nodes:
+        position = node.nodePosition
+        if position is None:
+            if target_number(node.nodeId) is None:
+                raise Rejection(
+                    "orderError",
+                    f"node {node.nodeId!r} has no nodePosition and is no map target number "
+                    f"(0..{MAX_TARGET_NUMBER})",
+                    [*refs, ("nodeId", node.nodeId)],
+                )
+        elif position.mapId != map_id:
+            raise Rejection(
+                "orderError",
+                f"node {node.nodeId}: map {position.mapId!r} is not this vehicle's {map_id!r}",
+                [*refs, ("nodeId", node.nodeId), ("mapId", position.mapId)],
+            )
+
+
+def check_order(order: Order, *, map_id: str) -> None:
+    """Raise Rejection (validationError, then orderError) unless this vehicle can drive it."""
+    _check_structure(order)
+    _check_capabilities(order, map_id)
+
+
+@dataclass
+class OrderProgress:
+    """The order in the vehicle's buffer: what is left to traverse and the last node reached."""
+
+    order_id: str = ""
+    order_update_id: int = 0
+    last_node_id: str = ""
+    last_node_sequence_id: int = 0
+    nodes: list[Node] = field(default_factory=list)
+    edges: list[Edge] = field(default_factory=list)
+
+    @property
+    def active(self) -> bool:
+        """True while nodes remain to be traversed (released or horizon)."""
+        return bool(self.nodes)
+
+    @property
+    def new_base_request(self) -> bool:
+        """True when the base is driven and only horizon nodes remain."""
+        return self.active and not self.nodes[0].released
+
+    def _base_end(self) -> tuple[str, int]:
+        released = [node for node in self.nodes if node.released]
+        if released:
+            return released[-1].nodeId, released[-1].sequenceId
+        return self.last_node_id, self.last_node_sequence_id
+
+    def decide(
+        self, order: Order, position: tuple[float, float] | None, default_deviation: float
+    ) -> Decision:
+        """What to do with a checked order: ignore (resent), new, stitch; else Rejection."""
+        refs = _order_refs(order)
+        first = order.nodes[0]
+        if order.orderId == self.order_id:
+            if order.orderUpdateId < self.order_update_id:
+                raise Rejection(
+                    "orderUpdateError",
+                    f"orderUpdateId {order.orderUpdateId} is lower than the current "
+                    f"{self.order_update_id}",
+                    refs,
+                )
+            if order.orderUpdateId == self.order_update_id:
+                return "ignore"
+        if self.active or order.orderId == self.order_id:
+            base_end = self._base_end()
+            if (first.nodeId, first.sequenceId) == base_end:
+                return "stitch"
+            raise Rejection(
+                "orderUpdateError",
+                f"the update must start at the end of the current base, node {base_end[0]} "
+                f"(sequenceId {base_end[1]}), of order {self.order_id}",
+                [*refs, ("nodeId", first.nodeId)],
+            )
+        if first.nodeId == self.last_node_id and self.last_node_id:
+            return "new"
+        start = first.nodePosition
+        if start is not None and position is not None:
+            allowed = start.allowedDeviationXY
+            allowed = default_deviation if allowed is None else allowed
+            if math.hypot(start.x - position[0], start.y - position[1]) <= allowed:
+                return "new"
+        raise Rejection(
+            "noRouteError",
+            f"the first node {first.nodeId} is not where the vehicle stands",
+            [*refs, ("nodeId", first.nodeId)],
+        )
+
+    def accept(self, order: Order, decision: Decision) -> None:
+        """Take ``order`` over: a new order starts at its first node (reached), a stitch appends."""
+        if decision == "ignore":
+            return
+        if decision == "stitch":
+            self.nodes = [node for node in self.nodes if node.released] + order.nodes[1:]
+            self.edges = [edge for edge in self.edges if edge.released] + list(order.edges)
+        else:
+            first = order.nodes[0]
+            self.last_node_id, self.last_node_sequence_id = first.nodeId, first.sequenceId
+            self.nodes, self.edges = list(order.nodes[1:]), list(order.edges)
+        self.order_id, self.order_update_id = order.orderId, order.orderUpdateId
+
+    def next_step(self) -> tuple[Edge, Node] | None:
+        """The released edge and node to drive next, or None (done, or waiting for a base)."""
+        if self.nodes and self.edges and self.nodes[0].released and self.edges[0].released:
+            return self.edges[0], self.nodes[0]
+        return None
+
+    def reached(self, node: Node) -> None:
+        """``node`` (the next one) was reached: it and its edge leave the states."""
+        if self.nodes and self.nodes[0] is node:
+            self.nodes.pop(0)
+            self.edges.pop(0)
+            self.last_node_id, self.last_node_sequence_id = node.nodeId, node.sequenceId
+
+    def clear(self) -> None:
+        """End the order (cancelled or failed): nothing left to traverse."""
+        self.nodes, self.edges = [], []
+
+    def node_states(self) -> list[NodeState]:
+        """state.nodeStates."""
+        return [
+            NodeState(
+                nodeId=n.nodeId,
+                sequenceId=n.sequenceId,
+                nodeDescription=n.nodeDescription,
+                nodePosition=n.nodePosition,
+                released=n.released,
+            )
+            for n in self.nodes
+        ]
+
+    def edge_states(self) -> list[EdgeState]:
+        """state.edgeStates."""
+        return [
+            EdgeState(
+                edgeId=e.edgeId,
+                sequenceId=e.sequenceId,
+                edgeDescription=e.edgeDescription,
+                released=e.released,
+            )
+            for e in self.edges
+        ]

@@ -1,0 +1,205 @@
+"""Galileo status → VDA 5050 state parts, and the factsheet: pure, no I/O."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable, Sequence
+from datetime import datetime, timezone
+
+from ..models import GalileoStatus, TargetStatus, VisualStatus
+from .config import MAX_VISUALIZATION_RATE
+from .models import AgvPosition, BatteryState, Error, ErrorReference, Velocity
+
+__all__ = [
+    "BATTERY_CURVE",
+    "INSTANT_ACTIONS",
+    "agv_position",
+    "battery_charge",
+    "battery_state",
+    "driving",
+    "factsheet_sections",
+    "operating_mode",
+    "significant",
+    "status_errors",
+    "timestamp",
+    "velocity",
+]
+
+#: Volts → percent of a 24 V pack at rest, linear between the points. The robot reports
+#: voltage only (PROTOCOL.md §1 ``power``), so batteryCharge is an estimate.
+BATTERY_CURVE: tuple[tuple[float, float], ...] = (
+    (22.0, 0.0),
+    (23.5, 10.0),
+    (24.5, 30.0),
+    (25.5, 60.0),
+    (26.5, 85.0),
+    (28.0, 100.0),
+)
+
+#: instantActions this vehicle runs, with what each does (also the factsheet's agvActions).
+INSTANT_ACTIONS: dict[str, str] = {
+    "startPause": "Pause the vehicle (the running goal is paused, no next node is started).",
+    "stopPause": "Resume after startPause.",
+    "cancelOrder": "Stop at once and delete the order.",
+    "stateRequest": "Publish a state message now.",
+    "factsheetRequest": "Publish the factsheet now.",
+    "startCharging": "Drive to the dock and charge.",
+    "stopCharging": "Stop charging and leave the dock.",
+    "startNavigation": "Open navigation (custom): the vehicle becomes AUTOMATIC.",
+    "stopNavigation": "Close navigation (custom): the vehicle becomes MANUAL.",
+}
+
+
+def timestamp() -> str:
+    """Now as ISO 8601 UTC with milliseconds (``2026-11-24T22:00:00.000Z``)."""
+    now = datetime.now(timezone.utc)
+    return now.strftime("%Y-%m-%dT%H:%M:%S.") + f"{now.microsecond // 1000:03d}Z"
+
+
+def battery_charge(volts: float) -> float:
+    """Estimated charge in percent (0..100) for ``volts`` on BATTERY_CURVE."""
+    if not math.isfinite(volts):
+        return 0.0
+    (low_v, low_p), *rest = BATTERY_CURVE
+    if volts <= low_v:
+        return low_p
+    for high_v, high_p in rest:
+        if volts <= high_v:
+            return round(low_p + (high_p - low_p) * (volts - low_v) / (high_v - low_v), 1)
+        low_v, low_p = high_v, high_p
+    return 100.0
+
+
+def battery_state(status: GalileoStatus | None) -> BatteryState:
+    """batteryState from ``power`` (volts) and ``charge_status``."""
+    volts = status.power if status is not None else None
+    charging = status.charging if status is not None else False
+    if volts is None or not math.isfinite(volts):
+        return BatteryState(batteryCharge=0.0, charging=charging)
+    return BatteryState(
+        batteryCharge=battery_charge(volts), batteryVoltage=round(volts, 3), charging=charging
+    )
+
+
+def _wrap(theta: float) -> float:
+    return math.atan2(math.sin(theta), math.cos(theta))
+
+
+def agv_position(status: GalileoStatus | None, map_id: str) -> AgvPosition | None:
+    """agvPosition; positionInitialized when navigation is open and the camera tracks."""
+    pose = status.pose if status is not None else None
+    if status is None or pose is None:
+        return None
+    initialized = status.navigating and status.visual_status == VisualStatus.TRACKING
+    return AgvPosition(
+        x=round(pose.x, 4), y=round(pose.y, 4), theta=round(_wrap(pose.theta), 4),
+        mapId=map_id, positionInitialized=initialized,
+    )  # fmt: skip
+
+
+def velocity(status: GalileoStatus | None) -> Velocity | None:
+    """Velocity in the vehicle frame (a differential drive: vy is 0)."""
+    if status is None or status.current_speed_x is None:
+        return None
+    omega = status.current_speed_theta
+    return Velocity(
+        vx=round(status.current_speed_x, 4), vy=0.0,
+        omega=round(omega, 4) if omega is not None else None,
+    )  # fmt: skip
+
+
+def driving(status: GalileoStatus | None) -> bool:
+    """True while the wheels turn (the robot's own speeds, not the commanded ones)."""
+    if status is None:
+        return False
+    return (
+        abs(status.current_speed_x or 0.0) > 1e-3 or abs(status.current_speed_theta or 0.0) > 1e-3
+    )
+
+
+def operating_mode(status: GalileoStatus | None) -> str:
+    """AUTOMATIC while navigation is open (orders can run), else MANUAL."""
+    return "AUTOMATIC" if status is not None and status.navigating else "MANUAL"
+
+
+def status_errors(status: GalileoStatus | None) -> list[Error]:
+    """Errors read off the status itself: the camera lost its tracking while navigating."""
+    if status is None or not status.navigating or status.visual_status != VisualStatus.LOST:
+        return []
+    return [
+        Error(
+            errorType="visualLost", errorLevel="WARNING",
+            errorDescription="the visual system lost its tracking; the robot cannot localise",
+            errorReferences=[ErrorReference(referenceKey="visual_status", referenceValue="2")],
+        )
+    ]  # fmt: skip
+
+
+def significant(status: GalileoStatus | None) -> Hashable:
+    """The part of a status whose change makes a new state message (not pose or speed)."""
+    if status is None:
+        return None
+    return (
+        status.nav_status, status.visual_status, status.charge_status, status.map_status,
+        status.target_status == TargetStatus.PAUSED, driving(status),
+        round(battery_charge(status.power), 0) if status.power is not None else None,
+    )  # fmt: skip
+
+
+def factsheet_sections(
+    max_speed: float | None, action_types: Sequence[str], map_id: str
+) -> dict[str, dict[str, object]]:
+    """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot."""
+    actions = [
+        {"actionType": name, "actionDescription": INSTANT_ACTIONS[name],
+         "actionScopes": ["INSTANT"], "blockingTypes": ["HARD"]}
+        for name in action_types
+    ]  # fmt: skip
+    return {
+        "typeSpecification": {
+            "seriesName": "Galileo",
+            "seriesDescription": f"Galileo visual navigation robot (map {map_id})",
+            "agvKinematic": "DIFF",
+            "agvClass": "CARRIER",
+            "maxLoadMass": 0.0,
+            "localizationTypes": ["NATURAL"],
+            "navigationTypes": ["AUTONOMOUS"],
+        },
+        "physicalParameters": {
+            "speedMin": 0.0,
+            "speedMax": max_speed if max_speed is not None else 0.0,
+            "accelerationMax": 0.0,
+            "decelerationMax": 0.0,
+            "heightMin": 0.0,
+            "heightMax": 0.0,
+            "width": 0.0,
+            "length": 0.0,
+        },
+        "protocolLimits": {
+            "maxStringLens": {"idNumericalOnly": False},
+            "maxArrayLens": {
+                "node.actions": 0,
+                "edge.actions": 0,
+                "trajectory.knotVector": 0,
+                "trajectory.controlPoints": 0,
+            },
+            "timing": {
+                "minOrderInterval": 0.0,
+                "minStateInterval": 0.0,
+                "visualizationInterval": 1.0 / MAX_VISUALIZATION_RATE,
+            },
+        },
+        "protocolFeatures": {
+            "optionalParameters": [
+                {
+                    "parameter": "order.nodes.nodePosition",
+                    "support": "SUPPORTED",
+                    "description": 'without it, a nodeId that is a map target number ("3")',
+                },
+                {"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"},
+            ],
+            "agvActions": actions,
+        },
+        "agvGeometry": {},
+        "loadSpecification": {},
+    }

@@ -1,0 +1,373 @@
+"""Vehicle: one robot as a VDA 5050 2.0 vehicle over its own MQTT session (aiomqtt)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import ssl
+from collections.abc import Iterable
+from typing import Any
+
+import aiomqtt
+import anyio
+from pydantic import BaseModel, ValidationError
+
+from ..errors import GalileoError
+from ..events import ConnectionLost, ConnectionRestored, LinkRestored, LinkStale
+from ..robot import Robot
+from . import report
+from .actions import ActionRunner
+from .config import VehicleConfig
+from .execution import Executor
+from .models import (
+    VERSION,
+    Connection,
+    Error,
+    Factsheet,
+    InstantActions,
+    Order,
+    State,
+    Visualization,
+    reference,
+)
+from .order import OrderProgress, Rejection, check_order
+
+__all__ = ["OFFLINE_TIMEOUT", "Vehicle", "run_vehicles"]
+
+_log = logging.getLogger(__name__)
+
+#: Seconds a clean stop may spend saying OFFLINE and disconnecting.
+OFFLINE_TIMEOUT = 3.0
+
+
+def _payload(message: aiomqtt.Message) -> bytes:
+    payload = message.payload
+    if isinstance(payload, (bytes, bytearray)):
+        return bytes(payload)
+    return str(payload).encode()
+
+
+class Vehicle:
+    """A VDA 5050 vehicle for ``robot``: ``await vehicle.run()`` until cancelled."""
+
+    def __init__(self, robot: Robot, config: VehicleConfig) -> None:
+        if not isinstance(config, VehicleConfig):
+            raise TypeError(f"config must be a VehicleConfig, got {config!r}")
+        self.robot = robot
+        self.config = config
+        self.progress = OrderProgress()
+        self.executor = Executor(robot, self.progress, self.changed)
+        self.actions = ActionRunner(self)
+        self._client: aiomqtt.Client | None = None
+        self._headers: dict[str, int] = {}
+        self._dirty = anyio.Event()
+        self._online = anyio.Event()
+        self._offline = anyio.Event()
+        self._offline.set()
+        self._order_errors: list[Error] = []
+        self._link_error: Error | None = None
+        #: Published state messages (for tests and benchmarks).
+        self.states_published = 0
+
+    # --- what the vehicle reports ------------------------------------------------------
+
+    @property
+    def connected(self) -> bool:
+        """True while the MQTT session is up."""
+        return self._client is not None
+
+    def changed(self) -> None:
+        """Something that matters changed: publish a state message soon."""
+        self._dirty.set()
+
+    def _header(self, topic: str) -> dict[str, Any]:
+        header_id = self._headers.get(topic, -1) + 1
+        self._headers[topic] = header_id
+        return {
+            "headerId": header_id, "timestamp": report.timestamp(), "version": VERSION,
+            "manufacturer": self.config.manufacturer, "serialNumber": self.config.serial_number,
+        }  # fmt: skip
+
+    def errors(self) -> list[Error]:
+        """state.errors: the link, the order, the actions, the status."""
+        link = [self._link_error] if self._link_error is not None else []
+        return [
+            *link, *self._order_errors, *self.executor.errors, *self.actions.errors,
+            *report.status_errors(self.robot.status),
+        ]  # fmt: skip
+
+    def state(self) -> State:
+        """The state message as of now (the header is counted)."""
+        status = self.robot.status
+        progress = self.progress
+        paused = self.executor.paused or (status is not None and status.target_status == 2)
+        return State(
+            **self._header("state"),
+            orderId=progress.order_id, orderUpdateId=progress.order_update_id,
+            lastNodeId=progress.last_node_id, lastNodeSequenceId=progress.last_node_sequence_id,
+            nodeStates=progress.node_states(), edgeStates=progress.edge_states(),
+            agvPosition=report.agv_position(status, self.config.map_id),
+            velocity=report.velocity(status), driving=report.driving(status), paused=paused,
+            newBaseRequest=progress.new_base_request, actionStates=self.actions.states(),
+            batteryState=report.battery_state(status),
+            operatingMode=report.operating_mode(status),
+            errors=self.errors(), information=list(self.executor.information),
+            safetyState={"eStop": "NONE", "fieldViolation": False},
+        )  # fmt: skip
+
+    def factsheet(self) -> Factsheet:
+        """The factsheet message (the header is counted)."""
+        sections = report.factsheet_sections(
+            self.config.max_speed, list(report.INSTANT_ACTIONS), self.config.map_id
+        )
+        return Factsheet(**self._header("factsheet"), **sections)
+
+    # --- publishing ----------------------------------------------------------------------
+
+    async def publish(
+        self, topic: str, message: BaseModel, *, qos: int = 0, retain: bool = False
+    ) -> bool:
+        """Publish ``message`` on the vehicle's ``topic``; False when the broker is away."""
+        client = self._client
+        if client is None:
+            return False
+        payload = message.model_dump_json(exclude_none=True)
+        try:
+            await client.publish(self.config.topic(topic), payload, qos=qos, retain=retain)
+        except aiomqtt.MqttError as exc:
+            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, exc)
+            return False
+        return True
+
+    async def publish_state(self) -> None:
+        """Publish a state message now."""
+        if await self.publish("state", self.state()):
+            self.states_published += 1
+
+    async def publish_factsheet(self) -> None:
+        """Publish the factsheet (retained)."""
+        await self.publish("factsheet", self.factsheet(), retain=True)
+
+    def _connection(self, state: str) -> Connection:
+        return Connection(**self._header("connection"), connectionState=state)
+
+    # --- incoming --------------------------------------------------------------------------
+
+    def on_order(self, payload: bytes) -> None:
+        """Check an order and take it over, or report why not (state.errors)."""
+        try:
+            order = Order.model_validate_json(payload)
+        except ValidationError as exc:
+            self._reject(Rejection("validationError", _first_problem(exc), [("topic", "order")]))
+            return
+        try:
+            check_order(order, map_id=self.config.map_id)
+            status = self.robot.status
+            if self._link_error is not None or status is None or not status.navigating:
+                raise Rejection(
+                    "orderError",
+                    "the vehicle cannot drive: "
+                    + ("its robot link is lost" if self._link_error else "navigation is closed"),
+                    [("orderId", order.orderId), ("operatingMode", report.operating_mode(status))],
+                )
+            pose = status.pose
+            position = (pose.x, pose.y) if pose is not None else None
+            decision = self.progress.decide(order, position, self.config.default_deviation_xy)
+        except Rejection as exc:
+            self._reject(exc)
+            return
+        if decision == "ignore":
+            return
+        self.progress.accept(order, decision)
+        self._order_errors = []
+        self.actions.forget_finished()
+        self.executor.new_order()
+
+    def _reject(self, rejection: Rejection) -> None:
+        _log.info("%s: order rejected: %s", self.config.serial_number, rejection)
+        self._order_errors = [rejection.error]
+        self.changed()
+
+    def on_instant_actions(self, payload: bytes, group: anyio.abc.TaskGroup) -> None:
+        """Queue the actions of an instantActions message (WAITING), run them in order."""
+        try:
+            message = InstantActions.model_validate_json(payload)
+        except ValidationError as exc:
+            self.actions.add_error(
+                Rejection("validationError", _first_problem(exc), [("topic", "instantActions")])
+            )
+            self.changed()
+            return
+        self.actions.queue(message.actions)
+        group.start_soon(self.actions.run, message.actions)
+
+    # --- tasks ----------------------------------------------------------------------------
+
+    async def run(self) -> None:
+        """Be the vehicle until cancelled; then OFFLINE is published and the session closed."""
+        async with anyio.create_task_group() as group:
+            group.start_soon(self.executor.run)
+            group.start_soon(self._watch_status)
+            group.start_soon(self._watch_link)
+            group.start_soon(self._publish_states)
+            group.start_soon(self._broker_watchdog)
+            if self.config.visualization_rate > 0:
+                group.start_soon(self._visualize)
+            if self.config.start_navigation:
+                group.start_soon(self._start_navigation)
+            await self._session(group)
+
+    async def _start_navigation(self) -> None:
+        status = self.robot.status
+        if status is not None and status.navigating and status.visual_initialised:
+            return
+        try:
+            await self.robot.start_navigation()
+        except GalileoError as exc:
+            self.actions.add_error(Rejection("startNavigationFailed", str(exc), []))
+            self.changed()
+
+    async def _watch_status(self) -> None:
+        last: object = object()
+        async for status in self.robot.statuses():
+            key = report.significant(status)
+            if key != last:
+                last = key
+                self.changed()
+
+    async def _watch_link(self) -> None:
+        async for event in self.robot.events():
+            if isinstance(event, (ConnectionLost, LinkStale)):
+                self._link_error = Error(
+                    errorType="robotLinkLost", errorLevel="FATAL",
+                    errorDescription=f"the link to the robot is down: {event}",
+                    errorReferences=[reference("link", type(event).__name__)],
+                )  # fmt: skip
+                await self.executor.stop_driving()
+                if self.progress.active:
+                    self.executor.fail(
+                        "orderFailed", "the robot link was lost while the order ran",
+                        [reference("orderId", self.progress.order_id)],
+                    )  # fmt: skip
+                self.changed()
+            elif isinstance(event, (ConnectionRestored, LinkRestored)):
+                self._link_error = None
+                self.changed()
+
+    async def _publish_states(self) -> None:
+        while True:
+            with anyio.move_on_after(self.config.state_interval):
+                await self._dirty.wait()
+            self._dirty = anyio.Event()
+            await self.publish_state()
+
+    async def _visualize(self) -> None:
+        period = 1.0 / self.config.visualization_rate
+        next_at = anyio.current_time()
+        while True:
+            next_at = max(next_at + period, anyio.current_time())
+            await anyio.sleep_until(next_at)
+            if self._client is not None:
+                status = self.robot.status
+                message = Visualization(
+                    **self._header("visualization"),
+                    agvPosition=report.agv_position(status, self.config.map_id),
+                    velocity=report.velocity(status),
+                )
+                await self.publish("visualization", message)
+
+    async def _broker_watchdog(self) -> None:
+        while True:
+            await self._offline.wait()
+            with anyio.move_on_after(self.config.broker_loss_stop_delay):
+                await self._online.wait()
+                continue
+            if self.progress.active or self.executor.moving:
+                _log.warning("%s: broker gone, cancelling the order", self.config.serial_number)
+                self.executor.errors.append(
+                    Error(
+                        errorType="brokerLost", errorLevel="WARNING",
+                        errorDescription=f"the broker was unreachable for "
+                        f"{self.config.broker_loss_stop_delay:g} s: the order was cancelled",
+                        errorReferences=[reference("orderId", self.progress.order_id)],
+                    )
+                )  # fmt: skip
+                with contextlib.suppress(GalileoError):
+                    await self.executor.cancel_order()
+            await self._online.wait()
+
+    def _client_for(self) -> aiomqtt.Client:
+        address = self.config.address
+        tls = ssl.create_default_context(cafile=self.config.tls_ca_file) if address.tls else None
+        will = aiomqtt.Will(
+            self.config.topic("connection"),
+            self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
+            qos=1, retain=True,
+        )  # fmt: skip
+        return aiomqtt.Client(
+            address.host, address.port, username=address.username, password=address.password,
+            identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
+            keepalive=self.config.keepalive, tls_context=tls, timeout=OFFLINE_TIMEOUT * 2,
+        )  # fmt: skip
+
+    async def _session(self, group: anyio.abc.TaskGroup) -> None:
+        delay = self.config.reconnect_initial
+        while True:
+            client = self._client_for()
+            try:
+                await client.__aenter__()
+            except aiomqtt.MqttError as exc:
+                _log.info("%s: broker unreachable (%s); retry in %.1f s",
+                          self.config.serial_number, exc, delay)  # fmt: skip
+            else:
+                delay = self.config.reconnect_initial
+                await self._connected(client, group)
+            await anyio.sleep(delay)
+            delay = min(delay * 2, self.config.reconnect_max)
+
+    async def _connected(self, client: aiomqtt.Client, group: anyio.abc.TaskGroup) -> None:
+        clean_stop = False
+        try:
+            await client.subscribe(self.config.topic("order"), qos=0)
+            await client.subscribe(self.config.topic("instantActions"), qos=0)
+            self._client = client
+            self._offline = anyio.Event()
+            self._online.set()
+            await self.publish("connection", self._connection("ONLINE"), qos=1, retain=True)
+            await self.publish_factsheet()
+            await self.publish_state()
+            async for message in client.messages:
+                topic = str(message.topic).rsplit("/", 1)[-1]
+                if topic == "order":
+                    self.on_order(_payload(message))
+                elif topic == "instantActions":
+                    self.on_instant_actions(_payload(message), group)
+        except aiomqtt.MqttError as exc:
+            _log.info("%s: broker connection lost: %s", self.config.serial_number, exc)
+        except anyio.get_cancelled_exc_class():
+            clean_stop = True
+            raise
+        finally:
+            with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
+                if clean_stop:
+                    await self.publish(
+                        "connection", self._connection("OFFLINE"), qos=1, retain=True
+                    )
+                self._client = None
+                self._online = anyio.Event()
+                self._offline.set()
+                with contextlib.suppress(aiomqtt.MqttError):
+                    await client.__aexit__(None, None, None)
+
+
+def _first_problem(exc: ValidationError) -> str:
+    problem = exc.errors()[0]
+    where = ".".join(str(part) for part in problem["loc"]) or "message"
+    return f"{where}: {problem['msg']} ({exc.error_count()} problem(s))"
+
+
+async def run_vehicles(vehicles: Iterable[Vehicle]) -> None:
+    """Run many vehicles on this event loop, each with its own MQTT session, until cancelled."""
+    async with anyio.create_task_group() as group:
+        for vehicle in vehicles:
+            group.start_soon(vehicle.run)
