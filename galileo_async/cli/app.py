@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
-from . import capture, demo, ops, serve, teleop, watch
+from . import capture, demo, ops, serve, teleop, vda5050, watch
 from .runner import DEFAULT_PORT, Settings, setup_logging
 
 __all__ = ["app", "main"]
@@ -118,6 +118,8 @@ app.command("ports")(serve.ports)
 app.command("discover")(serve.discover)
 app.command("sim")(serve.sim)
 app.command("demo")(demo.demo)
+# VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
+app.command("vda5050")(vda5050.vda5050)
 
 
 def main() -> None:

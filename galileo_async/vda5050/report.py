@@ -150,11 +150,11 @@ def factsheet_sections(
     max_speed: float | None, action_types: Sequence[str], map_id: str
 ) -> dict[str, dict[str, object]]:
     """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot."""
+    # No blockingTypes: the 2.0 schema puts its enum on the array itself, so no list validates.
     actions = [
-        {"actionType": name, "actionDescription": INSTANT_ACTIONS[name],
-         "actionScopes": ["INSTANT"], "blockingTypes": ["HARD"]}
+        {"actionType": name, "actionDescription": INSTANT_ACTIONS[name], "actionScopes": ["INSTANT"]}
         for name in action_types
-    ]  # fmt: skip
+    ]
     return {
         "typeSpecification": {
             "seriesName": "Galileo",
