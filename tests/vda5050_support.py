@@ -179,9 +179,14 @@ class Master:
                 await self._arrived.wait()
         raise AssertionError(what)  # pragma: no cover - fail_after raises first
 
-    async def next_state(self, predicate: Callable[[dict[str, Any]], bool]) -> dict[str, Any]:
-        """The first state published from now on where ``predicate`` holds."""
-        start = len(self.received["state"])
+    async def next_state(
+        self, predicate: Callable[[dict[str, Any]], bool], since: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
+        """The first state published from now on (or after ``since``) where ``predicate`` holds."""
+        states = self.received["state"]
+        start = len(states)
+        if since is not None:
+            start = next(i for i, state in enumerate(states) if state is since) + 1
         with anyio.fail_after(WAIT):
             while True:
                 for message in self.received["state"][start:]:
