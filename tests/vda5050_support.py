@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import getpass
 import json
 import os
 import shutil
@@ -79,7 +80,11 @@ class Broker:
         return f"{'mqtts' if self.tls else 'mqtt'}://127.0.0.1:{self.port}"
 
     def _config(self) -> Path:
-        lines = [f"listener {self.port} 127.0.0.1", "allow_anonymous true", "persistence false"]
+        lines = [
+            f"listener {self.port} 127.0.0.1", "allow_anonymous true", "persistence false",
+            # As root, Mosquitto drops to its own user, which cannot read files under tmp_path.
+            f"user {getpass.getuser()}",
+        ]  # fmt: skip
         if self.tls:
             self.cert, key = make_certificate(self.directory)
             lines += [f"certfile {self.cert}", f"keyfile {key}"]

@@ -1,0 +1,255 @@
+"""The VDA 5050 vehicle when links fail: the robot's, the broker's, the process; TLS; stopping."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import sys
+from collections.abc import AsyncIterator, Awaitable, Callable
+from pathlib import Path
+
+import anyio
+import pytest
+from ros_support import stop_process
+from test_vda5050_vehicle import FAST_SIM, action_status, setup, vehicle_on
+from vda5050_support import WAIT, Broker, Master, error_types, node
+
+import galileo_async as galileo
+from galileo_async.sim import Simulator
+from galileo_async.vda5050 import Vehicle, VehicleConfig, run_vehicles
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+async def broker(tmp_path: Path) -> AsyncIterator[Broker]:
+    async with Broker.running(tmp_path) as running:
+        yield running
+
+
+async def test_robot_link_lost_is_fatal_fails_the_order_and_clears_on_reconnection(
+    broker: Broker,
+) -> None:
+    first = Simulator(speed=3)
+    server = await first.serve_tcp()
+    port = server.sockets[0].getsockname()[1]
+    url = f"socket://127.0.0.1:{port}"
+    try:
+        async with (
+            Master.connected(broker) as master,
+            galileo.connect(url, map_targets=6, reconnect_initial=0.05, reconnect_max=0.2) as robot,
+            vehicle_on(broker, robot),
+        ):
+            await robot.start_navigation()
+            await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
+            await master.next_state(lambda s: s["driving"])
+            await first.close()  # the robot is gone: unplugged, or its process killed
+            lost = await master.next_state(lambda s: "robotLinkLost" in error_types(s))
+            [fatal] = [e for e in lost["errors"] if e["errorType"] == "robotLinkLost"]
+            assert fatal["errorLevel"] == "FATAL"
+            failed = lost
+            if lost["nodeStates"]:
+                failed = await master.next_state(lambda s: not s["nodeStates"], since=lost)
+            assert failed["orderId"] == "o1" and failed["lastNodeId"] == "start"
+            async with Simulator(speed=3) as second:
+                await second.serve_tcp(port=port)
+                back = await master.next_state(lambda s: "robotLinkLost" not in error_types(s))
+                # A fresh robot: navigation is closed.
+                await master.next_state(lambda s: s["operatingMode"] == "MANUAL", since=back)
+    finally:
+        await first.close()
+
+
+async def test_broker_lost_reconnects_with_back_off(broker: Broker) -> None:
+    async with galileo.connect(FAST_SIM) as robot:
+        options = {"reconnect_initial": 0.05, "reconnect_max": 0.2}
+        async with vehicle_on(broker, robot, **options) as vehicle:
+            async with Master.connected(broker) as master:
+                await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+            await broker.stop()
+            with anyio.fail_after(WAIT):
+                while vehicle.connected:
+                    await anyio.sleep(0.01)  # the session notices the loss on its own
+            await anyio.sleep(0.5)  # a few reconnection attempts fail meanwhile
+            await broker.start()
+            async with Master.connected(broker) as master:
+                online = await master.wait_for(
+                    "connection", lambda m: m["connectionState"] == "ONLINE"
+                )
+                assert online["headerId"] >= 1  # the second ONLINE of this vehicle
+                await master.instant(("s", "stateRequest"))
+                await master.next_state(lambda s: action_status(s, "s") == "FINISHED")
+
+
+async def test_order_running_without_broker_too_long_stops_the_robot(broker: Broker) -> None:
+    async with setup(
+        broker, "sim://?speed=1", broker_loss_stop_delay=0.3, reconnect_initial=0.05,
+        reconnect_max=0.2,
+    ) as (robot, vehicle, master):  # fmt: skip
+        await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
+        await master.next_state(lambda s: s["driving"])
+        await broker.stop()
+        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
+        assert not vehicle.progress.active
+        await broker.start()
+        async with Master.connected(broker) as again:
+            state = await again.wait_for("state", lambda s: "brokerLost" in error_types(s))
+            assert state["nodeStates"] == [] and state["orderId"] == "o1"
+
+
+async def test_mqtts_with_a_self_signed_certificate(tmp_path: Path) -> None:
+    async with (
+        Broker.running(tmp_path, tls=True) as broker,
+        Master.connected(broker) as master,
+        galileo.connect(FAST_SIM) as robot,
+        vehicle_on(broker, robot, tls_ca_file=str(broker.cert)),
+    ):
+        assert broker.url.startswith("mqtts://")
+        await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+        await master.wait_for("state", lambda s: s["serialNumber"] == "r1")
+
+
+async def test_many_vehicles_on_one_loop_each_with_its_own_session(broker: Broker) -> None:
+    serials = ["v0", "v1", "v2"]
+    async with (
+        galileo.connect(FAST_SIM) as a, galileo.connect(FAST_SIM) as b,
+        galileo.connect(FAST_SIM) as c, anyio.create_task_group() as group,
+    ):  # fmt: skip
+        vehicles = [
+            Vehicle(robot, VehicleConfig(broker=broker.url, manufacturer="acme", serial_number=s))
+            for robot, s in zip((a, b, c), serials, strict=True)
+        ]
+        group.start_soon(run_vehicles, vehicles)
+        for serial in serials:
+            async with Master.connected(broker, serial=serial) as master:
+                await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+        group.cancel_scope.cancel()
+
+
+# --- stopping ----------------------------------------------------------------------------
+
+
+async def _stop_with_anyio_deadline(run: Callable[[], Awaitable[None]], online: anyio.Event) -> None:
+    with anyio.move_on_after(WAIT) as scope:
+        async with anyio.create_task_group() as group:
+            group.start_soon(run)
+            await online.wait()
+            scope.deadline = anyio.current_time()
+    assert scope.cancelled_caught
+
+
+async def _stop_with_fail_after(run: Callable[[], Awaitable[None]], online: anyio.Event) -> None:
+    with pytest.raises(TimeoutError), anyio.fail_after(WAIT) as scope:
+        async with anyio.create_task_group() as group:
+            group.start_soon(run)
+            await online.wait()
+            scope.deadline = anyio.current_time()
+
+
+async def _stop_with_asyncio_timeout(run: Callable[[], Awaitable[None]], online: anyio.Event) -> None:
+    if sys.version_info < (3, 11):
+        pytest.skip("asyncio.timeout needs Python 3.11")
+    with pytest.raises(TimeoutError):
+        async with asyncio.timeout(WAIT) as limit:
+            task = asyncio.ensure_future(run())
+            try:
+                await online.wait()
+                limit.reschedule(asyncio.get_running_loop().time())
+                await task
+            finally:
+                task.cancel()
+                await asyncio.gather(task, return_exceptions=True)
+
+
+async def _stop_with_task_cancel(run: Callable[[], Awaitable[None]], online: anyio.Event) -> None:
+    task = asyncio.ensure_future(run())
+    await online.wait()
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+
+
+async def _stop_with_failing_sibling(run: Callable[[], Awaitable[None]], online: anyio.Event) -> None:
+    async def sibling() -> None:
+        await online.wait()
+        raise RuntimeError("sibling failed")
+
+    with pytest.raises(BaseExceptionGroup) as caught:  # noqa: PT012
+        async with anyio.create_task_group() as group:
+            group.start_soon(run)
+            group.start_soon(sibling)
+    assert caught.group_contains(RuntimeError)
+
+
+@pytest.mark.parametrize(
+    "stop",
+    [_stop_with_anyio_deadline, _stop_with_fail_after, _stop_with_asyncio_timeout,
+     _stop_with_task_cancel, _stop_with_failing_sibling],
+    ids=["move_on_after", "fail_after", "asyncio.timeout", "task.cancel", "failing sibling"],
+)  # fmt: skip
+async def test_a_stopped_vehicle_says_offline_and_leaves_nothing_running(
+    broker: Broker, stop: Callable[[Callable[[], Awaitable[None]], anyio.Event], Awaitable[None]]
+) -> None:
+    async with Master.connected(broker) as master, galileo.connect(FAST_SIM) as robot:
+        config = VehicleConfig(broker=broker.url, manufacturer="acme", serial_number="r1")
+        vehicle = Vehicle(robot, config)
+        online = anyio.Event()
+
+        async def watch() -> None:
+            await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+            online.set()
+
+        async with anyio.create_task_group() as group:
+            group.start_soon(watch)
+            await stop(vehicle.run, online)
+        offline = await master.wait_for("connection", lambda m: m["connectionState"] == "OFFLINE")
+        assert offline is master.received["connection"][-1]
+        assert not vehicle.connected
+
+
+# --- the command in its own process --------------------------------------------------------
+
+
+async def _start_cli(broker: Broker, serial: str, tmp_path: Path) -> asyncio.subprocess.Process:
+    log = (tmp_path / f"cli-{serial}.log").open("ab")
+    try:
+        return await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "galileo_async", "--port", FAST_SIM, "vda5050",
+            "--broker", broker.url, "--manufacturer", "acme", "--serial-number", serial,
+            "--start-navigation",
+            stdin=asyncio.subprocess.DEVNULL, stdout=log, stderr=log, cwd=ROOT,
+        )  # fmt: skip
+    finally:
+        log.close()
+
+
+async def test_cli_killed_leaves_its_last_will(broker: Broker, tmp_path: Path) -> None:
+    async with Master.connected(broker, serial="p1") as master:
+        proc = await _start_cli(broker, "p1", tmp_path)
+        try:
+            await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+            await master.wait_for("state", lambda s: s["operatingMode"] == "AUTOMATIC")
+            os.kill(proc.pid, signal.SIGKILL)
+            will = await master.wait_for(
+                "connection", lambda m: m["connectionState"] == "CONNECTIONBROKEN"
+            )
+            assert will["serialNumber"] == "p1"
+        finally:
+            await stop_process(proc)
+
+
+async def test_cli_ctrl_c_says_offline_and_exits_0(broker: Broker, tmp_path: Path) -> None:
+    async with Master.connected(broker, serial="p2") as master:
+        proc = await _start_cli(broker, "p2", tmp_path)
+        try:
+            await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+            proc.send_signal(signal.SIGINT)
+            with anyio.fail_after(WAIT):
+                code = await proc.wait()
+            log = (tmp_path / "cli-p2.log").read_text()
+            assert code == 0, log
+            await master.wait_for("connection", lambda m: m["connectionState"] == "OFFLINE")
+            assert master.received["connection"][-1]["connectionState"] == "OFFLINE"
+        finally:
+            await stop_process(proc)
