@@ -64,8 +64,12 @@ def near(state: dict[str, Any], x: float, y: float, tolerance: float = 0.1) -> b
 async def test_three_node_order_by_coordinates(broker: Broker) -> None:
     async with setup(broker) as (_, _vehicle, master):
         factsheet = await master.wait_for("factsheet", lambda m: True)
-        assert "cancelOrder" in [a["actionType"] for a in factsheet["protocolFeatures"]["agvActions"]]
-        await master.order("o1", [node("start", 0.0, 0.0), node("a", 1.0, 0.0), node("b", 1.0, 1.0)])
+        assert "cancelOrder" in [
+            a["actionType"] for a in factsheet["protocolFeatures"]["agvActions"]
+        ]
+        await master.order(
+            "o1", [node("start", 0.0, 0.0), node("a", 1.0, 0.0), node("b", 1.0, 1.0)]
+        )
         first = await master.next_state(lambda s: s["orderId"] == "o1")
         assert first["lastNodeId"] == "start"
         assert [n["nodeId"] for n in first["nodeStates"]] == ["a", "b"]
@@ -73,7 +77,8 @@ async def test_three_node_order_by_coordinates(broker: Broker) -> None:
         assert [n["nodeId"] for n in halfway["nodeStates"]] == ["b"]
         assert halfway["lastNodeSequenceId"] == 2
         done = await master.next_state(lambda s: s["lastNodeId"] == "b" and not s["driving"])
-        assert done["nodeStates"] == [] and done["edgeStates"] == []
+        assert done["nodeStates"] == []
+        assert done["edgeStates"] == []
         assert near(done, 1.0, 1.0)
         assert done["errors"] == []
         assert master.received["visualization"]
@@ -103,8 +108,10 @@ async def test_pause_resume_and_cancel(broker: Broker) -> None:
             await master.next_state(lambda s: s["driving"], since=resumed)
         await master.instant(("c1", "cancelOrder"))
         cancelled = await master.next_state(lambda s: action_status(s, "c1") == "FINISHED")
-        assert cancelled["nodeStates"] == [] and cancelled["edgeStates"] == []
-        assert robot.status is not None and not robot.status.goal_active
+        assert cancelled["nodeStates"] == []
+        assert cancelled["edgeStates"] == []
+        assert robot.status is not None
+        assert not robot.status.goal_active
         assert cancelled["lastNodeId"] == "start"
         await master.instant(("c2", "cancelOrder"))
         again = await master.next_state(lambda s: action_status(s, "c2") == "FAILED")
@@ -165,8 +172,10 @@ async def test_malformed_orders_are_rejected_and_nothing_moves(broker: Broker) -
             assert error["errorLevel"] == "WARNING"
             key, value = reference
             assert {"referenceKey": key, "referenceValue": value} in error["errorReferences"]
-            assert state["orderId"] == "" and state["nodeStates"] == []
-            assert robot.status is not None and not robot.status.goal_active
+            assert state["orderId"] == ""
+            assert state["nodeStates"] == []
+            assert robot.status is not None
+            assert not robot.status.goal_active
         await master.order("ok", [node("start", 0.0, 0.0), node("a", 0.5, 0.0)])
         accepted = await master.next_state(lambda s: s["orderId"] == "ok")
         assert accepted["errors"] == []
@@ -187,8 +196,10 @@ async def test_horizon_waits_for_an_update_stitched_at_the_base_end(broker: Brok
         await master.send("order", update)
         await master.send("order", update)  # resent: ignored
         done = await master.next_state(lambda s: s["lastNodeId"] == "b")
-        assert done["orderUpdateId"] == 2 and done["nodeStates"] == []
-        assert done["lastNodeSequenceId"] == 4 and not done.get("newBaseRequest")
+        assert done["orderUpdateId"] == 2
+        assert done["nodeStates"] == []
+        assert done["lastNodeSequenceId"] == 4
+        assert not done.get("newBaseRequest")
         await master.send("order", make_order("o1", [node("b", 1.0, 1.0)], 1, first_seq=4))
         lower = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
         assert lower["orderUpdateId"] == 2
@@ -205,7 +216,8 @@ async def test_instant_actions_navigation_and_unknown(broker: Broker) -> None:
         await master.instant(("n0", "stopNavigation"))
         manual = await master.next_state(lambda s: action_status(s, "n0") == "FINISHED")
         await master.next_state(lambda s: s["operatingMode"] == "MANUAL")
-        assert robot.status is not None and not robot.status.navigating
+        assert robot.status is not None
+        assert not robot.status.navigating
         await master.order("o1", [node("start", 0.0, 0.0), node("a", 1.0, 0.0)])
         refused = await master.next_state(lambda s: "orderError" in error_types(s))
         assert refused["orderId"] == ""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import getpass
+import itertools
 import json
 import os
 import shutil
@@ -232,7 +233,10 @@ def node(
 ) -> dict[str, Any]:  # fmt: skip
     """A node; with x and y it has a nodePosition on map "map"."""
     result: dict[str, Any] = {
-        "nodeId": node_id, "sequenceId": seq, "released": released, "actions": []
+        "nodeId": node_id,
+        "sequenceId": seq,
+        "released": released,
+        "actions": [],
     }
     if x is not None and y is not None:
         result["nodePosition"] = {"x": x, "y": y, "mapId": "map", **position}
@@ -248,7 +252,7 @@ def make_order(
         {"edgeId": f"e{a['nodeId']}-{b['nodeId']}", "sequenceId": a["sequenceId"] + 1,
          "released": b["released"], "startNodeId": a["nodeId"], "endNodeId": b["nodeId"],
          "actions": []}
-        for a, b in zip(nodes, nodes[1:], strict=False)
+        for a, b in itertools.pairwise(nodes)
     ]  # fmt: skip
     return {"orderId": order_id, "orderUpdateId": update, "nodes": nodes, "edges": edges}
 

@@ -152,7 +152,11 @@ def factsheet_sections(
     """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot."""
     # No blockingTypes: the 2.0 schema puts its enum on the array itself, so no list validates.
     actions = [
-        {"actionType": name, "actionDescription": INSTANT_ACTIONS[name], "actionScopes": ["INSTANT"]}
+        {
+            "actionType": name,
+            "actionDescription": INSTANT_ACTIONS[name],
+            "actionScopes": ["INSTANT"],
+        }
         for name in action_types
     ]
     return {

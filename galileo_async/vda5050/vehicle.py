@@ -76,6 +76,15 @@ class Vehicle:
         """True while the MQTT session is up."""
         return self._client is not None
 
+    async def wait_online(self) -> None:
+        """Return once the MQTT session is up (at once if it is)."""
+        while self._client is None:
+            await self._online.wait()
+
+    async def wait_offline(self) -> None:
+        """Return once the MQTT session is down (at once if it is)."""
+        await self._offline.wait()
+
     def changed(self) -> None:
         """Something that matters changed: publish a state message soon."""
         self._dirty.set()
