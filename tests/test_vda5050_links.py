@@ -270,3 +270,21 @@ async def test_cli_ctrl_c_says_offline_and_exits_0(broker: Broker, tmp_path: Pat
             assert master.received["connection"][-1]["connectionState"] == "OFFLINE"
         finally:
             await stop_process(proc)
+
+
+async def test_the_example_drives_two_vehicles(broker: Broker) -> None:
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, str(ROOT / "examples" / "vda5050_vehicle.py"), broker.url,
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
+        env={**os.environ, "GALILEO_PORT": "sim://?speed=20"},
+    )  # fmt: skip
+    try:
+        with anyio.fail_after(60):
+            out, _ = await proc.communicate()
+    finally:
+        await stop_process(proc)
+    text = out.decode()
+    assert proc.returncode == 0, text
+    assert "robot-0: order to-1.0,1.0 done at (1.00, 1.00)" in text
+    assert "robot-1: order to--1.0,2.0 done at (-1.00, 2.00)" in text
+    assert "all vehicles offline" in text
