@@ -1,5 +1,7 @@
 """``python -m benchmarks [--quick] [ingest latency fleet] [--fleet 10,100,1000] [--rounds R]``.
 
+``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
+
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 """
 
@@ -14,7 +16,7 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet")
+BENCHMARKS = ("ingest", "latency", "fleet", "vda5050")
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -61,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="breakdown: also count instructions and L2 misses per frame (valgrind)",
     )
+    parser.add_argument(
+        "--vehicles", type=int, default=None, help="vda5050: vehicles (default 100; --quick 20)"
+    )
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
     names = args.names or list(BENCHMARKS)
@@ -79,6 +84,8 @@ def main(argv: list[str] | None = None) -> int:
             options["seconds"] = args.seconds or (3.0 if args.quick else 6.0)
             options["repeats"] = args.rounds
             options["malloc"] = args.malloc
+        if name == "vda5050":
+            options["vehicles"] = args.vehicles
         if name == "breakdown":
             options["instructions"] = args.instructions
         rows += module.run(**options)
