@@ -19,11 +19,13 @@ def test_vda5050_benchmark_phases_measure_cpu_and_latency() -> None:
         assert phase["cpu_per_robot"] > 0
         assert phase["latencies"]
         assert all(0 < latency < 10 for latency in phase["latencies"])
+    assert driven["in_vehicle"]
+    assert not bare["in_vehicle"]
 
 
 def test_vda5050_benchmark_rows() -> None:
     require_mosquitto()
     rows = vda5050.run(quick=True, vehicles=2, seconds=0.5)
-    assert [row.unit for row in rows] == ["% core", "ms", "ms"]
+    assert [row.unit for row in rows] == ["% core", "ms", "ms", "ms", "ms", "ms"]
     assert all(math.isfinite(row.value) for row in rows)
-    assert rows[-1].target == "≤ 50 ms"
+    assert rows[2].target == "≤ 50 ms"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import ssl
+import zlib
 from collections.abc import Iterable
 from typing import Any
 
@@ -272,7 +273,9 @@ class Vehicle:
 
     async def _visualize(self) -> None:
         period = 1.0 / self.config.visualization_rate
-        next_at = anyio.current_time()
+        # Each vehicle its own phase: many vehicles on one loop must not publish in bursts.
+        phase = zlib.crc32(self.config.topic("").encode()) % 1000 / 1000
+        next_at = anyio.current_time() + period * phase
         while True:
             next_at = max(next_at + period, anyio.current_time())
             await anyio.sleep_until(next_at)
