@@ -11,11 +11,12 @@ from pathlib import Path
 
 import anyio
 import pytest
-from ros_support import stop_process
+from ros_support import free_port, stop_process
 from test_vda5050_vehicle import FAST_SIM, action_status, setup, vehicle_on
 from vda5050_support import WAIT, Broker, Master, error_types, node
 
 import galileo_async as galileo
+from galileo_async.errors import InvalidArgument
 from galileo_async.sim import Simulator
 from galileo_async.vda5050 import Vehicle, VehicleConfig, run_vehicles
 
@@ -288,3 +289,31 @@ async def test_the_example_drives_two_vehicles(broker: Broker) -> None:
     assert "robot-0: order to-1.0,1.0 done at (1.00, 1.00)" in text
     assert "robot-1: order to--1.0,2.0 done at (-1.00, 2.00)" in text
     assert "all vehicles offline" in text
+
+
+async def test_stopped_while_connecting_or_backing_off(broker: Broker) -> None:
+    async with galileo.connect(FAST_SIM) as robot:
+        config = VehicleConfig(broker=broker.url, manufacturer="acme", serial_number="r1")
+        task = asyncio.ensure_future(Vehicle(robot, config).run())
+        await asyncio.sleep(0)  # the session has begun to connect
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+        with anyio.move_on_after(0):
+            await Vehicle(robot, config).run()
+        unreachable = VehicleConfig(
+            broker=f"mqtt://127.0.0.1:{free_port()}", manufacturer="acme", serial_number="r2",
+            reconnect_initial=0.01, reconnect_max=0.02,
+        )  # fmt: skip
+        vehicle = Vehicle(robot, unreachable)
+        with anyio.move_on_after(0.3):  # a few refused attempts and back-off sleeps
+            await vehicle.run()
+        assert not vehicle.connected
+    async with Master.connected(broker) as master:
+        last = await master.wait_for("connection", lambda m: True)
+        assert last["connectionState"] == "OFFLINE"
+
+
+def test_a_vehicle_needs_a_config() -> None:
+    with pytest.raises(InvalidArgument):
+        Vehicle(None, {"broker": "mqtt://127.0.0.1"})  # type: ignore[arg-type]

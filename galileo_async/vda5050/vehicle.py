@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import ssl
@@ -13,8 +14,9 @@ import aiomqtt
 import anyio
 from pydantic import BaseModel, ValidationError
 
-from ..errors import GalileoError
+from ..errors import GalileoError, InvalidArgument
 from ..events import ConnectionLost, ConnectionRestored, LinkRestored, LinkStale
+from ..models import TargetStatus
 from ..robot import Robot
 from . import report
 from .actions import ActionRunner
@@ -33,12 +35,14 @@ from .models import (
 )
 from .order import OrderProgress, Rejection, check_order
 
-__all__ = ["OFFLINE_TIMEOUT", "Vehicle", "run_vehicles"]
+__all__ = ["CONNECT_TIMEOUT", "OFFLINE_TIMEOUT", "Vehicle", "run_vehicles"]
 
 _log = logging.getLogger(__name__)
 
 #: Seconds a clean stop may spend saying OFFLINE and disconnecting.
 OFFLINE_TIMEOUT = 3.0
+#: Seconds a connection attempt to the broker may take.
+CONNECT_TIMEOUT = 6.0
 
 
 def _payload(message: aiomqtt.Message) -> bytes:
@@ -53,7 +57,7 @@ class Vehicle:
 
     def __init__(self, robot: Robot, config: VehicleConfig) -> None:
         if not isinstance(config, VehicleConfig):
-            raise TypeError(f"config must be a VehicleConfig, got {config!r}")
+            raise InvalidArgument(f"config must be a VehicleConfig, got {config!r}")
         self.robot = robot
         self.config = config
         self.progress = OrderProgress()
@@ -110,7 +114,9 @@ class Vehicle:
         """The state message as of now (the header is counted)."""
         status = self.robot.status
         progress = self.progress
-        paused = self.executor.paused or (status is not None and status.target_status == 2)
+        paused = self.executor.paused or (
+            status is not None and status.target_status == TargetStatus.PAUSED
+        )
         return State(
             **self._header("state"),
             orderId=progress.order_id, orderUpdateId=progress.order_update_id,
@@ -138,7 +144,12 @@ class Vehicle:
         self, topic: str, message: BaseModel, *, qos: int = 0, retain: bool = False
     ) -> bool:
         """Publish ``message`` on the vehicle's ``topic``; False when the broker is away."""
-        client = self._client
+        return await self._publish_on(self._client, topic, message, qos=qos, retain=retain)
+
+    async def _publish_on(
+        self, client: aiomqtt.Client | None, topic: str, message: BaseModel, *, qos: int,
+        retain: bool,
+    ) -> bool:  # fmt: skip
         if client is None:
             return False
         payload = message.model_dump_json(exclude_none=True)
@@ -179,6 +190,12 @@ class Vehicle:
                     "the vehicle cannot drive: "
                     + ("its robot link is lost" if self._link_error else "navigation is closed"),
                     [("orderId", order.orderId), ("operatingMode", report.operating_mode(status))],
+                )
+            if self.robot.map_targets is None and any(n.nodePosition for n in order.nodes[1:]):
+                raise Rejection(
+                    "orderError",
+                    "nodes by position need the number of map targets (--map-targets)",
+                    [("orderId", order.orderId), ("field", "nodePosition")],
                 )
             pose = status.pose
             position = (pose.x, pose.y) if pose is not None else None
@@ -319,23 +336,40 @@ class Vehicle:
         return aiomqtt.Client(
             address.host, address.port, username=address.username, password=address.password,
             identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
-            keepalive=self.config.keepalive, tls_context=tls, timeout=OFFLINE_TIMEOUT * 2,
+            keepalive=self.config.keepalive, tls_context=tls, timeout=CONNECT_TIMEOUT,
         )  # fmt: skip
 
     async def _session(self, group: anyio.abc.TaskGroup) -> None:
         delay = self.config.reconnect_initial
         while True:
             client = self._client_for()
+            # aiomqtt connects in a thread: a cancelled connect would leave a socket nobody
+            # closes (and the broker would send the last will), so a stop waits for it.
+            connecting = asyncio.ensure_future(client.__aenter__())
             try:
-                await client.__aenter__()
+                await asyncio.shield(connecting)
             except aiomqtt.MqttError as exc:
                 _log.info("%s: broker unreachable (%s); retry in %.1f s",
                           self.config.serial_number, exc, delay)  # fmt: skip
+            except asyncio.CancelledError:
+                await self._abandon(client, connecting)
+                raise
             else:
                 delay = self.config.reconnect_initial
                 await self._connected(client, group)
             await anyio.sleep(delay)
             delay = min(delay * 2, self.config.reconnect_max)
+
+    async def _abandon(self, client: aiomqtt.Client, connecting: asyncio.Future[Any]) -> None:
+        """Stopped while connecting: let the connect end (bounded), then leave cleanly."""
+        with anyio.CancelScope(shield=True):
+            with anyio.move_on_after(CONNECT_TIMEOUT):
+                await asyncio.wait([connecting])
+            if not connecting.done():
+                connecting.cancel()
+                await asyncio.wait([connecting])
+            if not connecting.cancelled() and connecting.exception() is None:
+                await self._leave(client, clean_stop=True)
 
     async def _connected(self, client: aiomqtt.Client, group: anyio.abc.TaskGroup) -> None:
         clean_stop = False
@@ -360,16 +394,19 @@ class Vehicle:
             clean_stop = True
             raise
         finally:
-            with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
-                if clean_stop:
-                    await self.publish(
-                        "connection", self._connection("OFFLINE"), qos=1, retain=True
-                    )
-                self._client = None
-                self._online = anyio.Event()
-                self._offline.set()
-                with contextlib.suppress(aiomqtt.MqttError):
-                    await client.__aexit__(None, None, None)
+            await self._leave(client, clean_stop=clean_stop)
+
+    async def _leave(self, client: aiomqtt.Client, *, clean_stop: bool) -> None:
+        """End a session: OFFLINE first on a clean stop, then disconnect; shielded, bounded."""
+        with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
+            self._client = None
+            self._online = anyio.Event()
+            self._offline.set()
+            if clean_stop:
+                offline = self._connection("OFFLINE")
+                await self._publish_on(client, "connection", offline, qos=1, retain=True)
+            with contextlib.suppress(aiomqtt.MqttError):
+                await client.__aexit__(None, None, None)
 
 
 def _first_problem(exc: ValidationError) -> str:
