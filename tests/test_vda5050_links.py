@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import signal
 import sys
@@ -317,3 +318,76 @@ async def test_stopped_while_connecting_or_backing_off(broker: Broker) -> None:
 def test_a_vehicle_needs_a_config() -> None:
     with pytest.raises(InvalidArgument):
         Vehicle(None, {"broker": "mqtt://127.0.0.1"})  # type: ignore[arg-type]
+
+
+class FreezingProxy:
+    """A TCP relay to the simulator that can stop relaying without closing: a stale link."""
+
+    def __init__(self, target_port: int) -> None:
+        self.target_port = target_port
+        self.frozen = False
+        self.server: asyncio.Server | None = None
+        self.writers: list[asyncio.StreamWriter] = []
+        self.relays: list[asyncio.Task[None]] = []
+
+    async def start(self) -> int:
+        self.server = await asyncio.start_server(self._accept, "127.0.0.1", 0)
+        return int(self.server.sockets[0].getsockname()[1])
+
+    def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.writers.append(writer)
+        self.relays.append(asyncio.ensure_future(self._relay(reader, writer)))
+
+    async def _relay(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.target_port)
+        self.writers.append(up_writer)
+
+        async def pump(source: asyncio.StreamReader, sink: asyncio.StreamWriter) -> None:
+            with contextlib.suppress(OSError):
+                while data := await source.read(4096):
+                    if not self.frozen:
+                        sink.write(data)
+            sink.close()
+
+        async with anyio.create_task_group() as group:
+            group.start_soon(pump, reader, up_writer)
+            group.start_soon(pump, up_reader, writer)
+
+    async def close(self) -> None:
+        if self.server is not None:
+            self.server.close()
+            await self.server.wait_closed()
+        for writer in self.writers:
+            writer.close()
+        await asyncio.gather(*self.relays, return_exceptions=True)
+
+
+async def test_a_stale_robot_link_is_fatal_until_frames_come_again(broker: Broker) -> None:
+    async with Simulator(speed=3) as sim:
+        server = await sim.serve_tcp()
+        proxy = FreezingProxy(server.sockets[0].getsockname()[1])
+        url = f"socket://127.0.0.1:{await proxy.start()}"
+        try:
+            async with (
+                Master.connected(broker) as master,
+                galileo.connect(
+                    url, map_targets=6, stale_timeout=0.3, stale_reconnect=None
+                ) as robot,
+                vehicle_on(broker, robot),
+            ):
+                await robot.start_navigation()
+                await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
+                await master.next_state(lambda s: s["driving"])
+                proxy.frozen = True  # the robot process hangs: the socket stays open
+                stale = await master.next_state(lambda s: "robotLinkLost" in error_types(s))
+                [fatal] = [e for e in stale["errors"] if e["errorType"] == "robotLinkLost"]
+                assert fatal["errorLevel"] == "FATAL"
+                assert {"referenceKey": "link", "referenceValue": "LinkStale"} in (
+                    fatal["errorReferences"]
+                )
+                proxy.frozen = False
+                back = await master.next_state(lambda s: "robotLinkLost" not in error_types(s))
+                assert back["nodeStates"] == []  # the order failed and stays failed
+                assert back["orderId"] == "o1"
+        finally:
+            await proxy.close()
