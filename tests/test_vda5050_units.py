@@ -170,3 +170,26 @@ def test_factsheet_follows_the_schema() -> None:
     header = {"headerId": 0, "timestamp": report.timestamp(), "version": "2.0.0",
               "manufacturer": "acme", "serialNumber": "r1"}  # fmt: skip
     VALIDATORS["factsheet"].validate({**header, **sections})
+
+
+async def test_ended_actions_and_their_errors_are_bounded() -> None:
+    from galileo_async import connect
+    from galileo_async.vda5050 import Vehicle
+    from galileo_async.vda5050.actions import MAX_ACTION_ERRORS, MAX_ENDED_ACTIONS
+    from galileo_async.vda5050.models import Action
+
+    config = VehicleConfig(broker="mqtt://127.0.0.1", manufacturer="m", serial_number="s")
+    async with connect("sim://") as robot:
+        vehicle = Vehicle(robot, config)  # not run: nothing is published
+        actions = [
+            Action(actionId=str(n), actionType="lift" if n % 2 else "stateRequest",
+                   blockingType="HARD")
+            for n in range(3 * MAX_ENDED_ACTIONS)
+        ]  # fmt: skip
+        vehicle.actions.queue(actions)
+        await vehicle.actions.run(actions)
+        states = vehicle.actions.states()
+        assert len(states) == MAX_ENDED_ACTIONS
+        assert states[-1].actionId == str(3 * MAX_ENDED_ACTIONS - 1)
+        assert len(vehicle.actions.errors) == MAX_ACTION_ERRORS
+        assert {e.errorType for e in vehicle.errors()} == {"unsupportedAction"}

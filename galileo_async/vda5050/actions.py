@@ -13,12 +13,14 @@ from .order import Rejection
 if TYPE_CHECKING:
     from .vehicle import Vehicle
 
-__all__ = ["MAX_ACTION_ERRORS", "ActionRunner"]
+__all__ = ["MAX_ACTION_ERRORS", "MAX_ENDED_ACTIONS", "ActionRunner"]
 
 _log = logging.getLogger(__name__)
 
 #: Errors of failed actions kept in state.errors (the newest); a new order clears them.
 MAX_ACTION_ERRORS = 10
+#: Ended actions kept in state.actionStates (the newest) when no order clears them.
+MAX_ENDED_ACTIONS = 50
 
 
 class ActionRunner:
@@ -63,6 +65,9 @@ class ActionRunner:
             actionDescription=action.actionDescription, actionStatus=status,
             resultDescription=result,
         )  # fmt: skip
+        ended = [k for k, v in self._states.items() if v.actionStatus in ("FINISHED", "FAILED")]
+        for key in ended[:-MAX_ENDED_ACTIONS]:
+            del self._states[key]
         self._vehicle.changed()
 
     def queue(self, actions: list[Action]) -> None:
