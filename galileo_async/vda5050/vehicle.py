@@ -1,16 +1,13 @@
-"""Vehicle: one robot as a VDA 5050 2.0 vehicle over its own MQTT session (aiomqtt)."""
+"""Vehicle: one robot as a VDA 5050 2.0 vehicle (state, orders, actions) over its Session."""
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import logging
-import ssl
 import zlib
 from collections.abc import Iterable
 from typing import Any
 
-import aiomqtt
 import anyio
 from pydantic import BaseModel, ValidationError
 
@@ -25,6 +22,7 @@ from .execution import Executor
 from .models import (
     VERSION,
     Connection,
+    ConnectionState,
     Error,
     Factsheet,
     InstantActions,
@@ -34,22 +32,11 @@ from .models import (
     reference,
 )
 from .order import OrderProgress, Rejection, check_order
+from .session import Session
 
-__all__ = ["CONNECT_TIMEOUT", "OFFLINE_TIMEOUT", "Vehicle", "run_vehicles"]
+__all__ = ["Vehicle", "run_vehicles"]
 
 _log = logging.getLogger(__name__)
-
-#: Seconds a clean stop may spend saying OFFLINE and disconnecting.
-OFFLINE_TIMEOUT = 3.0
-#: Seconds a connection attempt to the broker may take.
-CONNECT_TIMEOUT = 6.0
-
-
-def _payload(message: aiomqtt.Message) -> bytes:
-    payload = message.payload
-    if isinstance(payload, (bytes, bytearray)):
-        return bytes(payload)
-    return str(payload).encode()
 
 
 class Vehicle:
@@ -63,32 +50,27 @@ class Vehicle:
         self.progress = OrderProgress()
         self.executor = Executor(robot, self.progress, self.changed)
         self.actions = ActionRunner(self)
-        self._client: aiomqtt.Client | None = None
+        self.session = Session(config, self._connection, self._on_connect, self._on_message)
+        self._group: anyio.abc.TaskGroup | None = None
         self._headers: dict[str, int] = {}
         self._dirty = anyio.Event()
-        self._online = anyio.Event()
-        self._offline = anyio.Event()
-        self._offline.set()
         self._order_errors: list[Error] = []
         self._link_error: Error | None = None
-        #: Published state messages (for tests and benchmarks).
-        self.states_published = 0
 
     # --- what the vehicle reports ------------------------------------------------------
 
     @property
     def connected(self) -> bool:
         """True while the MQTT session is up."""
-        return self._client is not None
+        return self.session.connected
 
     async def wait_online(self) -> None:
         """Return once the MQTT session is up (at once if it is)."""
-        while self._client is None:
-            await self._online.wait()
+        await self.session.wait_online()
 
     async def wait_offline(self) -> None:
         """Return once the MQTT session is down (at once if it is)."""
-        await self._offline.wait()
+        await self.session.wait_offline()
 
     def changed(self) -> None:
         """Something that matters changed: publish a state message soon."""
@@ -144,33 +126,28 @@ class Vehicle:
         self, topic: str, message: BaseModel, *, qos: int = 0, retain: bool = False
     ) -> bool:
         """Publish ``message`` on the vehicle's ``topic``; False when the broker is away."""
-        return await self._publish_on(self._client, topic, message, qos=qos, retain=retain)
-
-    async def _publish_on(
-        self, client: aiomqtt.Client | None, topic: str, message: BaseModel, *, qos: int,
-        retain: bool,
-    ) -> bool:  # fmt: skip
-        if client is None:
-            return False
-        payload = message.model_dump_json(exclude_none=True)
-        try:
-            await client.publish(self.config.topic(topic), payload, qos=qos, retain=retain)
-        except aiomqtt.MqttError as exc:
-            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, exc)
-            return False
-        return True
+        return await self.session.publish(topic, message, qos=qos, retain=retain)
 
     async def publish_state(self) -> None:
         """Publish a state message now."""
-        if await self.publish("state", self.state()):
-            self.states_published += 1
+        await self.publish("state", self.state())
 
     async def publish_factsheet(self) -> None:
         """Publish the factsheet (retained)."""
         await self.publish("factsheet", self.factsheet(), retain=True)
 
-    def _connection(self, state: str) -> Connection:
+    def _connection(self, state: ConnectionState) -> Connection:
         return Connection(**self._header("connection"), connectionState=state)
+
+    async def _on_connect(self) -> None:
+        await self.publish_factsheet()
+        await self.publish_state()
+
+    def _on_message(self, topic: str, payload: bytes) -> None:
+        if topic == "order":
+            self.on_order(payload)
+        elif topic == "instantActions" and self._group is not None:
+            self.on_instant_actions(payload, self._group)
 
     # --- incoming --------------------------------------------------------------------------
 
@@ -242,7 +219,11 @@ class Vehicle:
                 group.start_soon(self._visualize)
             if self.config.start_navigation:
                 group.start_soon(self._start_navigation)
-            await self._session(group)
+            self._group = group
+            try:
+                await self.session.run()
+            finally:
+                self._group = None
 
     async def _start_navigation(self) -> None:
         status = self.robot.status
@@ -296,7 +277,7 @@ class Vehicle:
         while True:
             next_at = max(next_at + period, anyio.current_time())
             await anyio.sleep_until(next_at)
-            if self._client is not None:
+            if self.session.connected:
                 status = self.robot.status
                 message = Visualization(
                     **self._header("visualization"),
@@ -307,9 +288,9 @@ class Vehicle:
 
     async def _broker_watchdog(self) -> None:
         while True:
-            await self._offline.wait()
+            await self.session.wait_offline()
             with anyio.move_on_after(self.config.broker_loss_stop_delay):
-                await self._online.wait()
+                await self.session.wait_online()
                 continue
             if self.progress.active or self.executor.moving:
                 _log.warning("%s: broker gone, cancelling the order", self.config.serial_number)
@@ -323,90 +304,7 @@ class Vehicle:
                 )  # fmt: skip
                 with contextlib.suppress(GalileoError):
                     await self.executor.cancel_order()
-            await self._online.wait()
-
-    def _client_for(self) -> aiomqtt.Client:
-        address = self.config.address
-        tls = ssl.create_default_context(cafile=self.config.tls_ca_file) if address.tls else None
-        will = aiomqtt.Will(
-            self.config.topic("connection"),
-            self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
-            qos=1, retain=True,
-        )  # fmt: skip
-        return aiomqtt.Client(
-            address.host, address.port, username=address.username, password=address.password,
-            identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
-            keepalive=self.config.keepalive, tls_context=tls, timeout=CONNECT_TIMEOUT,
-        )  # fmt: skip
-
-    async def _session(self, group: anyio.abc.TaskGroup) -> None:
-        delay = self.config.reconnect_initial
-        while True:
-            client = self._client_for()
-            # aiomqtt connects in a thread: a cancelled connect would leave a socket nobody
-            # closes (and the broker would send the last will), so a stop waits for it.
-            connecting = asyncio.ensure_future(client.__aenter__())
-            try:
-                await asyncio.shield(connecting)
-            except aiomqtt.MqttError as exc:
-                _log.info("%s: broker unreachable (%s); retry in %.1f s",
-                          self.config.serial_number, exc, delay)  # fmt: skip
-            except asyncio.CancelledError:
-                await self._abandon(client, connecting)
-                raise
-            else:
-                delay = self.config.reconnect_initial
-                await self._connected(client, group)
-            await anyio.sleep(delay)
-            delay = min(delay * 2, self.config.reconnect_max)
-
-    async def _abandon(self, client: aiomqtt.Client, connecting: asyncio.Future[Any]) -> None:
-        """Stopped while connecting: let the connect end (bounded), then leave cleanly."""
-        with anyio.CancelScope(shield=True):
-            with anyio.move_on_after(CONNECT_TIMEOUT):
-                await asyncio.wait([connecting])
-            if not connecting.done():
-                connecting.cancel()
-                await asyncio.wait([connecting])
-            if not connecting.cancelled() and connecting.exception() is None:
-                await self._leave(client, clean_stop=True)
-
-    async def _connected(self, client: aiomqtt.Client, group: anyio.abc.TaskGroup) -> None:
-        clean_stop = False
-        try:
-            await client.subscribe(self.config.topic("order"), qos=0)
-            await client.subscribe(self.config.topic("instantActions"), qos=0)
-            self._client = client
-            self._offline = anyio.Event()
-            self._online.set()
-            await self.publish("connection", self._connection("ONLINE"), qos=1, retain=True)
-            await self.publish_factsheet()
-            await self.publish_state()
-            async for message in client.messages:
-                topic = str(message.topic).rsplit("/", 1)[-1]
-                if topic == "order":
-                    self.on_order(_payload(message))
-                elif topic == "instantActions":
-                    self.on_instant_actions(_payload(message), group)
-        except aiomqtt.MqttError as exc:
-            _log.info("%s: broker connection lost: %s", self.config.serial_number, exc)
-        except anyio.get_cancelled_exc_class():
-            clean_stop = True
-            raise
-        finally:
-            await self._leave(client, clean_stop=clean_stop)
-
-    async def _leave(self, client: aiomqtt.Client, *, clean_stop: bool) -> None:
-        """End a session: OFFLINE first on a clean stop, then disconnect; shielded, bounded."""
-        with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
-            self._client = None
-            self._online = anyio.Event()
-            self._offline.set()
-            if clean_stop:
-                offline = self._connection("OFFLINE")
-                await self._publish_on(client, "connection", offline, qos=1, retain=True)
-            with contextlib.suppress(aiomqtt.MqttError):
-                await client.__aexit__(None, None, None)
+            await self.session.wait_online()
 
 
 def _first_problem(exc: ValidationError) -> str:

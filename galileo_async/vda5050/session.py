@@ -1,0 +1,168 @@
+"""Session: one vehicle's MQTT connection (aiomqtt): last will, reconnect with back-off."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import ssl
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import aiomqtt
+import anyio
+from pydantic import BaseModel
+
+from .config import VehicleConfig
+from .models import Connection, ConnectionState
+
+__all__ = ["CONNECT_TIMEOUT", "OFFLINE_TIMEOUT", "Session"]
+
+_log = logging.getLogger(__name__)
+
+#: Seconds a clean stop may spend saying OFFLINE and disconnecting.
+OFFLINE_TIMEOUT = 3.0
+#: Seconds a connection attempt to the broker may take.
+CONNECT_TIMEOUT = 6.0
+#: Topics the vehicle subscribes to (master control → vehicle).
+SUBSCRIBED = ("order", "instantActions")
+
+
+def _payload(message: aiomqtt.Message) -> bytes:
+    payload = message.payload
+    if isinstance(payload, (bytes, bytearray)):
+        return bytes(payload)
+    return str(payload).encode()
+
+
+class Session:
+    """Keeps a vehicle on the broker until cancelled: ONLINE on connect, OFFLINE on a stop."""
+
+    def __init__(
+        self,
+        config: VehicleConfig,
+        connection: Callable[[ConnectionState], Connection],
+        on_connect: Callable[[], Awaitable[None]],
+        on_message: Callable[[str, bytes], None],
+    ) -> None:
+        self.config = config
+        self._connection = connection
+        self._on_connect = on_connect
+        self._on_message = on_message
+        self._client: aiomqtt.Client | None = None
+        self._online = anyio.Event()
+        self._offline = anyio.Event()
+        self._offline.set()
+
+    @property
+    def connected(self) -> bool:
+        """True while the session is up."""
+        return self._client is not None
+
+    async def wait_online(self) -> None:
+        """Return once the session is up (at once if it is)."""
+        while self._client is None:
+            await self._online.wait()
+
+    async def wait_offline(self) -> None:
+        """Return once the session is down (at once if it is)."""
+        await self._offline.wait()
+
+    async def publish(
+        self, topic: str, message: BaseModel, *, qos: int = 0, retain: bool = False
+    ) -> bool:
+        """Publish ``message`` on the vehicle's ``topic``; False when the broker is away."""
+        return await self._publish_on(self._client, topic, message, qos=qos, retain=retain)
+
+    async def _publish_on(
+        self, client: aiomqtt.Client | None, topic: str, message: BaseModel, *, qos: int,
+        retain: bool,
+    ) -> bool:  # fmt: skip
+        if client is None:
+            return False
+        payload = message.model_dump_json(exclude_none=True)
+        try:
+            await client.publish(self.config.topic(topic), payload, qos=qos, retain=retain)
+        except aiomqtt.MqttError as exc:
+            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, exc)
+            return False
+        return True
+
+    def _client_for(self) -> aiomqtt.Client:
+        address = self.config.address
+        tls = ssl.create_default_context(cafile=self.config.tls_ca_file) if address.tls else None
+        will = aiomqtt.Will(
+            self.config.topic("connection"),
+            self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
+            qos=1, retain=True,
+        )  # fmt: skip
+        return aiomqtt.Client(
+            address.host, address.port, username=address.username, password=address.password,
+            identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
+            keepalive=self.config.keepalive, tls_context=tls, timeout=CONNECT_TIMEOUT,
+        )  # fmt: skip
+
+    async def run(self) -> None:
+        """Connect, serve, reconnect with exponential back-off; runs until cancelled."""
+        delay = self.config.reconnect_initial
+        while True:
+            client = self._client_for()
+            # aiomqtt connects in a thread: a cancelled connect would leave a socket nobody
+            # closes (and the broker would send the last will), so a stop waits for it.
+            connecting = asyncio.ensure_future(client.__aenter__())
+            try:
+                await asyncio.shield(connecting)
+            except aiomqtt.MqttError as exc:
+                _log.info("%s: broker unreachable (%s); retry in %.1f s",
+                          self.config.serial_number, exc, delay)  # fmt: skip
+            except asyncio.CancelledError:
+                await self._abandon(client, connecting)
+                raise
+            else:
+                delay = self.config.reconnect_initial
+                await self._serve(client)
+            await anyio.sleep(delay)
+            delay = min(delay * 2, self.config.reconnect_max)
+
+    async def _abandon(self, client: aiomqtt.Client, connecting: asyncio.Future[Any]) -> None:
+        """Stopped while connecting: let the connect end (bounded), then leave cleanly."""
+        with anyio.CancelScope(shield=True):
+            with anyio.move_on_after(CONNECT_TIMEOUT):
+                await asyncio.wait([connecting])
+            if not connecting.done():
+                connecting.cancel()
+                await asyncio.wait([connecting])
+            if not connecting.cancelled() and connecting.exception() is None:
+                await self._leave(client, clean_stop=True)
+
+    async def _serve(self, client: aiomqtt.Client) -> None:
+        clean_stop = False
+        try:
+            for topic in SUBSCRIBED:
+                await client.subscribe(self.config.topic(topic), qos=0)
+            self._client = client
+            self._offline = anyio.Event()
+            self._online.set()
+            await self.publish("connection", self._connection("ONLINE"), qos=1, retain=True)
+            await self._on_connect()
+            async for message in client.messages:
+                self._on_message(str(message.topic).rsplit("/", 1)[-1], _payload(message))
+        except aiomqtt.MqttError as exc:
+            _log.info("%s: broker connection lost: %s", self.config.serial_number, exc)
+        except anyio.get_cancelled_exc_class():
+            clean_stop = True
+            raise
+        finally:
+            await self._leave(client, clean_stop=clean_stop)
+
+    async def _leave(self, client: aiomqtt.Client, *, clean_stop: bool) -> None:
+        """End a session: OFFLINE first on a clean stop, then disconnect; shielded, bounded."""
+        with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
+            self._client = None
+            self._online = anyio.Event()
+            self._offline.set()
+            if clean_stop:
+                offline = self._connection("OFFLINE")
+                await self._publish_on(client, "connection", offline, qos=1, retain=True)
+            with contextlib.suppress(aiomqtt.MqttError):
+                await client.__aexit__(None, None, None)
