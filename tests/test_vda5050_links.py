@@ -391,3 +391,27 @@ async def test_a_stale_robot_link_is_fatal_until_frames_come_again(broker: Broke
                 assert back["orderId"] == "o1"
         finally:
             await proxy.close()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--broker", "http://127.0.0.1"], "mqtt:// or mqtts://"),
+        (["--broker", "mqtt://127.0.0.1", "--visualization-rate", "60"], "at most 30"),
+        (["--broker", "mqtt://127.0.0.1", "--interface-name", "a/b"], "interface_name"),
+    ],
+)
+def test_cli_refuses_bad_options_before_connecting(args: list[str], message: str) -> None:
+    from test_cli import invoke
+
+    common = ["--manufacturer", "acme", "--serial-number", "r1"]
+    result = invoke("vda5050", *args, *common, port="/dev/nonexistent-galileo")
+    assert result.exit_code == 2, result.output
+    assert message in result.output
+
+
+def test_cli_help_lists_the_vda5050_command() -> None:
+    from test_cli import invoke
+
+    result = invoke("--help", port=None)
+    assert " vda5050 " in result.stdout
