@@ -7,14 +7,21 @@ import contextlib
 import os
 import signal
 import sys
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 
 import anyio
 import pytest
 from ros_support import free_port, stop_process
-from test_vda5050_vehicle import FAST_SIM, action_status, setup, vehicle_on
-from vda5050_support import WAIT, Broker, Master, error_types, node
+from test_vda5050_vehicle import FAST_SIM, action_status, driven_vehicle, vehicle_on
+from vda5050_support import (
+    WAIT,
+    Broker,
+    Master,
+    broker_fixture,  # noqa: F401 (the broker fixture)
+    error_types,
+    node,
+)
 
 import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
@@ -22,12 +29,6 @@ from galileo_async.sim import Simulator
 from galileo_async.vda5050 import Vehicle, VehicleConfig, run_vehicles
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-@pytest.fixture
-async def broker(tmp_path: Path) -> AsyncIterator[Broker]:
-    async with Broker.running(tmp_path) as running:
-        yield running
 
 
 async def test_robot_link_lost_is_fatal_fails_the_order_and_clears_on_reconnection(
@@ -84,7 +85,7 @@ async def test_broker_lost_reconnects_with_back_off(broker: Broker) -> None:
 
 
 async def test_order_running_without_broker_too_long_stops_the_robot(broker: Broker) -> None:
-    async with setup(
+    async with driven_vehicle(
         broker, "sim://?speed=1", broker_loss_stop_delay=0.3, reconnect_initial=0.05,
         reconnect_max=0.2,
     ) as (robot, vehicle, master):  # fmt: skip

@@ -5,12 +5,17 @@ from __future__ import annotations
 import math
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from pathlib import Path
 from typing import Any
 
 import anyio
-import pytest
-from vda5050_support import Broker, Master, error_types, make_order, node
+from vda5050_support import (
+    Broker,
+    Master,
+    broker_fixture,  # noqa: F401 (the broker fixture)
+    error_types,
+    make_order,
+    node,
+)
 
 import galileo_async as galileo
 from galileo_async.robot import Robot
@@ -34,14 +39,8 @@ async def vehicle_on(
             group.cancel_scope.cancel()
 
 
-@pytest.fixture
-async def broker(tmp_path: Path) -> AsyncIterator[Broker]:
-    async with Broker.running(tmp_path) as running:
-        yield running
-
-
 @asynccontextmanager
-async def setup(
+async def driven_vehicle(
     broker: Broker, url: str = FAST_SIM, **options: Any
 ) -> AsyncIterator[tuple[Robot, Vehicle, Master]]:
     """A sim robot with navigation open, its vehicle and a master, all connected."""
@@ -62,7 +61,7 @@ def near(state: dict[str, Any], x: float, y: float, tolerance: float = 0.1) -> b
 
 
 async def test_three_node_order_by_coordinates(broker: Broker) -> None:
-    async with setup(broker) as (_, _vehicle, master):
+    async with driven_vehicle(broker) as (_, _vehicle, master):
         factsheet = await master.wait_for("factsheet", lambda m: True)
         assert "cancelOrder" in [
             a["actionType"] for a in factsheet["protocolFeatures"]["agvActions"]
@@ -92,7 +91,7 @@ def action_status(state: dict[str, Any], action_id: str) -> str | None:
 
 
 async def test_pause_resume_and_cancel(broker: Broker) -> None:
-    async with setup(broker, "sim://?speed=3") as (robot, _vehicle, master):
+    async with driven_vehicle(broker, "sim://?speed=3") as (robot, _vehicle, master):
         await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
         await master.next_state(lambda s: s["driving"])
         await master.instant(("p1", "startPause"))
@@ -119,7 +118,7 @@ async def test_pause_resume_and_cancel(broker: Broker) -> None:
 
 
 async def test_order_by_target_number(broker: Broker) -> None:
-    async with setup(broker) as (_, _vehicle, master):
+    async with driven_vehicle(broker) as (_, _vehicle, master):
         await master.order("o1", [node("here", 0.0, 0.0), node("1")])  # map target 1 is at (4, 3)
         done = await master.next_state(
             lambda s: s["lastNodeId"] == "1" and not s["nodeStates"] and not s["driving"]
@@ -155,7 +154,7 @@ def malformed_orders() -> list[tuple[dict[str, Any], str, tuple[str, str]]]:
 
 
 async def test_malformed_orders_are_rejected_and_nothing_moves(broker: Broker) -> None:
-    async with setup(broker) as (robot, _vehicle, master):
+    async with driven_vehicle(broker) as (robot, _vehicle, master):
         await master.send("order", {"orderId": "no-nodes", "orderUpdateId": 0}, validate=False)
         state = await master.next_state(lambda s: bool(s["errors"]))
         assert error_types(state) == ["validationError"]
@@ -182,7 +181,7 @@ async def test_malformed_orders_are_rejected_and_nothing_moves(broker: Broker) -
 
 
 async def test_horizon_waits_for_an_update_stitched_at_the_base_end(broker: Broker) -> None:
-    async with setup(broker) as (_, _vehicle, master):
+    async with driven_vehicle(broker) as (_, _vehicle, master):
         nodes = [node("s", 0.0, 0.0), node("a", 1.0, 0.0), node("b", 1.0, 1.0, released=False)]
         await master.send("order", make_order("o1", nodes))
         waiting = await master.next_state(lambda s: s["lastNodeId"] == "a" and not s["driving"])
@@ -206,7 +205,7 @@ async def test_horizon_waits_for_an_update_stitched_at_the_base_end(broker: Brok
 
 
 async def test_instant_actions_navigation_and_unknown(broker: Broker) -> None:
-    async with setup(broker) as (robot, _vehicle, master):
+    async with driven_vehicle(broker) as (robot, _vehicle, master):
         await master.instant(("s1", "stateRequest"), ("f1", "factsheetRequest"), ("x", "lift"))
         failed = await master.next_state(lambda s: action_status(s, "x") == "FAILED")
         assert action_status(failed, "s1") == action_status(failed, "f1") == "FINISHED"
@@ -222,3 +221,28 @@ async def test_instant_actions_navigation_and_unknown(broker: Broker) -> None:
         refused = await master.next_state(lambda s: "orderError" in error_types(s))
         assert refused["orderId"] == ""
         assert manual is not None
+
+
+async def test_a_goal_the_planner_gives_up_fails_the_order(broker: Broker) -> None:
+    async with driven_vehicle(broker, FAST_SIM + "&planner_abort=1") as (_, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("a", 4.0, 3.0), node("b", 0, 1)])
+        failed = await master.next_state(lambda s: "navigationError" in error_types(s))
+        [error] = [e for e in failed["errors"] if e["errorType"] == "navigationError"]
+        assert error["errorLevel"] == "WARNING"
+        assert "GoalAborted" in error["errorDescription"]
+        references = {(r["referenceKey"], r["referenceValue"]) for r in error["errorReferences"]}
+        assert references == {("orderId", "o1"), ("nodeId", "a"), ("edgeId", "estart-a")}
+        assert failed["nodeStates"] == []
+        assert failed["lastNodeId"] == "start"
+
+
+async def test_charging_actions(broker: Broker) -> None:
+    async with driven_vehicle(broker) as (_, _vehicle, master):
+        await master.instant(("c1", "startCharging"))
+        started = await master.next_state(lambda s: action_status(s, "c1") == "FINISHED")
+        if not started["batteryState"]["charging"]:
+            await master.next_state(lambda s: s["batteryState"]["charging"], since=started)
+        await master.instant(("c2", "stopCharging"))
+        stopped = await master.next_state(lambda s: action_status(s, "c2") == "FINISHED")
+        if stopped["batteryState"]["charging"]:
+            await master.next_state(lambda s: not s["batteryState"]["charging"], since=stopped)

@@ -17,6 +17,7 @@ from typing import Any
 import aiomqtt
 import anyio
 import jsonschema
+import pytest
 from peers import missing_peer
 from ros_support import free_port, stop_process, wait_for_port
 
@@ -122,6 +123,13 @@ class Broker:
             yield broker
         finally:
             await broker.stop()
+
+
+@pytest.fixture(name="broker")
+async def broker_fixture(tmp_path: Path) -> AsyncIterator[Broker]:
+    """A running broker for one test (import ``broker_fixture`` to use it as ``broker``)."""
+    async with Broker.running(tmp_path) as running:
+        yield running
 
 
 class Master:
@@ -267,6 +275,7 @@ __all__ = [
     "WAIT",
     "Broker",
     "Master",
+    "broker_fixture",
     "error_types",
     "make_certificate",
     "make_order",
