@@ -416,3 +416,15 @@ def test_cli_help_lists_the_vda5050_command() -> None:
 
     result = invoke("--help", port=None)
     assert " vda5050 " in result.stdout
+
+
+async def test_a_clean_stop_cancels_the_goal_in_progress(broker: Broker) -> None:
+    async with Master.connected(broker) as master, galileo.connect("sim://?speed=2") as robot:
+        async with vehicle_on(broker, robot):
+            await robot.start_navigation()
+            await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
+            await master.wait_for("state", lambda s: s["driving"])
+        status = await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
+        assert status.pose is not None
+        assert abs(status.pose.x - 4.0) > 0.5  # stopped on the way, not arrived
+        await master.wait_for("connection", lambda m: m["connectionState"] == "OFFLINE")
