@@ -76,12 +76,15 @@ class ActionRunner:
             self._set(action, "WAITING")
 
     async def run(self, actions: list[Action]) -> None:
-        """Run ``actions`` one after the other."""
+        """Run ``actions`` one after the other; each state they pass through is published."""
+        # Published here, not only by the coalescing publisher: a master sees every step.
+        await self._vehicle.publish_state()
         for action in actions:
             await self._run_one(action)
 
     async def _run_one(self, action: Action) -> None:
         self._set(action, "RUNNING")
+        await self._vehicle.publish_state()
         try:
             await self._dispatch(action)
         except Rejection as exc:
@@ -98,6 +101,7 @@ class ActionRunner:
             self._set(action, "FAILED", f"{type(exc).__name__}: {exc}")
         else:
             self._set(action, "FINISHED")
+        await self._vehicle.publish_state()
 
     async def _dispatch(self, action: Action) -> None:
         refs = [("actionId", action.actionId), ("actionType", action.actionType)]
