@@ -13,7 +13,7 @@ PUBLIC = {
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
     "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "__version__", "connect", "discover", "errors",
-    "protocol",
+    "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.
