@@ -210,7 +210,7 @@ def run(*, quick: bool = False, robots: int = 1000, instructions: bool = False) 
         for stage in order:
             times[stage].append(_spawn(stage, robots, count)["us_per_frame"])
     rows = []
-    for index, stage in enumerate(STAGES):
+    for stage in STAGES:
         value = statistics.median(times[stage])
         before = _before(stage)
         rows.append(Row(name, f"CPU up to {stage}", value, "µs/frame",
