@@ -248,6 +248,8 @@ class Fleet:
         for member in self._members.values():
             await member.tried.wait()
             error = member.error
+            if isinstance(error, InvalidArgument):
+                raise InvalidArgument(f"robot {member.name!r}: {error}") from error
             if error is not None and not isinstance(error, _RETRIED):
                 raise error
 
