@@ -29,7 +29,7 @@ from .errors import InvalidArgument
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
+    import tomli as tomllib  # type: ignore[import-not-found]
 
 __all__ = ["OPTION_TYPES", "FleetFileError", "FleetSpec", "load_fleet_file", "parse_fleet"]
 
