@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from .. import __version__
-from . import capture, demo, ops, serve, teleop, watch
+from . import capture, demo, fleet_cmd, ops, serve, teleop, watch
 from .runner import DEFAULT_PORT, Settings, setup_logging
 
 __all__ = ["app", "main"]
@@ -66,6 +67,14 @@ def options(
             help="Number of targets in the robot's map (needed by goto-point).",
         ),
     ] = None,
+    fleet: Annotated[
+        Path | None,
+        typer.Option(
+            "--fleet",
+            envvar="GALILEO_FLEET",
+            help="Fleet file (TOML, [robots.NAME] port = …) for the fleet commands.",
+        ),
+    ] = None,
     verbose: Annotated[
         int, typer.Option("--verbose", "-v", count=True, help="-v debug logs, -vv raw frames.")
     ] = 0,
@@ -87,6 +96,7 @@ def options(
         verbose=verbose,
         json=json_output,
         map_targets=map_targets,
+        fleet=fleet,
     )
     setup_logging(verbose)
 
@@ -117,6 +127,7 @@ app.command("ports")(serve.ports)
 app.command("discover")(serve.discover)
 app.command("sim")(serve.sim)
 app.command("demo")(demo.demo)
+app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
 
 
 def main() -> None:
