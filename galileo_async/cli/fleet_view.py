@@ -113,9 +113,9 @@ def _number(value: float | None, form: str) -> str:
 
 def _table(rows: list[FleetRow], limit: int) -> Table:
     table = Table(box=None, pad_edge=False, header_style="bold")
-    for column in ("robot", "link", "age", "nav", "visual", "goal", "distance", "pose", "power",
-                   "last event"):  # fmt: skip
-        table.add_column(column, no_wrap=True, overflow="ellipsis")
+    for column in ("robot", "link", "age", "nav", "visual", "goal", "distance", "pose", "power"):
+        table.add_column(column, no_wrap=True, min_width=len(column))
+    table.add_column("last event", no_wrap=True, overflow="ellipsis", max_width=30)
     for row in rows[:limit]:
         pose = "—" if row.x is None or row.y is None else (
             f"{row.x:+.2f} {row.y:+.2f} {_number(row.heading, '+.0f')}°")  # fmt: skip
