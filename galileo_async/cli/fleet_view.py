@@ -48,8 +48,15 @@ class FleetRow:
         return {**self.__dict__, "state": self.state.value}
 
 
+_NAMES: dict[Any, str] = {}
+
+
 def _low(value: Any) -> str:
-    return "—" if value is None else str(getattr(value, "name", value)).lower()
+    """An enum's lower-case name ("—" for None), cached: a thousand robots a render."""
+    text = _NAMES.get(value)
+    if text is None:
+        text = _NAMES[value] = "—" if value is None else str(getattr(value, "name", value)).lower()
+    return text
 
 
 def fleet_rows(
@@ -61,18 +68,22 @@ def fleet_rows(
     for name in fleet:
         status, robot = latest.get(name), fleet.get(name)
         seen = None if robot is None else robot.link.last_frame_at
-        pose = None if status is None else status.pose
-        goal = None if status is None else status.target_num_id
+        state = fleet.state(name)
+        age = None if seen is None else now - seen
+        event = events.get(name) or _failure(fleet, name)
+        if status is None:
+            rows.append(FleetRow(name, state, age, "—", "—", None, "—", None, None, None, None,
+                                 None, event))  # fmt: skip
+            continue
+        x, y, theta = status.current_pose_x, status.current_pose_y, status.current_angle
+        if x is None or y is None or theta is None or x == y == theta == -1.0:
+            x = y = theta = None  # unknown (GalileoStatus.pose)
+        goal = status.target_num_id
         rows.append(FleetRow(
-            name=name, state=fleet.state(name), age=None if seen is None else now - seen,
-            nav=_low(status and status.nav_status), visual=_low(status and status.visual_status),
-            goal=goal if goal is not None and goal >= 0 else None,
-            goal_state=_low(status and status.target_status),
-            distance=None if status is None else status.target_distance,
-            x=None if pose is None else pose.x, y=None if pose is None else pose.y,
-            heading=None if pose is None else pose.degrees,
-            power=None if status is None else status.power,
-            last_event=events.get(name) or _failure(fleet, name),
+            name, state, age, _low(status.nav_status), _low(status.visual_status),
+            goal if goal is not None and goal >= 0 else None, _low(status.target_status),
+            status.target_distance, x, y, None if theta is None else math.degrees(theta),
+            status.power, event,
         ))  # fmt: skip
     return rows
 
@@ -148,9 +159,9 @@ class FleetView:
         self.latest: dict[str, GalileoStatus] = {}
         self.events: dict[str, str] = {}
 
-    def rows(self) -> list[FleetRow]:
-        """Every robot that passes the filters, sorted."""
-        rows = fleet_rows(self.fleet, self.latest, self.events)
+    def rows(self, every: list[FleetRow] | None = None) -> list[FleetRow]:
+        """Every robot (of ``every``, else the fleet now) that passes the filters, sorted."""
+        rows = fleet_rows(self.fleet, self.latest, self.events) if every is None else every
         if self.match:
             rows = [row for row in rows if self.match in row.name]
         if self.states:
@@ -160,7 +171,7 @@ class FleetView:
     def table(self) -> Panel:
         """The summary (title) and the table of the robots that pass the filters."""
         every = fleet_rows(self.fleet, self.latest, self.events)
-        rows = self.rows()
+        rows = self.rows(every)
         more = len(rows) - self.limit
         shown = f" · showing {self.limit} of {len(rows)} (--rows)" if more > 0 else ""
         title = f"galileo fleet · {summary_line(every)}"

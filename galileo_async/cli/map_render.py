@@ -41,14 +41,17 @@ def arrow_for(theta: float) -> str:
 class MapView:
     """A renderable of ``model``: ``rows`` tall, as wide as the console allows."""
 
-    def __init__(self, model: MapModel, rows: int = DEFAULT_ROWS) -> None:
+    def __init__(
+        self, model: MapModel, rows: int = DEFAULT_ROWS, bounds: Bounds | None = None
+    ) -> None:
         self.model = model
         self.rows = rows
+        self.bounds = bounds
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         width, rows = max(8, options.max_width), max(4, options.height or self.rows)
         cells: list[list[tuple[str, Style | None]]] = [[(" ", None)] * width for _ in range(rows)]
-        place = _placer(self.model.bounds(), width, rows)
+        place = _placer(self.bounds or self.model.bounds(), width, rows)
         now = self.model.clock()
         horizon = self.model.trail_seconds or 1.0
         for track in self.model.robots.values():
@@ -122,7 +125,7 @@ def map_panel(model: MapModel, rows: int = DEFAULT_ROWS, title: str = "map") -> 
     """The map in a titled panel; the subtitle gives the scale and what the marks mean."""
     bounds = model.bounds()
     subtitle = f"{bounds.width:.1f} × {bounds.height:.1f} m · ◆ target · · last minute"
-    return Panel(MapView(model, rows), title=title, subtitle=subtitle, height=rows + 2)
+    return Panel(MapView(model, rows, bounds), title=title, subtitle=subtitle, height=rows + 2)
 
 
 def save_svg(renderable: RenderableType, path: Path, *, width: int = 120, title: str = "") -> None:
