@@ -129,6 +129,13 @@ class Fleet:
         """The Robot ``name`` if connected, else None (KeyError if unknown)."""
         return self._members[name].robot
 
+    def name_of(self, robot: Robot) -> str:
+        """The name of ``robot`` in this fleet (KeyError if it is not one of its robots)."""
+        for name, member in self._members.items():
+            if member.robot is robot:
+                return name
+        raise KeyError(robot)
+
     def url(self, name: str) -> str:
         """The URL robot ``name`` connects to."""
         return self._members[name].url

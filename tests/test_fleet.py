@@ -43,6 +43,7 @@ async def test_robots_by_name(fleet: Fleet) -> None:
     assert "z" not in fleet
     assert all(isinstance(fleet[name], Robot) for name in fleet)
     assert fleet["a"] is not fleet["b"]
+    assert fleet.name_of(fleet["b"]) == "b"
     assert fleet.states() == dict.fromkeys("abc", RobotState.UP)
     with pytest.raises(KeyError):
         fleet["z"]
