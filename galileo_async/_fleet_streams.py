@@ -9,7 +9,6 @@ its newest status, however many frames came meanwhile.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import weakref
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, cast
@@ -25,8 +24,6 @@ __all__ = ["DEFAULT_FLEET_EVENT_QUEUE", "FleetEventStream", "FleetHub", "FleetSt
 
 #: (name, event) pairs a fleet events() consumer keeps before it drops the oldest.
 DEFAULT_FLEET_EVENT_QUEUE = 4096
-
-_InvalidState = asyncio.InvalidStateError
 
 
 class FleetStatusStream:
@@ -51,14 +48,18 @@ class FleetStatusStream:
         self.closed = hub.closed
 
     def _mark(self, name: str) -> None:
-        """``name`` has a new status (hot path: once per frame per consumer)."""
+        """``name`` has a new status (FleetHub's listener does the same inline)."""
         self._dirty[name] = None
+        if self._wakeup is not None:
+            self._wake()
+
+    def _wake(self) -> None:
+        """Wake the waiting consumer (once: the future is dropped)."""
         wakeup = self._wakeup
-        if wakeup is not None:
-            self._wakeup = None
-            # A cancelled wait leaves a done future: the name stays marked for the next one.
-            with contextlib.suppress(_InvalidState):
-                wakeup.set_result(None)
+        self._wakeup = None
+        # A cancelled wait leaves a done future: the names stay marked for the next one.
+        if wakeup is not None and not wakeup.done():
+            wakeup.set_result(None)
 
     def __aiter__(self) -> FleetStatusStream:
         return self
@@ -149,10 +150,13 @@ class FleetHub:
 
     def _status_listener(self, name: str) -> Callable[[GalileoStatus], None]:
         def on_update(_status: GalileoStatus) -> None:
+            # FleetStatusStream._mark inlined: this runs on every frame of every robot.
             for ref in self._status_refs:
                 stream = ref()
                 if stream is not None:
-                    stream._mark(name)
+                    stream._dirty[name] = None
+                    if stream._wakeup is not None:
+                        stream._wake()
 
         return on_update
 
