@@ -10,26 +10,42 @@ The same server and phases as ``fleet`` (benchmarks/fleet.py), per round:
   robot. AGE_ROBOTS robots (evenly spread) time every status the consumer gets.
 
 Status age and memory per robot are measured as in ``fleet``; the CPU ratio is taken per
-round against the BufferedProtocol floor of that round, then the median.
+round against the BufferedProtocol floor of that round, then the median. After each
+window, the ``galileo fleet monitor`` screen (table sorted by distance, summary, map of
+every robot) is drawn RENDERS times into a 160 x 60 terminal, fed by a merged stream of
+its own: how long one drawing takes.
 """
 
 from __future__ import annotations
 
 import asyncio
 import gc
+import io
 import statistics
 import time
 
+from rich.console import Console
+
 from galileo_async import Fleet, connect_fleet
+from galileo_async.cli.fleet_cmd import FLEET_REFRESH
+from galileo_async.cli.fleet_view import FleetView
+from galileo_async.cli.map_model import MapModel
 
 from .common import Row, percentile, pin_malloc, raise_fd_limit, rss_bytes
 from .fleet import AGE_ROBOTS, SERVER_WARMUP, TARGET_N, WARMUP, _bare, _Phase, _Server, _window
 
 __all__ = ["merged_phase", "run"]
 
+#: Screens of the fleet monitor drawn per round, at its refresh rate, after the window.
+RENDERS = 8
 
-async def merged_phase(server: _Server, seconds: float) -> _Phase:
-    """Robots in one Fleet, one task reading fleet.statuses(); CPU, frames, ages, memory."""
+
+async def merged_phase(server: _Server, seconds: float, renders: list[float]) -> _Phase:
+    """Robots in one Fleet, one task reading fleet.statuses(); CPU, frames, ages, memory.
+
+    After the window, the fleet monitor's screen is drawn RENDERS times; ``renders`` gets
+    the seconds each drawing took.
+    """
     phase = _Phase()
     origin, period = server.origin, server.period
     ports = {f"r{index}": f"socket://127.0.0.1:{port}" for index, port in enumerate(server.ports)}
@@ -69,13 +85,39 @@ async def merged_phase(server: _Server, seconds: float) -> _Phase:
             phase.frames = sum(robot.link.frames for robot in robots) - frames0
             phase.lost = sum(robot.link.lost_frames for robot in robots) - lost0
             phase.seen = received[0] - received0
+            renders.extend(await _render_times(fleet))
         finally:
             task.cancel()
             await asyncio.gather(task, return_exceptions=True)
     return phase
 
 
-async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phase, ...]]:
+async def _render_times(fleet: Fleet) -> list[float]:
+    """Seconds per drawing of `galileo fleet monitor`'s screen, fed by its own merged stream."""
+    view = FleetView(fleet, MapModel(), sort="distance")
+    console = Console(file=io.StringIO(), width=160, height=60, force_terminal=True)
+
+    async def feed() -> None:
+        async for name, status in fleet.statuses():
+            view.latest[name] = view.changed[name] = status
+
+    task = asyncio.create_task(feed())
+    times = []
+    try:
+        for _ in range(RENDERS):
+            await asyncio.sleep(1 / FLEET_REFRESH)
+            began = time.perf_counter()
+            console.print(view.screen())
+            times.append(time.perf_counter() - began)
+    finally:
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+    return times
+
+
+async def _measure(
+    count: int, seconds: float, repeats: int, renders: list[float]
+) -> list[tuple[_Phase, ...]]:
     """``repeats`` rounds of (bare Protocol, bare BufferedProtocol, merged) on one server."""
     server = _Server(count)
     rounds: list[tuple[_Phase, ...]] = []
@@ -84,7 +126,7 @@ async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phas
         for _ in range(repeats):
             bare = await _bare(server, seconds)
             buffered = await _bare(server, seconds, kind="buffered")
-            merged = await merged_phase(server, seconds)
+            merged = await merged_phase(server, seconds, renders)
             rounds.append((bare, buffered, merged))
     finally:
         await asyncio.get_running_loop().run_in_executor(None, server.close)
@@ -107,12 +149,13 @@ def run(
     for count in sizes or [TARGET_N]:
         wanted = repeats or (1 if quick else 3)
         print(f"  fleet.statuses() N={count}, {wanted} round(s) …", flush=True)
-        rounds = asyncio.run(_measure(count, seconds, wanted))
-        rows += _rows(count, rounds)
+        renders: list[float] = []
+        rounds = asyncio.run(_measure(count, seconds, wanted, renders))
+        rows += _rows(count, rounds, renders)
     return rows
 
 
-def _rows(count: int, rounds: list[tuple[_Phase, ...]]) -> list[Row]:
+def _rows(count: int, rounds: list[tuple[_Phase, ...]], renders: list[float]) -> list[Row]:
     name = f"fleet.statuses() N={count}"
     held = count >= TARGET_N
 
@@ -151,4 +194,7 @@ def _rows(count: int, rounds: list[tuple[_Phase, ...]]) -> list[Row]:
             {"samples": len(ages)}),
         Row(name, "memory per robot: RSS growth", first.rss_per_robot / 1024, "KiB", None, "",
             *target("≤ 32 KiB", first.rss_per_robot <= 32 * 1024)),
+        Row(name, "fleet monitor: one screen drawn (median)", 1000 * statistics.median(renders),
+            "ms", 1000 * max(renders), "max", f"< {1000 / FLEET_REFRESH:.0f} ms (its period)",
+            None, {"renders": len(renders)}),
     ]  # fmt: skip

@@ -13,6 +13,7 @@ def test_merged_benchmark_runs_and_reports_every_row() -> None:
         "driver CPU, one fleet.statuses() consumer",
         "status age p99",
         "memory per robot: RSS growth",
+        "fleet monitor: one screen drawn (median)",
     ]
     cpu = rows[1]
     assert cpu.extra["statuses_received_per_frame"] > 0  # the one consumer got statuses
