@@ -126,6 +126,35 @@ async def test_stale_then_lost_state_and_events() -> None:
         _OneFrameRobot.transports.clear()
 
 
+async def test_a_dropped_robot_reconnects_and_stays_in_the_merged_stream() -> None:
+    # Every connection of this simulator drops after one simulated second (50 ms real).
+    async with Simulator.from_url("sim://?speed=20&disconnect_after=1") as simulator:
+        server = await simulator.serve_tcp()
+        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        try:
+            with anyio.fail_after(WAIT):
+                async with connect_fleet(
+                    {"r": url}, reconnect_initial=0.01, reconnect_max=0.05
+                ) as fleet:
+                    events = fleet.events()
+                    seen: list[type] = []
+                    while ev.ConnectionRestored not in seen:
+                        name, event = await events.__anext__()
+                        assert name == "r"
+                        seen.append(type(event))
+                    assert ev.ConnectionLost in seen
+                    assert fleet["r"].link.reconnects >= 1
+                    stream = fleet.statuses()
+                    await stream.__anext__()  # the latest
+                    name, status = await stream.__anext__()  # a newer one, after the reconnect
+                    assert name == "r"
+                    assert status is fleet["r"].status
+                    events.close()
+                    stream.close()
+        finally:
+            server.close()
+
+
 async def test_each_returns_results_and_errors(fleet: Fleet) -> None:
     async def power(robot: Robot) -> float:
         assert robot.status is not None
