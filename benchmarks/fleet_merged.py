@@ -7,7 +7,9 @@ The same server and phases as ``fleet`` (benchmarks/fleet.py), per round:
   link reads (the floor the issue names);
 * **fleet.statuses()**: ``connect_fleet`` with the N ``socket://`` robots and one task
   iterating ``fleet.statuses()``: every robot's newest status, coalesced, no task per
-  robot. AGE_ROBOTS robots (evenly spread) time every status the consumer gets.
+  robot. AGE_ROBOTS robots (evenly spread) time every status the consumer gets;
+* **a statuses() task per robot** (a reference): ``fleet``'s driver phase, N ``connect()``
+  robots each with a task iterating ``robot.statuses()``, what the merged stream replaces.
 
 Status age and memory per robot are measured as in ``fleet``; the CPU ratio is taken per
 round against the BufferedProtocol floor of that round, then the median. After each
@@ -32,7 +34,17 @@ from galileo_async.cli.fleet_view import FleetView
 from galileo_async.cli.map_model import MapModel
 
 from .common import Row, percentile, pin_malloc, raise_fd_limit, rss_bytes
-from .fleet import AGE_ROBOTS, SERVER_WARMUP, TARGET_N, WARMUP, _bare, _Phase, _Server, _window
+from .fleet import (
+    AGE_ROBOTS,
+    SERVER_WARMUP,
+    TARGET_N,
+    WARMUP,
+    _bare,
+    _driver,
+    _Phase,
+    _Server,
+    _window,
+)
 
 __all__ = ["merged_phase", "run"]
 
@@ -118,7 +130,7 @@ async def _render_times(fleet: Fleet) -> list[float]:
 async def _measure(
     count: int, seconds: float, repeats: int, renders: list[float]
 ) -> list[tuple[_Phase, ...]]:
-    """``repeats`` rounds of (bare Protocol, bare BufferedProtocol, merged) on one server."""
+    """``repeats`` rounds of (bare Protocol, bare BufferedProtocol, merged, a task per robot)."""
     server = _Server(count)
     rounds: list[tuple[_Phase, ...]] = []
     try:
@@ -127,7 +139,8 @@ async def _measure(
             bare = await _bare(server, seconds)
             buffered = await _bare(server, seconds, kind="buffered")
             merged = await merged_phase(server, seconds, renders)
-            rounds.append((bare, buffered, merged))
+            tasks = await _driver(server, seconds, consumers=True)
+            rounds.append((bare, buffered, merged, tasks))
     finally:
         await asyncio.get_running_loop().run_in_executor(None, server.close)
     return rounds
@@ -189,6 +202,13 @@ def _rows(count: int, rounds: list[tuple[_Phase, ...]], renders: list[float]) ->
             100 * statistics.median(load(p) for p in merged), "% of a core",
             100 * statistics.median(load(r[1]) for r in rounds), "bare BufferedProtocol",
             *target("≤ 2.0× bare (aim 1.5×)", ratio <= 2.0), {"ratio_median": ratio, **extra}),
+        Row(name, "a statuses() task per robot CPU (for reference)",
+            100 * statistics.median(load(r[3]) for r in rounds), "% of a core",
+            100 * statistics.median(load(r[1]) for r in rounds), "bare BufferedProtocol", "",
+            None, {"ratio_median": statistics.median(load(r[3]) / load(r[1]) for r in rounds),
+                   "ratios_vs_buffered": [round(load(r[3]) / load(r[1]), 2) for r in rounds],
+                   "us_per_frame_rounds": [round(1e6 * r[3].cpu / max(1, r[3].frames), 2)
+                                           for r in rounds]}),
         Row(name, "status age p99", 1000 * percentile(ages, 99), "ms",
             1000 * percentile(ages, 50), "p50", *target("≤ 100 ms", percentile(ages, 99) <= 0.1),
             {"samples": len(ages)}),

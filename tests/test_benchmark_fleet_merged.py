@@ -11,11 +11,12 @@ def test_merged_benchmark_runs_and_reports_every_row() -> None:
     assert metrics == [
         "frames kept",
         "driver CPU, one fleet.statuses() consumer",
+        "a statuses() task per robot CPU (for reference)",
         "status age p99",
         "memory per robot: RSS growth",
         "fleet monitor: one screen drawn (median)",
     ]
     cpu = rows[1]
     assert cpu.extra["statuses_received_per_frame"] > 0  # the one consumer got statuses
-    assert rows[2].extra["samples"] > 0
+    assert rows[3].extra["samples"] > 0
     assert all(row.ok is None for row in rows)  # targets are held at N=1000 only
