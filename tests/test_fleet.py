@@ -109,6 +109,8 @@ async def test_stale_then_lost_state_and_events() -> None:
             async with connect_fleet(
                 {"r": url, "s": SIM}, stale_timeout=0.1, stale_reconnect=None,
                 reconnect_initial=30, reconnect_max=30,
+                # A loaded machine must not make the healthy robot look stale.
+                robot_options={"s": {"stale_timeout": 30.0}},
             ) as fleet:  # fmt: skip
                 events = fleet.events()
                 name, event = await events.__anext__()
