@@ -10,6 +10,7 @@ from typing import NoReturn
 from ._operations import Deadline, Operations
 from .errors import (
     AcceptTimeout,
+    ConnectionLost,
     GalileoTimeout,
     GoalAborted,
     GoalCancelled,
@@ -20,19 +21,37 @@ from .errors import (
 from .models import GalileoStatus, TargetStatus
 from .protocol import Goto
 
-__all__ = ["GoalHandle", "GoalResult", "GoalTracker", "run_goal"]
+__all__ = [
+    "ALREADY_THERE_FRAMES",
+    "ALREADY_THERE_TIME",
+    "GoalHandle",
+    "GoalResult",
+    "GoalTracker",
+    "run_goal",
+]
 
 _log = logging.getLogger(__name__)
+
+#: Frames in a row after ``g N`` that must show goal N free within arrive_tolerance, none
+#: working, before the goal counts as done "already there" (GoalTracker.stood_there).
+ALREADY_THERE_FRAMES = 10
+#: Seconds after the write before "already there" may be decided (10 frames at 30 Hz):
+#: frames that arrive in a burst may all predate the robot reading the command.
+ALREADY_THERE_TIME = ALREADY_THERE_FRAMES / 30
 
 
 @dataclass(frozen=True, slots=True)
 class GoalResult:
-    """A goal that ended free within ``arrive_tolerance`` of its target."""
+    """A goal that ended free within ``arrive_tolerance`` of its target.
+
+    ``already_there``: the robot stood at the target, and the goal never showed as working.
+    """
 
     target_id: int
     distance: float | None
     elapsed: float
     status: GalileoStatus
+    already_there: bool = False
 
 
 class GoalHandle:
@@ -84,6 +103,9 @@ class GoalTracker:
         self.arrive_tolerance = arrive_tolerance
         self.accepted = False
         self.distance: float | None = None
+        #: The goal ended because the robot already stood at the target (no working frame).
+        self.already_there = False
+        self._there_frames = 0  # frames in a row at the target since the send, none working
         self._previous = before
         self._before_id = before.target_num_id if before is not None else None
         # Re-sending the goal that is already running: the firmware cancels and restarts it
@@ -127,7 +149,28 @@ class GoalTracker:
             # Accepted and finished between two frames: the id changing to ours is the proof.
             self.accepted = True
             return self._track(status)
+        if ours and self._near(status):
+            self._there_frames += 1
+        else:
+            self._there_frames = 0
         return False
+
+    def stood_there(self, status: GalileoStatus, since_send: float) -> bool:
+        """Whether the goal is done because the robot stood at its target all along.
+
+        Standing at target N already, the firmware may finish ``g N`` within one frame, so
+        no frame ever shows it working and the id does not change: only the robot staying
+        free at the target (ALREADY_THERE_FRAMES frames in a row up to ``status``, none
+        working, and ALREADY_THERE_TIME seconds ``since_send``) tells it is done rather than
+        not started.
+        """
+        if self.accepted or self._there_frames < ALREADY_THERE_FRAMES:
+            return False
+        if since_send < ALREADY_THERE_TIME:
+            return False
+        self.accepted = self.already_there = True
+        self._note_distance(status)
+        return True
 
     def _track(self, status: GalileoStatus) -> bool:
         state = status.target_status
@@ -210,11 +253,14 @@ async def run_goal(
     """Send ``g N`` (registered first) and follow the goal to its end; see Robot.goto."""
     loop = asyncio.get_running_loop()
     target_id = handle.target_id
+    sent = False
     with ops.store.watch() as watch:
         tracker = GoalTracker(target_id, before=ops.store.status, arrive_tolerance=arrive_tolerance)
         ops.check_link(f"goto({target_id})")  # below, LinkStale means the goal was sent
+        ops.goal_started()
         try:
             await ops.link.send(Goto(target_id))
+            sent = True
             sent_at = loop.time()
             accept_by = sent_at + accept_timeout
             while True:
@@ -238,18 +284,24 @@ async def run_goal(
                     ) from None
                 handle.check(status)
                 was_accepted = tracker.accepted
-                if _feed(tracker, handle, status):
+                elapsed = loop.time() - sent_at
+                if _feed(tracker, handle, status) or tracker.stood_there(status, elapsed):
                     _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
-                    return GoalResult(target_id, tracker.distance, loop.time() - sent_at, status)
+                    return GoalResult(
+                        target_id, tracker.distance, elapsed, status, tracker.already_there
+                    )
                 if tracker.accepted and not was_accepted:
                     _log.debug("goal %d accepted", target_id)
-        except (asyncio.CancelledError, GalileoTimeout, LinkStale):
+        except (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost) as exc:
             # Leaving while the robot may still drive: stop it, unless a newer goal of
             # this Robot already replaced this one (a cancel would stop the new goal).
-            # A stale link may still transmit; a lost one cannot (ConnectionLost: no cancel).
             if cancel_on_exit and not handle.preempted:
-                _log.info("goal %d left before its end: sending cancel", target_id)
-                await ops.send_cancel_shielded()
+                if sent and isinstance(exc, (LinkStale, ConnectionLost)):
+                    ops.abandon(target_id)  # unseen, it may drive on: check once back
+                # A stale link may still transmit; a lost one cannot.
+                if not isinstance(exc, ConnectionLost):
+                    _log.info("goal %d left before its end: sending cancel", target_id)
+                    await ops.send_cancel_shielded()
             raise
 
 

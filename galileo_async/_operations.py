@@ -5,25 +5,27 @@ from __future__ import annotations
 import asyncio
 import enum
 import logging
-import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Final, TypeVar
 
 import anyio
+import anyio.lowlevel
 
+from ._checks import check_timeout
 from .errors import (
     ConnectionLost,
+    GalileoConnectionError,
     GalileoError,
     GalileoTimeout,
-    InvalidArgument,
     LinkStale,
     NotReady,
     OperationFailed,
     OperationTimeout,
     UnconfirmedOperation,
 )
+from .events import AbandonedGoalCancelled
 from .models import GalileoStatus
-from .protocol import Cancel, Command
+from .protocol import Cancel, Command, Goto
 
 if TYPE_CHECKING:
     from .link import BaseLink
@@ -77,16 +79,6 @@ def or_default(value: _T | RobotDefault, default: _T) -> _T:
     return default if isinstance(value, RobotDefault) else value
 
 
-def check_timeout(name: str, value: float | None, *, allow_none: bool = True) -> None:
-    """Raise InvalidArgument unless ``value`` is a positive finite number (or None if allowed)."""
-    if value is None and allow_none:
-        return
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgument(f"{name} must be a number of seconds, got {value!r}")
-    if not math.isfinite(value) or value <= 0:
-        raise InvalidArgument(f"{name} must be positive and finite, got {value!r}")
-
-
 async def finish_shielded(task: asyncio.Task[None], what: str) -> None:
     """Wait for ``task`` (at most CLEANUP_TIMEOUT s) whatever cancels the caller, then re-raise.
 
@@ -115,6 +107,8 @@ async def finish_shielded(task: asyncio.Task[None], what: str) -> None:
         _log.warning("%s failed: %r", what, task.exception())
     if cancelled is not None:
         raise cancelled
+    # An anyio scope cancelled meanwhile raises here, as its next checkpoint would.
+    await anyio.lowlevel.checkpoint_if_cancelled()
 
 
 class Deadline:
@@ -146,6 +140,38 @@ class Operations:
         self.store = store
         # Exit cancels still being written; held here so they finish and close() awaits them.
         self._cancels: set[asyncio.Future[None]] = set()
+        #: Goals started through this object (goal_started); an abandoned goal's follow-up
+        #: does nothing once a newer goal was started.
+        self.goals_started = 0
+
+    def goal_started(self) -> None:
+        """A goal of this Robot is about to be sent: it replaces every earlier one."""
+        self.goals_started += 1
+
+    def abandon(self, target_id: int) -> None:
+        """Goal ``target_id`` failed with the link down: cancel it if it runs once it is back.
+
+        The robot may go on driving while the host cannot see it (the serial node died, the
+        navigation computer did not). The first status after this call (the link has
+        recovered then: a lost or stale link carries none) decides: goal ``target_id`` still
+        working or paused, and no newer goal started here, gets ``i 2`` and an
+        AbandonedGoalCancelled event.
+        """
+        started = self.goals_started
+
+        def check(status: GalileoStatus) -> None:
+            if started != self.goals_started or self.link.closed:
+                return
+            if status.target_num_id != target_id or not status.goal_active:
+                return
+            written = self.queue_exit_cancel()
+            if written is None:
+                return
+            written.add_done_callback(_log_unsent_cancel)
+            _log.warning("goal %d was abandoned but still runs: sending cancel", target_id)
+            self.store.emit(AbandonedGoalCancelled(status=status, target_id=target_id))
+
+        self.store.call_on_next_status(check)
 
     def check_link(self, what: str) -> None:
         """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
@@ -171,6 +197,25 @@ class Operations:
         if not ok(status):
             raise NotReady(message, status)
         return status
+
+    async def ready(self, ok: Predicate, message: str, deadline: Deadline) -> GalileoStatus:
+        """As require(), first waiting within ``deadline`` for the robot's first status.
+
+        Before it, the link may be up with only the serial node's placeholder frames
+        (PROTOCOL.md §1): after a node restart navigation is open, just not reported yet.
+        """
+        if self.store.status is None:
+            self.check_link(message.partition(":")[0])
+            try:
+                await self.store.wait_until(lambda _status: True, timeout=deadline.remaining())
+            except GalileoTimeout:
+                raise NotReady(
+                    f"{message}: the navigation system has not reported within "
+                    f"{deadline.timeout} s"
+                    + (" (only placeholder frames came)" if self.store.awaiting_robot else ""),
+                    None,
+                ) from None
+        return self.require(ok, message)
 
     async def wait_not_busy(self, deadline: Deadline, what: str) -> None:
         """Wait while busy_status is 1 (the robot would only queue the command), within deadline."""
@@ -228,28 +273,49 @@ class Operations:
                 if done(status):
                     return status
 
-    async def send_cancel_shielded(self) -> None:
-        """Send Cancel (``i 2``) even while the calling task is being cancelled; bounded."""
+    def queue_exit_cancel(self) -> asyncio.Future[bool] | None:
+        """Queue Cancel (``i 2``) now, in call order; a goal (``g``) queued after it drops it.
+
+        A dropped exit cancel is not needed: the newer goal replaces the old one on the
+        robot (PROTOCOL.md §2.b), and written after it the cancel would stop the new goal.
+        """
         if self.link.closed:
-            return  # a closed link cannot carry it
-        # Its own task: asyncio's task.cancel() (even twice) cannot stop the send, which an
+            return None  # a closed link cannot carry it
+        try:
+            return self.link.enqueue(Cancel(), superseded_by=(Goto,))
+        except GalileoConnectionError as exc:
+            _log.warning("the cancel (i 2) could not be queued: %r", exc)
+            return None
+
+    async def send_cancel_shielded(self) -> None:
+        """Queue Cancel before any await, then wait for its write even while cancelled; bounded."""
+        written = self.queue_exit_cancel()
+        if written is None:
+            return
+        # Its own task: asyncio's task.cancel() (even twice) cannot stop the wait, which an
         # anyio shield alone does not prevent; the task bounds itself by CANCEL_SEND_TIMEOUT.
-        task = asyncio.ensure_future(self._send_cancel())
+        task = asyncio.ensure_future(self._await_cancel(written))
         self._cancels.add(task)
         task.add_done_callback(self._cancels.discard)
         with anyio.CancelScope(shield=True):
             await asyncio.shield(task)
 
-    async def _send_cancel(self) -> None:
+    async def _await_cancel(self, written: asyncio.Future[bool]) -> None:
         try:
-            await asyncio.wait_for(self.link.send(Cancel()), CANCEL_SEND_TIMEOUT)
-        except (GalileoError, TimeoutError) as exc:
+            if not await asyncio.wait_for(written, CANCEL_SEND_TIMEOUT):
+                _log.info("the cancel (i 2) was dropped: a newer goal replaces the goal")
+        except (GalileoError, TimeoutError, asyncio.TimeoutError) as exc:
             _log.warning("the cancel (i 2) could not be sent: %r", exc)
 
     async def aclose(self) -> None:
         """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
         if self._cancels:
             await asyncio.wait(set(self._cancels), timeout=CANCEL_SEND_TIMEOUT)
+
+
+def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:
+    if not written.cancelled() and written.exception() is not None:
+        _log.warning("the cancel (i 2) could not be sent: %r", written.exception())
 
 
 class DynamicTargets:

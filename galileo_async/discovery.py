@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import GalileoConnectionError, InvalidArgument
+from .link.ros.link import DEFAULT_MASTER_PORT
 
 __all__ = ["DISCOVERY_PORT", "MAX_DATAGRAM", "DiscoveredRobot", "discover", "parse_announcement"]
 
@@ -17,24 +18,29 @@ __all__ = ["DISCOVERY_PORT", "MAX_DATAGRAM", "DiscoveredRobot", "discover", "par
 DISCOVERY_PORT = 22002
 #: Announcements are a few dozen bytes; anything longer is not one.
 MAX_DATAGRAM = 4096
-_DEFAULT_MASTER_PORT = 11311
 
 
 @dataclass(frozen=True)
 class DiscoveredRobot:
-    """One robot that announced itself: its id, where its ROS master is, mac and version."""
+    """One robot that announced itself: its id, address, announced port, mac and version.
+
+    ``port`` is the port the announcement names (the ROS master's 11311 on older firmware,
+    the robot's HTTP service, 3546, on newer firmware); the ROS master is always at
+    ``address``:``master_port``.
+    """
 
     id: str
     address: str
     port: int
     mac: str | None = None
     version: str | None = None
+    master_port: int = DEFAULT_MASTER_PORT
 
     @property
     def url(self) -> str:
-        """The URL to pass to ``galileo_async.connect``."""
+        """The ``ros://`` URL of the robot's ROS master, to pass to ``galileo_async.connect``."""
         host = f"[{self.address}]" if ":" in self.address else self.address
-        return f"ros://{host}:{self.port}"
+        return f"ros://{host}:{self.master_port}"
 
 
 def parse_announcement(data: bytes, address: str) -> DiscoveredRobot | None:
@@ -47,7 +53,7 @@ def parse_announcement(data: bytes, address: str) -> DiscoveredRobot | None:
         return None
     if not isinstance(payload, dict) or "id" not in payload:
         return None
-    port = payload.get("port", _DEFAULT_MASTER_PORT)
+    port = payload.get("port", DEFAULT_MASTER_PORT)
     if isinstance(port, str) and port.isdigit():
         port = int(port)
     if not isinstance(port, int) or isinstance(port, bool) or not 0 < port < 65536:
@@ -108,4 +114,7 @@ async def discover(
         await asyncio.sleep(timeout)
     finally:
         transport.close()
+        # The transport closes its socket only on a later loop turn, which a cancelled
+        # caller (an anyio cancel scope) may never give it: free the port now.
+        sock.close()
     return sorted(listener.found.values(), key=lambda robot: (robot.id, robot.address))

@@ -9,6 +9,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AcceptTimeout",
+    "AsyncioRequired",
     "ConnectionLost",
     "GalileoConnectionError",
     "GalileoError",
@@ -23,6 +24,7 @@ __all__ = [
     "OperationFailed",
     "OperationTimeout",
     "UnconfirmedOperation",
+    "WrongEventLoop",
 ]
 
 
@@ -35,6 +37,17 @@ class GalileoError(Exception):
 
 class InvalidArgument(GalileoError, ValueError):
     """An argument is out of range or of the wrong kind; nothing was sent."""
+
+
+# --- runtime -----------------------------------------------------------------
+
+
+class AsyncioRequired(GalileoError, RuntimeError):
+    """Called where no asyncio event loop runs (e.g. under trio): the driver runs on asyncio."""
+
+
+class WrongEventLoop(GalileoError, RuntimeError):
+    """A Robot was called from another event loop or thread than the one that connected it."""
 
 
 # --- link --------------------------------------------------------------------

@@ -8,6 +8,7 @@ from .models import ChargeStatus, GalileoStatus, TargetStatus, VisualStatus
 
 __all__ = [
     "DEFAULT_ARRIVE_TOLERANCE",
+    "AbandonedGoalCancelled",
     "BusyEnded",
     "BusyStarted",
     "ChargeStateChanged",
@@ -118,6 +119,11 @@ class GoalCancelled(GoalEvent):
     """The goal was dropped (id changed); ``preempted`` when a new goal replaced it."""
 
     preempted: bool = False
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AbandonedGoalCancelled(GoalEvent):
+    """A goal left when the link failed still ran once it was back: Cancel (``i 2``) was sent."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

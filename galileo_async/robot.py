@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any
 
+from ._checks import check_bool
+from ._connect_options import ROBOT_OPTIONS, check_connect_options, check_robot_options
 from ._goal import GoalHandle, GoalResult, run_goal
 from ._operations import (
     DEFAULT_TIMEOUT,
@@ -22,7 +23,8 @@ from ._operations import (
     finish_shielded,
     or_default,
 )
-from ._services import MAX_TARGET_ID, RobotServices
+from ._runtime import running_loop
+from ._services import RobotServices
 from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
@@ -70,13 +72,6 @@ DEFAULT_WAIT_TIMEOUT = 30.0
 NAVIGATION_TIMEOUT = 60.0
 #: Seconds ``connect`` waits for the first status frame.
 FIRST_STATUS_TIMEOUT = 3.0
-_ROBOT_OPTIONS = (
-    "map_targets",
-    "accept_timeout",
-    "arrive_tolerance",
-    "goal_timeout",
-    "wait_timeout",
-)
 
 
 def _navigating(status: GalileoStatus) -> bool:
@@ -104,19 +99,15 @@ class Robot(RobotServices):
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
-        if map_targets is not None and (
-            not isinstance(map_targets, int)
-            or isinstance(map_targets, bool)
-            or not 0 <= map_targets <= MAX_TARGET_ID
-        ):
-            raise InvalidArgument(f"map_targets must be an int in 0..255, got {map_targets!r}")
-        check_timeout("accept_timeout", accept_timeout, allow_none=False)
-        check_timeout("goal_timeout", goal_timeout)
-        check_timeout("wait_timeout", wait_timeout)
-        if isinstance(arrive_tolerance, bool) or not isinstance(arrive_tolerance, (int, float)):
-            raise InvalidArgument(f"arrive_tolerance must be metres, got {arrive_tolerance!r}")
-        if not math.isfinite(arrive_tolerance) or arrive_tolerance < 0:
-            raise InvalidArgument(f"arrive_tolerance must be ≥ 0, got {arrive_tolerance!r}")
+        check_robot_options(
+            {
+                "map_targets": map_targets,
+                "accept_timeout": accept_timeout,
+                "arrive_tolerance": arrive_tolerance,
+                "goal_timeout": goal_timeout,
+                "wait_timeout": wait_timeout,
+            }
+        )
         self._link = link
         self._store = store
         self._ops = Operations(link, store)
@@ -130,13 +121,23 @@ class Robot(RobotServices):
         self._goal: GoalHandle | None = None
         self._closed = False
         self._close_task: asyncio.Task[None] | None = None
+        self._loop = asyncio.get_running_loop()
 
     # --- state -----------------------------------------------------------------------
 
     @property
     def status(self) -> GalileoStatus | None:
-        """The latest status, or None before the first frame."""
+        """The latest status of the robot, or None before its first (placeholders are not one)."""
         return self._store.status
+
+    @property
+    def awaiting_robot(self) -> bool:
+        """True while the link is up but the serial node sends only placeholder frames.
+
+        The vendor's serial node sends its defaults until the navigation system's first
+        status reaches it, and again after it restarts; ``status`` is None meanwhile.
+        """
+        return self._store.awaiting_robot
 
     @property
     def link(self) -> LinkStats:
@@ -157,16 +158,21 @@ class Robot(RobotServices):
 
         Left out, ``timeout`` is the Robot's ``wait_timeout`` (30 s unless set); None: no limit.
         """
+        if not callable(predicate):
+            raise InvalidArgument(f"predicate must be a function of a status, got {predicate!r}")
         seconds = or_default(timeout, self.wait_timeout)
         check_timeout("timeout", seconds)
+        self._ensure_loop()
         return await self._store.wait_until(predicate, seconds)
 
     def statuses(self) -> StatusStream:
         """Iterate over statuses, newest only: a slow consumer skips to the latest."""
+        self._ensure_loop()
         return self._store.statuses()
 
     def events(self) -> AsyncIterator[Event]:
         """Iterate over typed transition events (goal reached, visual lost, link stale …)."""
+        self._ensure_loop()
         return self._store.events()
 
     async def send(self, command: Command, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -181,8 +187,10 @@ class Robot(RobotServices):
         """Open navigation; return once it is open and the visual system is initialised."""
         check_timeout("timeout", timeout)
         what = "start_navigation"
-        status = self._require(lambda s: not s.mapping, f"{what}: the robot is building a map")
         deadline = Deadline(timeout)
+        status = await self._require(
+            lambda s: not s.mapping, f"{what}: the robot is building a map", deadline
+        )
         if not status.navigating:
             # The firmware ignores a start within 5-30 s of the previous one (PROTOCOL.md §2.a).
             await self._ops.send_confirmed(
@@ -201,11 +209,12 @@ class Robot(RobotServices):
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop navigation (also patrol and the goal); return once it is closed."""
         check_timeout("timeout", timeout)
-        status = self._require(lambda s: True, "stop_navigation")
+        deadline = Deadline(timeout)
+        status = await self._require(lambda s: True, "stop_navigation", deadline)
         if status.navigating:
             await self._ops.send_confirmed(
                 StopNavigation(), lambda s: not s.navigating, field="nav_status",
-                deadline=Deadline(timeout), what="stop_navigation",
+                deadline=deadline, what="stop_navigation",
             )  # fmt: skip
 
     async def goto(
@@ -223,12 +232,15 @@ class Robot(RobotServices):
         ``goal_timeout``, 600 s unless set; None: no limit), ConnectionLost or LinkStale
         (on a lost or stale link before the send: nothing is sent). When the call is
         cancelled, times out or the link goes stale, Cancel (``i 2``) is sent first unless
-        ``cancel_on_exit`` is False.
+        ``cancel_on_exit`` is False; a goal left on a lost or stale link that still runs
+        once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
+        at the target already: a GoalResult with ``already_there`` True.
         """
         Goto(target_id)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
+        check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
         return await self._goto(target_id, Deadline(seconds), accept, cancel_on_exit)
 
@@ -244,9 +256,10 @@ class Robot(RobotServices):
         command = AddTarget(x, y)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
+        check_bool("cancel_on_exit", cancel_on_exit)
         self._require_map_targets("goto_point")
-        self._require(_goal_ready, "goto_point: " + _GOAL_READY)
         deadline = Deadline(seconds)
+        await self._require(_goal_ready, "goto_point: " + _GOAL_READY, deadline)
         await self._reset_targets(deadline)
         target_id = await self._add_target(command, deadline)
         return await self._goto(target_id, deadline, self.accept_timeout, cancel_on_exit)
@@ -259,6 +272,7 @@ class Robot(RobotServices):
         Cancelling the caller does not interrupt it: the link is closed (within a few
         seconds at most), then the cancellation is raised.
         """
+        self._ensure_loop()
         task = self._close_task
         if task is None:
             self._closed = True
@@ -291,9 +305,9 @@ class Robot(RobotServices):
         self, target_id: int, deadline: Deadline, accept_timeout: float, cancel_on_exit: bool
     ) -> GoalResult:
         what = f"goto({target_id})"
-        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
         await self._ops.wait_not_busy(deadline, what)
-        self._require(_goal_ready, f"{what}: {_GOAL_READY}")
+        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
         if self._goal is not None:
             self._goal.preempted = True
         handle = GoalHandle(target_id)
@@ -312,6 +326,9 @@ class Connection:
     """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
 
     def __init__(self, url: str, options: dict[str, Any]) -> None:
+        if not isinstance(url, str) or not url:
+            raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
+        check_connect_options(url, options)
         self.url = url
         self._options = options
         self._robot: Robot | None = None
@@ -333,18 +350,14 @@ class Connection:
             await self._robot.close()
 
     async def _open(self) -> Robot:
+        running_loop(f"connect({self.url!r})")
         options = dict(self._options)
-        robot_options = {name: options.pop(name) for name in _ROBOT_OPTIONS if name in options}
+        robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
-        check_timeout("first_status_timeout", first_status_timeout)
         store = StatusStore(
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
         )
         link = open_link(self.url, store, **options)
-        simulator = getattr(link, "simulator", None)
-        if simulator is not None and "map_targets" not in robot_options:
-            # An in-process simulator knows its map: sim:// needs no map_targets option.
-            robot_options["map_targets"] = len(simulator.config.targets)
         try:
             robot = Robot(link, store, **robot_options)
         except BaseException:
@@ -353,6 +366,8 @@ class Connection:
             raise
         try:
             await link.open()
+            if "map_targets" not in robot_options:  # sim:// and ros:// can tell
+                robot.map_targets = link.map_target_count()
             if first_status_timeout is not None:
                 await _first_status(store, first_status_timeout, self.url)
         except BaseException:
@@ -381,8 +396,8 @@ def connect(url: str, **options: Any) -> Connection:
     ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
     ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
-    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``.
+    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
+    their own. All are checked here, before anything opens (InvalidArgument naming one);
+    connecting needs a running asyncio loop (AsyncioRequired otherwise).
     """
-    if not isinstance(url, str) or not url:
-        raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
     return Connection(url, options)

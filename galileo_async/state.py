@@ -58,8 +58,9 @@ class StatusStore:
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_link_error", "_waiters", "_waiting_streams",
-        "_watch_refs", "_watches", "closed", "last_update", "on_event", "on_update",
+        "_event_streams", "_frame_waiters", "_link_error", "_status_hooks", "_waiters",
+        "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update", "on_event",
+        "on_update",
         "placeholder_frames", "status", "updates",
     )  # fmt: skip
 
@@ -92,6 +93,8 @@ class StatusStore:
         self._link_error: GalileoConnectionError | None = None
         # Futures of first_frame(): resolved by any valid frame, placeholders included.
         self._frame_waiters: list[asyncio.Future[None]] = []
+        # One-shot callbacks of call_on_next_status().
+        self._status_hooks: list[Callable[[GalileoStatus], None]] = []
         # --- listener hooks (fleet.py) ---
         #: Called with every recorded status, synchronously; must be cheap and never raise.
         self.on_update: Callable[[GalileoStatus], None] | None = None
@@ -131,6 +134,8 @@ class StatusStore:
         self.status = status
         self.updates = updates = self.updates + 1
         self.last_update = self._clock()
+        if self._status_hooks:
+            self._run_status_hooks(status)
         if self._waiters:
             self._check_waiters(status)
         waiting = self._waiting_streams
@@ -181,6 +186,25 @@ class StatusStore:
         if self._frame_waiters:
             self._wake_frame_waiters()
 
+    # --- hooks for the driver's own follow-ups (robot layer) ----------------------------
+
+    def call_on_next_status(self, callback: Callable[[GalileoStatus], None]) -> None:
+        """Call ``callback`` once with the next robot status (placeholders are not one)."""
+        if not self.closed:
+            self._status_hooks.append(callback)
+
+    def emit(self, event: Event) -> None:
+        """Hand ``event``, one the driver itself caused, to every events() consumer."""
+        self._emit(event)
+
+    def _run_status_hooks(self, status: GalileoStatus) -> None:
+        hooks, self._status_hooks = self._status_hooks, []
+        for hook in hooks:
+            try:
+                hook(status)
+            except Exception:  # a broken hook must not stop the status stream
+                _log.exception("status hook %r failed", hook)
+
     def _wake_frame_waiters(self) -> None:
         waiters, self._frame_waiters = self._frame_waiters, []
         for future in waiters:
@@ -223,6 +247,7 @@ class StatusStore:
         if self.closed:
             return
         self.closed = True
+        self._status_hooks = []
         closed = ConnectionLost("the status store is closed")
         self._fail_waiters(closed)
         frame_waiters, self._frame_waiters = self._frame_waiters, []

@@ -5,6 +5,11 @@ it is self-contained: its own message texts (as the robot's .msg files) and a sm
 model following the real firmware (PROTOCOL.md §2). It publishes
 ``/galileo/status`` at 30 Hz and applies ``/galileo/cmds``.
 
+``--hostname NAME`` makes it advertise NAME (as ROS_HOSTNAME does) while it listens on
+``--bind`` (127.0.0.1): a robot whose host name the test's host cannot resolve.
+``--goal-num`` keeps the parameter ``/galileo/goal_num`` as the vendor's navigation node
+does: a string, the number of targets, dynamic ones included.
+
 Control from the test on stdin, one line each: ``busy SECONDS`` (report busy and hold
 commands), ``abort`` (the planner gives up on the goal), ``quit``.
 It prints ``READY`` once its publisher and subscriber are registered.
@@ -22,6 +27,7 @@ import threading
 import time
 
 import genpy.dynamic
+import rosgraph.network
 import rospy
 
 HEADER_TEXT = """# Standard metadata for higher-level stamped data types.
@@ -271,7 +277,14 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=4.0)
     parser.add_argument("--visual-init", type=float, default=0.2)
     parser.add_argument("--name", default="galileo_serial_server")
+    parser.add_argument("--hostname", default=None)
+    parser.add_argument("--bind", default="127.0.0.1")
+    parser.add_argument("--goal-num", action="store_true")
     args = parser.parse_args()
+    if args.hostname is not None:
+        os.environ["ROS_HOSTNAME"] = args.hostname
+        # rospy would listen on every interface for a host name: keep the test on loopback.
+        rosgraph.network.get_bind_address = lambda address=None: args.bind
     targets = [tuple(float(v) for v in pair.split(",")) for pair in args.targets.split(";") if pair]
 
     status_text = STATUS_FULL if args.version == "full" else STATUS_13
@@ -294,6 +307,15 @@ def main() -> None:
         incoming.put(data)
 
     rospy.init_node(args.name, disable_signals=True)
+    goal_num = [-1]
+
+    def publish_goal_num() -> None:
+        # The vendor's navigation node sets it as a string of the target count.
+        if args.goal_num and goal_num[0] != len(model.targets):
+            goal_num[0] = len(model.targets)
+            rospy.set_param("/galileo/goal_num", str(goal_num[0]))
+
+    publish_goal_num()
     pub = rospy.Publisher("/galileo/status", status_cls, queue_size=10)
     rospy.Subscriber("/galileo/cmds", cmds_cls, on_cmds, queue_size=100)
     control: queue.Queue[str] = queue.Queue()
@@ -318,6 +340,7 @@ def main() -> None:
             held.append(incoming.get_nowait())
         while held and not model.busy(now):  # busy: commands wait (PROTOCOL.md §2)
             model.apply(held.pop(0), now)
+        publish_goal_num()
         model.step(now, now - last)
         last = now
         pub.publish(status_message(status_cls, model, now))

@@ -302,7 +302,7 @@ def test_rotate_in_document_mode_with_negative_angle() -> None:
         (("map", "start"), "mapping"),
         (("map", "save"), "map save sent"),
         (("map", "update"), "map update sent"),
-        (("charge", "start"), "going to the dock"),
+        (("charge", "start"), "docking"),
         (("charge", "save-dock"), "dock position saved"),
         (("shutdown", "--yes"), "shutdown sent"),
     ],
@@ -311,6 +311,14 @@ def test_simple_commands(args: tuple[str, ...], expected: str) -> None:
     result = invoke(*args)
     assert result.exit_code == 0, result.output
     assert result.stdout.strip() == expected
+
+
+def test_charge_start_help_says_it_is_the_local_docking() -> None:
+    result = invoke("charge", "start", "--help")
+    assert result.exit_code == 0
+    text = " ".join(word for word in result.stdout.split() if word != "│")  # rich's box
+    assert "local infrared docking only" in text
+    assert "near the dock with navigation open" in text
 
 
 def test_shutdown_needs_yes() -> None:
@@ -454,7 +462,7 @@ def test_teleop_needs_a_terminal() -> None:
 def test_help_names_every_url_form() -> None:
     result = invoke("--help", port=None)
     assert result.exit_code == 0
-    text = " ".join(result.stdout.split())
+    text = " ".join(word for word in result.stdout.split() if word != "│")  # rich's box
     for form in ("socket://host:port", "ros://host:11311", "sim://", "--map-targets"):
         assert form in text
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+
 import pytest
 from sim_integration import (
     NEAR,
@@ -17,7 +19,13 @@ from sim_integration import (
 )
 
 import galileo_async as galileo
-from galileo_async import ChargeStatus, NotReady, TargetStatus, UnconfirmedOperation
+from galileo_async import (
+    ChargeStatus,
+    GalileoStatus,
+    NotReady,
+    TargetStatus,
+    UnconfirmedOperation,
+)
 from galileo_async.protocol import StartMapping
 from galileo_async.sim import Simulator
 
@@ -76,6 +84,27 @@ async def test_patrol_start_and_stop(mode: Mode) -> None:
 @modes()
 async def test_patrol_with_dwell(mode: Mode) -> None:
     async with robot_on_sim(mode) as (sim, robot):
+        arrived_at: list[float] = []
+
+        def arrived_near(status: GalileoStatus) -> bool:
+            if status.target_num_id == NEAR and status.target_status == TargetStatus.FREE:
+                arrived_at.append(sim.state.time)
+                return True
+            return False
+
+        # Both waits see every frame from before the patrol starts: under load the test may
+        # resume only after the robot has arrived or left (the dwell is 25 ms of real time).
+        arrival = asyncio.ensure_future(robot.wait_until(arrived_near, timeout=WAIT))
+        left_at: list[float] = []
+
+        def left_near(status: GalileoStatus) -> bool:
+            if status.target_num_id == NEAR + 1:
+                left_at.append(sim.state.time)
+                return True
+            return False
+
+        leaving = asyncio.ensure_future(robot.wait_until(left_near, timeout=WAIT))
+        await asyncio.sleep(0)  # both are registered
         if mode.real:
             # Firmware: 'm' 5 TT sets the wait and starts patrol (PROTOCOL.md §2.g).
             if mode.has("loop_status"):
@@ -95,16 +124,14 @@ async def test_patrol_with_dwell(mode: Mode) -> None:
         assert sim.state.patrol_dwell == 2.0
 
         # It waits the dwell time at the first target before leaving for the next.
-        arrived = await robot.wait_until(
-            lambda s: s.target_num_id == NEAR and s.target_status == TargetStatus.FREE,
-            timeout=WAIT,
-        )
-        arrived_at = sim.state.time
-        left = await robot.wait_until(lambda s: s.target_num_id == NEAR + 1, timeout=WAIT)
+        arrived = await arrival
+        left = await leaving
         if arrived.time_stamp is not None and left.time_stamp is not None:
             assert 1.9 <= (left.time_stamp - arrived.time_stamp) / 30 <= 2.1
-        else:  # the frame counter is missing: the simulator's clock, one tick coarse
-            assert 1.0 <= sim.state.time - arrived_at <= 3.0
+        else:
+            # No frame counter: the simulator's clock when each frame was decoded, coarse by
+            # a tick and by how late a loaded machine delivers each frame (about 1 s at most).
+            assert 0.5 <= left_at[0] - arrived_at[0] <= 3.5
 
 
 @modes()
@@ -126,7 +153,8 @@ async def test_set_patrol_dwell(mode: Mode) -> None:
 
 @modes()
 async def test_mapping(mode: Mode) -> None:
-    async with robot_on_sim(mode, busy_on_map_stop=1.0) as (sim, robot):
+    # Busy saving for 20 simulated s (0.25 s): long enough to be seen under load.
+    async with robot_on_sim(mode, busy_on_map_stop=1.0, busy_on_save=20.0) as (sim, robot):
         with pytest.raises(NotReady, match="navigation must be closed"):
             await robot.start_mapping()
         assert sim.state.status.map_status == 0

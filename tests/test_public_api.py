@@ -7,13 +7,14 @@ import inspect
 import galileo_async as galileo
 
 PUBLIC = {
-    "AcceptTimeout", "AngleGoalStatus", "ChargeStatus", "Connection", "ConnectionLost",
+    "AcceptTimeout", "AngleGoalStatus", "AsyncioRequired", "ChargeStatus", "Connection",
+    "ConnectionLost",
     "DiscoveredRobot", "GalileoConnectionError", "GalileoError", "GalileoStatus",
     "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
     "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
-    "UnconfirmedOperation", "VisualStatus", "__version__", "connect", "discover", "errors",
-    "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
+    "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
+    "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.

@@ -5,8 +5,9 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
-from collections.abc import Iterable
+from collections.abc import Awaitable, Callable, Iterable
 
+import anyio
 import pytest
 from ros_support import free_port
 
@@ -50,6 +51,78 @@ async def test_discovers_a_broadcasting_robot(udp_port: int) -> None:
         )
     ]
     assert robots[0].url == "ros://127.0.0.1:11311"
+
+
+async def test_newer_firmware_announcing_its_http_port_still_gets_the_master_url(
+    udp_port: int,
+) -> None:
+    # Newer firmware announces the port of its HTTP service; the ROS master stays at 11311.
+    announcement = dict(ANNOUNCEMENT, port=3546)
+    robots = await discover_while_broadcasting(udp_port, [json.dumps(announcement).encode()])
+    assert [(r.id, r.port, r.master_port) for r in robots] == [("galileo-7", 3546, 11311)]
+    assert robots[0].url == "ros://127.0.0.1:11311"
+
+
+def port_is_free(port: int) -> bool:
+    """True when a socket without SO_REUSEADDR can bind the UDP port (nobody holds it)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        try:
+            sock.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+async def cancel_by_fail_after(listen: Callable[[], Awaitable[object]]) -> None:
+    with pytest.raises(TimeoutError):
+        with anyio.fail_after(0.05):
+            await listen()
+
+
+async def cancel_by_move_on_after(listen: Callable[[], Awaitable[object]]) -> None:
+    with anyio.move_on_after(0.05) as scope:
+        await listen()
+    assert scope.cancelled_caught
+
+
+async def cancel_by_asyncio_timeout(listen: Callable[[], Awaitable[object]]) -> None:
+    with pytest.raises(TimeoutError):
+        await asyncio.wait_for(listen(), 0.05)
+
+
+async def cancel_the_task(listen: Callable[[], Awaitable[object]]) -> None:
+    task = asyncio.ensure_future(listen())
+    await asyncio.sleep(0.05)  # let it bind and listen a while: there is no event to await
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+
+
+async def fail_a_sibling(listen: Callable[[], Awaitable[object]]) -> None:
+    async def failing() -> None:
+        await asyncio.sleep(0.05)
+        raise RuntimeError("sibling failed")
+
+    async def both() -> None:
+        async with anyio.create_task_group() as group:
+            group.start_soon(listen)
+            group.start_soon(failing)
+
+    with pytest.raises(Exception) as caught:  # noqa: PT011 - an ExceptionGroup, checked below
+        await both()
+    assert caught.group_contains(RuntimeError, match="sibling failed")
+
+
+@pytest.mark.parametrize(
+    "cancel",
+    [cancel_by_fail_after, cancel_by_move_on_after, cancel_by_asyncio_timeout, cancel_the_task,
+     fail_a_sibling],
+)  # fmt: skip
+async def test_cancelled_discover_releases_its_port(
+    udp_port: int, cancel: Callable[[Callable[[], Awaitable[object]]], Awaitable[None]]
+) -> None:
+    await cancel(lambda: discover(30, bind="127.0.0.1", port=udp_port))
+    assert port_is_free(udp_port)
 
 
 async def test_garbage_is_ignored_and_robots_are_deduplicated(udp_port: int) -> None:
@@ -117,6 +190,7 @@ def test_cli_discover_lists_the_robot_with_its_url(udp_port: int) -> None:
             "url": "ros://127.0.0.1:11311",
             "mac": ANNOUNCEMENT["mac"],
             "version": "5.1",
+            "announced_port": 11311,
         }
     ]
     assert plain.exit_code == 0

@@ -64,7 +64,8 @@ def options(
             envvar="GALILEO_MAP_TARGETS",
             min=0,
             max=255,
-            help="Number of targets in the robot's map (needed by goto-point).",
+            help="Number of targets in the robot's map (needed by goto-point; sim:// knows "
+            "it, ros:// reads /galileo/goal_num).",
         ),
     ] = None,
     fleet: Annotated[

@@ -177,7 +177,9 @@ SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
     ("map", "stop", "stop_mapping", "mapping stopped", "Stop mapping."),
     ("map", "save", "save_map", "map save sent", "Save the map (some firmware ignores it)."),
     ("map", "update", "update_map", "map update sent", "Update the map."),
-    ("charge", "start", "start_charging", "going to the dock", "Go to the dock and charge."),
+    ("charge", "start", "start_charging", "docking",
+     "Dock and charge: the local infrared docking only, so the robot must already be near "
+     "the dock with navigation open (drive it there first: goto / goto-point)."),
     ("charge", "stop", "stop_charging", "charging stopped", "Stop charging."),
     ("charge", "save-dock", "save_dock", "dock position saved",
      "Save the current pose as the dock position."),

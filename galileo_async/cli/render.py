@@ -155,6 +155,12 @@ def dashboard(
 ) -> RenderableType:
     """The monitor screen: states, pose and speeds, goal, link statistics, recent events."""
     if status is None:
+        if getattr(link, "frames", 0):
+            # Frames arrive, but only the serial node's placeholders (PROTOCOL.md §1).
+            return Panel(
+                f"{url}: the link is up, but the navigation system has not reported yet …",
+                title="galileo monitor",
+            )
         return Panel(f"waiting for the first status from {url} …", title="galileo monitor")
     pose = status.pose
     states = _grid(

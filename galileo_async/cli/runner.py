@@ -164,7 +164,8 @@ def exit_code_for(exc: BaseException) -> ExitCode:
 
 
 def _hint(exc: BaseException) -> str:
-    if isinstance(exc, NotReady) and "navigation" in str(exc).lower():
+    text = str(exc).lower()
+    if isinstance(exc, NotReady) and "navigation" in text and "not reported" not in text:
         return " (start it with `galileo nav start`, or pass --start-nav)"
     return ""
 

@@ -112,7 +112,7 @@ def discover(
     bind: Annotated[str, typer.Option("--bind", help="Local address to listen on.")] = "",
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:
-    """List robots announcing themselves on the LAN, with the ros:// URL to use."""
+    """List robots announcing themselves on the LAN, with the ros:// URL of their ROS master."""
     from ..discovery import discover as listen
 
     settings = settings_of(ctx)
@@ -121,7 +121,10 @@ def discover(
         robots = await listen(timeout, bind=bind, port=port)
         rows = [{"id": r.id, "url": r.url, "mac": r.mac, "version": r.version} for r in robots]
         if settings.json or json_output:
-            out_console().print(json.dumps(rows), markup=False)
+            # The announced port (3546, HTTP, on newer firmware) is not the master's.
+            ports = [{"announced_port": robot.port} for robot in robots]
+            listed = [{**row, **port} for row, port in zip(rows, ports, strict=True)]
+            out_console().print(json.dumps(listed), markup=False)
             return int(ExitCode.OK)
         if not rows:
             err_console().print(f"no robot announced itself on UDP {port} within {timeout} s")

@@ -13,7 +13,7 @@ import typer
 from rich.console import Group, RenderableType
 from rich.live import Live
 
-from ..errors import ConnectionLost, InvalidArgument
+from ..errors import ConnectionLost, GalileoTimeout, InvalidArgument, NotReady
 from ..events import ConnectionLost as LostEvent
 from ..events import Event
 from ..models import GalileoStatus
@@ -40,6 +40,8 @@ __all__ = ["SvgOption", "TargetsOption", "map_model", "monitor", "status"]
 RECENT_EVENTS = 10
 #: Dashboard refreshes per second.
 MONITOR_REFRESH = 8.0
+#: Seconds `galileo status` waits for the navigation system behind placeholder frames.
+FIRST_REPORT_TIMEOUT = 5.0
 
 
 def status(
@@ -73,8 +75,7 @@ def status(
 
     async def body(robot: Robot) -> int:
         if not watch:
-            latest = robot.status
-            assert latest is not None  # connect() waited for the first status
+            latest = robot.status or await first_report(robot)
             if as_json:
                 data = {"status": status_dict(latest), "link": link_dict(robot.link)}
                 console.print(json.dumps(data), markup=False)
@@ -100,6 +101,19 @@ def status(
         raise ConnectionLost(lost[-1] if lost else "the link closed")
 
     run_robot(settings, body, interrupted=ExitCode.OK, long_running=watch and reconnect)
+
+
+async def first_report(robot: Robot) -> GalileoStatus:
+    """The robot's first status, once the navigation system reports (placeholders come first)."""
+    err_console().print("[dim]the link is up; waiting for the navigation system to report…[/]")
+    try:
+        return await robot.wait_until(lambda _status: True, timeout=FIRST_REPORT_TIMEOUT)
+    except GalileoTimeout:
+        raise NotReady(
+            f"the navigation system has not reported yet (for {FIRST_REPORT_TIMEOUT:g} s the "
+            "robot's serial node sent only its placeholder frames)",
+            None,
+        ) from None
 
 
 async def _print_statuses(

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import importlib
+from collections.abc import Collection, Mapping
+from types import ModuleType
 from typing import Any
 from urllib.parse import urlsplit
 
-from ..errors import GalileoConnectionError
+from .._checks import check_names, naming
+from ..errors import GalileoConnectionError, InvalidArgument
 from .base import BaseLink, LinkStats, StatusSink
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -26,6 +29,9 @@ from .options import (
     DEFAULT_RECONNECT_MAX,
     DEFAULT_STALE_RECONNECT,
     DEFAULT_STALE_TIMEOUT,
+    LINK_OPTIONS,
+    STREAM_OPTIONS,
+    check_values,
 )
 from .stream import StreamLink
 
@@ -40,11 +46,15 @@ __all__ = [
     "DEFAULT_RECONNECT_MAX",
     "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
+    "LINK_OPTIONS",
+    "STREAM_OPTIONS",
     "BaseLink",
     "Connector",
     "LinkStats",
     "StatusSink",
     "StreamLink",
+    "check_link_options",
+    "link_kind",
     "open_link",
     "serial_connector",
     "socket_connector",
@@ -52,9 +62,40 @@ __all__ = [
 ]
 
 
+def link_kind(url: str) -> str:
+    """``"ros"``, ``"socket"``, ``"sim"`` or ``"serial"`` (a device path or pyserial URL)."""
+    scheme = urlsplit(url).scheme.lower()
+    return scheme if scheme in ("ros", "socket", "sim") else "serial"
+
+
+def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
+    """Raise InvalidArgument for a bad URL, an option its link does not take, or a bad value.
+
+    Opens and builds nothing. ``also``: further option names the caller takes itself.
+    """
+    kind = link_kind(url)
+    if kind == "ros":
+        _ros_module(url).check_ros_options(url, options, also=also)
+        return
+    accepted = {*LINK_OPTIONS, *STREAM_OPTIONS, *also}
+    for name in options:
+        if name not in accepted and name in _ros_module(url).ROS_OPTIONS:
+            raise InvalidArgument(f"{name} applies to ros:// links only")
+    check_names(options, accepted)
+    check_values(options)
+    if kind == "socket":
+        parse_socket_url(url)
+
+
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     """A link (not yet opened) for a serial path, ``socket://``, ``sim://`` or ``ros://`` URL."""
-    scheme = urlsplit(url).scheme.lower()
+    with naming(url, repr(url)):
+        check_link_options(url, options)
+        return _open_link(url, store, options)
+
+
+def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
+    scheme = link_kind(url)
     if scheme == "ros":
         return _ros_link(url, store, options)
     baudrate = options.pop("baudrate", DEFAULT_BAUDRATE)
@@ -62,7 +103,7 @@ def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     connect_timeout = options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT)
     if scheme == "socket":
         host, port = parse_socket_url(url)
-        connector = socket_connector(host, port, connect_timeout=connect_timeout)
+        connector = socket_connector(host, port, connect_timeout=connect_timeout, name=url)
         return StreamLink(store, connector, name=url, **options)
     if scheme == "sim":
         simulator = importlib.import_module("galileo_async.sim").Simulator.from_url(url)
@@ -75,13 +116,15 @@ def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
     return StreamLink(store, connector, name=url, **options)
 
 
-def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
+def _ros_module(url: str) -> ModuleType:
     try:
-        ros = importlib.import_module("galileo_async.link.ros")
-        open_ros_link = ros.open_ros_link
-    except (ImportError, AttributeError) as exc:
+        return importlib.import_module("galileo_async.link.ros")
+    except ImportError as exc:
         raise GalileoConnectionError(
-            f"ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
+            f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
         ) from exc
-    link: BaseLink = open_ros_link(url, store, **options)
+
+
+def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
+    link: BaseLink = _ros_module(url).open_ros_link(url, store, **options)
     return link

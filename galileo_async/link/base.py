@@ -12,6 +12,7 @@ from ..errors import ConnectionLost, GalileoConnectionError, LinkStale
 from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
+from .queue import CommandQueue, Pending
 from .stats import LinkStats, StatusSink
 from .watchdog import TICKS_PER_TIMEOUT, StaleClock, Ticket, stale_clock
 
@@ -27,20 +28,18 @@ _log = logging.getLogger(__name__)
 frames_log = logging.getLogger("galileo_async.link.frames")
 _monotonic = time.monotonic
 
-_Pending = tuple[Command, "asyncio.Future[None]"]
 
-
-class BaseLink(abc.ABC):
+class BaseLink(CommandQueue, abc.ABC):
     """Transport-independent half of a link; subclasses connect, write and disconnect."""
 
     # Slots: a fleet touches every link 30 times a second, and attributes kept inside the
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_closed", "_closing", "_connected_at", "_last_write", "_opened",
-        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_stale_clock", "_watchdog",
-        "_writer_task", "drain_timeout", "max_queued_commands", "min_command_interval",
-        "reconnect", "reconnect_initial", "reconnect_max", "stale_reconnect", "stale_timeout",
-        "stats", "store",
+        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_stale_clock",
+        "_supersedable", "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
+        "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
+        "stale_reconnect", "stale_timeout", "stats", "store",
     )  # fmt: skip
 
     def __init__(
@@ -57,6 +56,7 @@ class BaseLink(abc.ABC):
         max_queued_commands: int = _options.DEFAULT_MAX_QUEUED_COMMANDS,
     ) -> None:
         _options.check_options(
+            reconnect=reconnect,
             reconnect_initial=reconnect_initial,
             reconnect_max=reconnect_max,
             stale_timeout=stale_timeout,
@@ -75,8 +75,9 @@ class BaseLink(abc.ABC):
         self.min_command_interval = min_command_interval
         self.drain_timeout = drain_timeout
         self.max_queued_commands = max_queued_commands
-        self._queue: deque[_Pending] = deque()
+        self._queue: deque[Pending] = deque()
         self._room_waiters: deque[asyncio.Future[None]] = deque()
+        self._supersedable: list[tuple[Pending, tuple[type[Command], ...]]] = []
         self._queue_ready = asyncio.Event()
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
@@ -113,6 +114,10 @@ class BaseLink(abc.ABC):
     async def _disconnect(self) -> None:
         """Close the transport, if any, and release what the link owns (bounded)."""
 
+    def map_target_count(self) -> int | None:
+        """How many targets the robot's map has, when the link can tell (once open); else None."""
+        return None
+
     def _current_transport(self) -> asyncio.WriteTransport | None:
         """The asyncio transport written to, if any (default: ``self._transport`` if it is one)."""
         transport = getattr(self, "_transport", None)
@@ -137,25 +142,6 @@ class BaseLink(abc.ABC):
         self._opened = True
         self._writer_task = asyncio.create_task(self._writer(), name=f"{self!r} writer")
         self._on_connected()
-
-    async def send(self, command: Command) -> None:
-        """Queue one command for the paced writer (waiting while full); return once written."""
-        self._check_can_send()
-        if self._room_waiters or len(self._queue) >= self.max_queued_commands:
-            await self._wait_for_room()
-        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        entry = (command, future)
-        self._queue.append(entry)
-        self._queue_ready.set()
-        try:
-            await future
-        finally:
-            if future.cancelled():  # its sender gave up before its turn: free the place now
-                for index, queued in enumerate(self._queue):
-                    if queued is entry:
-                        del self._queue[index]
-                        break
-                self._make_room()
 
     async def close(self) -> None:
         """Stop every task and timer, close the transport and the store (idempotent, bounded)."""
@@ -255,33 +241,12 @@ class BaseLink(abc.ABC):
                 self._reconnect_task = None
 
     def _check_can_send(self) -> None:
+        """Raise ConnectionLost unless the link can take a command now."""
         if self._closing:
             raise ConnectionLost("the link is closed")
         if not self.stats.connected:
             again = ", reconnecting" if self._reconnect_task is not None else ""
             raise ConnectionLost(f"not connected{again}")
-
-    async def _wait_for_room(self) -> None:
-        """Wait, first come first served, for a place in the full queue."""
-        waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._room_waiters.append(waiter)
-        try:
-            await waiter
-            self._check_can_send()  # the link may have dropped meanwhile
-        except BaseException:
-            self._room_waiters.remove(waiter)
-            self._make_room()  # hand the place this sender will not use to the next one
-            raise
-        self._room_waiters.remove(waiter)
-
-    def _make_room(self) -> None:
-        room = self.max_queued_commands - len(self._queue)
-        for waiter in self._room_waiters:
-            if room <= 0:
-                return
-            if not waiter.done():
-                waiter.set_result(None)
-            room -= 1  # woken but not yet running: the place is taken
 
     def _write_buffer_size(self) -> int:
         transport = self._current_transport()
@@ -346,15 +311,7 @@ class BaseLink(abc.ABC):
                 continue
             self._last_write = time.monotonic()
             self.stats.commands_sent += 1
-            future.set_result(None)
-
-    def _fail_pending(self, exc: GalileoConnectionError) -> None:
-        pending = list(self._queue)
-        self._queue.clear()  # in place: the writer holds a reference to this deque
-        for _, future in pending:
-            if not future.done():
-                future.set_exception(exc)
-        self._make_room()
+            future.set_result(True)
 
     def _arm_watchdog(self, delay: float | None) -> None:
         """Check for silence ``delay`` s from now (up to a sixteenth of stale_timeout later)."""

@@ -12,7 +12,9 @@ from types import ModuleType
 from typing import Any, cast
 from urllib.parse import urlsplit
 
+from .._checks import check_seconds
 from ..errors import GalileoConnectionError, GalileoError, InvalidArgument
+from .options import check_values
 from .sockets import open_socket
 
 __all__ = [
@@ -58,7 +60,15 @@ def translate_errors(what: str) -> Iterator[None]:
         raise
     # serial.SerialException subclasses OSError; asyncio.TimeoutError is separate before 3.11.
     except (OSError, EOFError, asyncio.TimeoutError) as exc:
-        raise GalileoConnectionError(f"{what}: {exc or type(exc).__name__}") from exc
+        raise GalileoConnectionError(f"{what}: {_describe(exc)}") from exc
+
+
+def _describe(exc: BaseException) -> str:
+    """The message of ``exc``, or its kind when it has none (``str(TimeoutError())`` is empty)."""
+    text = str(exc)
+    if isinstance(exc, (TimeoutError, asyncio.TimeoutError)):
+        return text or "timed out"
+    return text or type(exc).__name__
 
 
 def serial_backend() -> ModuleType:
@@ -73,8 +83,7 @@ def serial_connector(
     port: str, *, baudrate: int = DEFAULT_BAUDRATE, **serial_options: Any
 ) -> Connector:
     """Connector for a serial device path or pyserial URL (8N1, no flow control)."""
-    if not isinstance(baudrate, int) or isinstance(baudrate, bool) or baudrate <= 0:
-        raise InvalidArgument(f"baudrate must be a positive int, got {baudrate!r}")
+    check_values({"baudrate": baudrate})
 
     async def connect(
         loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
@@ -95,17 +104,31 @@ def serial_connector(
 
 
 def socket_connector(
-    host: str, port: int, *, connect_timeout: float = DEFAULT_CONNECT_TIMEOUT
+    host: str,
+    port: int,
+    *,
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+    name: str | None = None,
 ) -> Connector:
-    """Connector for a TCP byte stream (ser2net, a simulator); EOF counts as a drop."""
+    """Connector for a TCP byte stream (ser2net, a simulator); EOF counts as a drop.
+
+    Its errors name ``name`` (the link's URL), else ``host:port``.
+    """
+    check_seconds("connect_timeout", connect_timeout)
+    what = f"cannot connect to {name or f'{host}:{port}'}"
 
     async def connect(
         loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
     ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
-        with translate_errors(f"cannot connect to {host}:{port}"):
-            transport, protocol = await asyncio.wait_for(
-                open_socket(loop, factory, host, port), connect_timeout
-            )
+        with translate_errors(what):
+            try:
+                transport, protocol = await asyncio.wait_for(
+                    open_socket(loop, factory, host, port), connect_timeout
+                )
+            except asyncio.TimeoutError:
+                raise GalileoConnectionError(
+                    f"{what}: no TCP connection within {connect_timeout} s (connect_timeout)"
+                ) from None
         set_keepalive(transport)
         return transport, cast(asyncio.Protocol, protocol)
 

@@ -1,8 +1,14 @@
-"""A link's tunable options: their defaults and the checks they pass before anything opens."""
+"""A link's options: names, defaults and the checks they pass before anything opens."""
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from .._checks import check_bool, check_int, check_number, check_seconds, check_timeout
 from ..errors import InvalidArgument
+from ..models import StatusLayout
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -14,7 +20,15 @@ __all__ = [
     "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
     "DRAIN_POLL_INTERVAL",
+    "LINK_OPTIONS",
+    "MAX_BAUDRATE",
+    "MAX_QUEUED_COMMANDS_LIMIT",
+    "OPTION_CHECKS",
+    "PORTABLE_OPTIONS",
+    "STREAM_LAYOUTS",
+    "STREAM_OPTIONS",
     "check_options",
+    "check_values",
 ]
 
 #: The document allows at most 100 commands/s; back-to-back writes lose commands (PROTOCOL.md §2).
@@ -35,8 +49,86 @@ DEFAULT_RECONNECT_MAX = 5.0
 CLOSE_TIMEOUT = 2.0
 
 
+#: Most commands a link may queue (far above any use: a bound, not a setting).
+MAX_QUEUED_COMMANDS_LIMIT = 1_000_000
+#: Highest baud rate taken: the operating system holds it in a C int.
+MAX_BAUDRATE = 2**31 - 1
+#: Options every link kind takes (BaseLink's).
+LINK_OPTIONS = (
+    "reconnect", "reconnect_initial", "reconnect_max", "stale_timeout", "stale_reconnect",
+    "min_command_interval", "drain_timeout", "max_queued_commands",
+)  # fmt: skip
+#: Options a link kind ignores when they do not apply to it, so one set serves a fleet of
+#: mixed URLs (a serial port has no connect timeout, a socket no baud rate).
+PORTABLE_OPTIONS = ("baudrate", "serial_options", "connect_timeout")
+#: Options of the serial, socket:// and sim:// links on top of LINK_OPTIONS.
+STREAM_OPTIONS = ("layout", *PORTABLE_OPTIONS)
+
+
+def _check_stale_reconnect(name: str, value: object) -> None:
+    if value is not None:
+        check_number(name, value, low=1.0)
+
+
+def _check_queue(name: str, value: object) -> None:
+    check_int(name, value, 1, MAX_QUEUED_COMMANDS_LIMIT)
+
+
+#: The status layouts a byte stream can carry (``"ros"`` is the ROS link's own).
+STREAM_LAYOUTS = tuple(layout.value for layout in StatusLayout if layout is not StatusLayout.ROS)
+
+
+def _check_layout(name: str, value: object) -> None:
+    if value is not None and value not in STREAM_LAYOUTS:
+        known = ", ".join(map(repr, STREAM_LAYOUTS))
+        raise InvalidArgument(f"{name} must be None (detect it) or one of {known}, got {value!r}")
+
+
+def _check_baudrate(name: str, value: object) -> None:
+    check_int(name, value, 1, MAX_BAUDRATE)
+
+
+def _check_serial_options(name: str, value: object) -> None:
+    if value is None:
+        return
+    if not isinstance(value, Mapping) or not all(isinstance(key, str) for key in value):
+        raise InvalidArgument(f"{name} must be a dict of pyserial settings, got {value!r}")
+
+
+#: The check of each option of LINK_OPTIONS and STREAM_OPTIONS: (name, value) -> None or raise.
+OPTION_CHECKS: dict[str, Callable[[str, Any], object]] = {
+    "reconnect": check_bool,
+    "reconnect_initial": check_seconds,
+    "reconnect_max": check_seconds,
+    "stale_timeout": check_timeout,
+    "stale_reconnect": _check_stale_reconnect,
+    "min_command_interval": functools.partial(check_seconds, allow_zero=True),
+    "drain_timeout": check_seconds,
+    "max_queued_commands": _check_queue,
+    "layout": _check_layout,
+    "baudrate": _check_baudrate,
+    "serial_options": _check_serial_options,
+    "connect_timeout": check_seconds,
+}
+
+
+def check_values(options: Mapping[str, Any]) -> None:
+    """Raise InvalidArgument, naming the option, for the first value OPTION_CHECKS rejects."""
+    for name, value in options.items():
+        check = OPTION_CHECKS.get(name)
+        if check is not None:
+            check(name, value)
+    initial = options.get("reconnect_initial", DEFAULT_RECONNECT_INITIAL)
+    maximum = options.get("reconnect_max", DEFAULT_RECONNECT_MAX)
+    if initial > maximum:
+        raise InvalidArgument(
+            f"reconnect_initial ({initial}) must not exceed reconnect_max ({maximum})"
+        )
+
+
 def check_options(
     *,
+    reconnect: bool = True,
     reconnect_initial: float,
     reconnect_max: float,
     stale_timeout: float | None,
@@ -46,18 +138,15 @@ def check_options(
     max_queued_commands: int,
 ) -> None:
     """Raise InvalidArgument for the first option a link cannot work with."""
-    if not 0 < reconnect_initial <= reconnect_max:
-        raise InvalidArgument("need 0 < reconnect_initial <= reconnect_max")
-    if stale_timeout is not None and stale_timeout <= 0:
-        raise InvalidArgument(f"stale_timeout must be positive or None, got {stale_timeout}")
-    if stale_reconnect is not None and not stale_reconnect >= 1:
-        raise InvalidArgument(
-            f"stale_reconnect must be >= 1 (times stale_timeout) or None, got {stale_reconnect}"
-        )
-    if min_command_interval < 0:
-        raise InvalidArgument(f"min_command_interval must be >= 0, got {min_command_interval}")
-    if not drain_timeout > 0:
-        raise InvalidArgument(f"drain_timeout must be positive, got {drain_timeout}")
-    queued = max_queued_commands
-    if isinstance(queued, bool) or not (isinstance(queued, int) and queued >= 1):
-        raise InvalidArgument(f"max_queued_commands must be an int >= 1, got {queued!r}")
+    check_values(
+        {
+            "reconnect": reconnect,
+            "reconnect_initial": reconnect_initial,
+            "reconnect_max": reconnect_max,
+            "stale_timeout": stale_timeout,
+            "stale_reconnect": stale_reconnect,
+            "min_command_interval": min_command_interval,
+            "drain_timeout": drain_timeout,
+            "max_queued_commands": max_queued_commands,
+        }
+    )

@@ -178,6 +178,10 @@ class StreamLink(BaseLink):
     def __repr__(self) -> str:
         return f"<StreamLink {self.name or 'custom'}>"
 
+    def map_target_count(self) -> int | None:
+        """The in-process simulator's map size on ``sim://``; else None (serial cannot tell)."""
+        return None if self.simulator is None else len(self.simulator.config.targets)
+
     def add_closer(self, closer: Callable[[], Awaitable[None]]) -> None:
         """Await ``closer()`` when the link closes (for resources the link owns)."""
         self._closers.append(closer)
@@ -197,7 +201,9 @@ class StreamLink(BaseLink):
             raise
         if protocol.lost.done() or self._protocol is not protocol:
             transport.close()
-            raise GalileoConnectionError("the connection closed while it was being opened")
+            raise GalileoConnectionError(
+                f"{self.name or 'the device'}: the connection closed while it was being opened"
+            )
         self._transport = cast(asyncio.WriteTransport, transport)
 
     def _write(self, command: Command) -> None:

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass
 from typing import ClassVar
 
+from .._checks import check_int, check_number
 from ..errors import InvalidArgument
 from .layouts import HEADER
 
@@ -53,20 +53,6 @@ MAX_COORDINATE = 100_000.0
 
 _F32 = struct.Struct("<f")
 _U32 = struct.Struct("<I")
-
-
-def _check_int(name: str, value: object, low: int, high: int) -> None:
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise InvalidArgument(f"{name} must be an int, got {value!r}")
-    if not low <= value <= high:
-        raise InvalidArgument(f"{name} must be in {low}..{high}, got {value}")
-
-
-def _check_float(name: str, value: object, limit: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgument(f"{name} must be a number, got {value!r}")
-    if not math.isfinite(value) or abs(value) > limit:
-        raise InvalidArgument(f"{name} must be finite and within ±{limit:g}, got {value!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,7 +176,7 @@ class UpdateMap(_Fixed):
 
 @dataclass(frozen=True, slots=True)
 class StartCharging(_Fixed):
-    """Go to the dock and charge ('j' 0)."""
+    """Dock and charge ('j' 0): local infrared docking, the robot near the dock, navigating."""
 
     data: ClassVar[bytes] = b"j\x00"
 
@@ -216,7 +202,7 @@ class Goto(Command):
     target_id: int
 
     def __post_init__(self) -> None:
-        _check_int("target_id", self.target_id, 0, 255)
+        check_int("target_id", self.target_id, 0, 255)
 
     def payload(self) -> bytes:
         return bytes((0x67, self.target_id))
@@ -230,7 +216,7 @@ class _Percent(Command):
     code: ClassVar[int] = 0
 
     def __post_init__(self) -> None:
-        _check_int("percent", self.percent, 0, 100)
+        check_int("percent", self.percent, 0, 100)
 
     def payload(self) -> bytes:
         return bytes((self.code, self.percent))
@@ -271,7 +257,7 @@ class Stop(Command):
     brake: int = 100
 
     def __post_init__(self) -> None:
-        _check_int("brake", self.brake, 0, 100)
+        check_int("brake", self.brake, 0, 100)
 
     def payload(self) -> bytes:
         return bytes((ord("s"), self.brake))
@@ -284,7 +270,7 @@ class RotateTo(Command):
     degrees: int
 
     def __post_init__(self) -> None:
-        _check_int("degrees", self.degrees, -180, 180)
+        check_int("degrees", self.degrees, -180, 180)
 
     def payload(self) -> bytes:
         return bytes((ord("a"), 1 if self.degrees < 0 else 0, abs(self.degrees)))
@@ -297,7 +283,7 @@ class SetPatrolDwell(Command):
     seconds: int
 
     def __post_init__(self) -> None:
-        _check_int("seconds", self.seconds, 0, 255)
+        check_int("seconds", self.seconds, 0, 255)
 
     def payload(self) -> bytes:
         return bytes((ord("m"), 5, self.seconds))
@@ -325,8 +311,8 @@ class AddTarget(Command):
     y: float
 
     def __post_init__(self) -> None:
-        _check_float("x", self.x, MAX_COORDINATE)
-        _check_float("y", self.y, MAX_COORDINATE)
+        check_number("x", self.x, low=-MAX_COORDINATE, high=MAX_COORDINATE)
+        check_number("y", self.y, low=-MAX_COORDINATE, high=MAX_COORDINATE)
 
     def payload(self) -> bytes:
         x, y = nudge_coordinates(self.x, self.y)

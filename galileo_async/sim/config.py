@@ -131,10 +131,15 @@ class SimConfig:
         for name in (
             "visual_init_time", "busy_on_start", "busy_on_map_stop", "busy_on_save",
             "busy_max_wait", "patrol_dwell", "docking_time", "power_drain", "charge_rate",
+            "arrival_distance", "power", "power_full",
         ):  # fmt: skip
             _check_non_negative(name, getattr(self, name))
         if self.start_ignore_time is not None:
             _check_non_negative("start_ignore_time", self.start_ignore_time)
+        for name, size in (("start_pose", 3), ("dock", 2)):
+            value = getattr(self, name)
+            if len(value) != size or not all(map(math.isfinite, value)):
+                raise InvalidArgument(f"{name} must be {size} finite numbers, got {value!r}")
         for name in ("max_speed", "max_turn_rate", "acceleration", "angular_acceleration"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):

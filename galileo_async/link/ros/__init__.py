@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from .link import DEFAULT_MASTER_PORT, RosLink, open_ros_link, parse_ros_url
+from .link import (
+    DEFAULT_MASTER_PORT,
+    GOAL_NUM_PARAM,
+    ROS_OPTIONS,
+    RosLink,
+    check_ros_options,
+    open_ros_link,
+    parse_ros_url,
+)
 from .messages import (
     CMDS_MD5,
     CMDS_TOPIC,
@@ -20,6 +28,8 @@ __all__ = [
     "CMDS_TOPIC",
     "CMDS_TYPE",
     "DEFAULT_MASTER_PORT",
+    "GOAL_NUM_PARAM",
+    "ROS_OPTIONS",
     "STATUS_MD5",
     "STATUS_TOPIC",
     "STATUS_TYPE",
@@ -27,6 +37,7 @@ __all__ = [
     "RosLink",
     "RosNode",
     "StatusMessageDecoder",
+    "check_ros_options",
     "encode_cmds",
     "open_ros_link",
     "parse_ros_url",

@@ -5,14 +5,17 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from ..._checks import check_names, check_seconds
 from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ...models import GalileoStatus
 from ...protocol.commands import Command
 from ..base import BaseLink, StatusSink
-from ..options import DEFAULT_STALE_RECONNECT
+from ..options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
+from .hosts import parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -22,11 +25,15 @@ from .node import (
     default_node_name,
     local_address_for,
 )
+from .xmlrpc import RosApiError
 
 __all__ = [
     "DEFAULT_MASTER_PORT",
     "DEFAULT_STALE_RECONNECT",
+    "GOAL_NUM_PARAM",
+    "ROS_OPTIONS",
     "RosLink",
+    "check_ros_options",
     "open_ros_link",
     "parse_ros_url",
 ]
@@ -34,13 +41,71 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 DEFAULT_MASTER_PORT = 11311
-_QUERY_OPTIONS = {"host": str, "node_name": str, "connect_timeout": float}
+#: The robot's target count, kept by its navigation node and read by the vendor's SDK.
+GOAL_NUM_PARAM = "/galileo/goal_num"
+#: Goal ids are one byte (PROTOCOL.md §2.b).
+_MAX_TARGETS = 255
+_QUERY_OPTIONS: dict[str, Any] = {
+    "host": str,
+    "node_name": str,
+    "connect_timeout": float,
+    "hosts": parse_hosts,
+}
 # Serial-only options a generic caller may pass along; they mean nothing over ROS.
 _IGNORED_OPTIONS = ("baudrate", "serial_options")
+#: Options of a ros:// link on top of every link's (LINK_OPTIONS).
+ROS_OPTIONS = (
+    "host", "bind", "node_name", "connect_timeout", "rpc_timeout", "master_check_interval",
+    "hosts", "layout", *_IGNORED_OPTIONS,
+)  # fmt: skip
+
+
+def _check_name(name: str, value: object) -> None:
+    if value is not None and not (isinstance(value, str) and value):
+        raise InvalidArgument(f"{name} must be a non-empty string or None, got {value!r}")
+
+
+def _check_hosts(name: str, value: Any) -> None:
+    if value is not None:
+        parse_hosts(value)
+
+
+def _check_layout(name: str, value: object) -> None:
+    if value is not None and str(value) != "ros":
+        raise InvalidArgument(
+            f"{name} {value!r} does not apply to ros:// (status is decoded by name)"
+        )
+
+
+_ROS_CHECKS: dict[str, Callable[[str, Any], object]] = {
+    "host": _check_name,
+    "bind": _check_name,
+    "node_name": _check_name,
+    "connect_timeout": check_seconds,
+    "rpc_timeout": check_seconds,
+    "master_check_interval": check_seconds,
+    "hosts": _check_hosts,
+    "layout": _check_layout,
+}
+
+
+def check_ros_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
+    """Raise InvalidArgument for a bad ros:// URL, an unknown option or a bad value; opens nothing.
+
+    ``also``: further option names the caller takes itself.
+    """
+    _, url_options = parse_ros_url(url)
+    check_names(options, {*LINK_OPTIONS, *ROS_OPTIONS, *also})
+    merged = {**url_options, **options}
+    for name, value in merged.items():
+        check = _ROS_CHECKS.get(name)
+        if check is not None:
+            check(name, value)
+    check_values({name: value for name, value in merged.items() if name not in _ROS_CHECKS})
 
 
 def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
-    """``ros://host[:port][?host=…&node_name=…]`` → (master URI, options from the query)."""
+    """``ros://host[:port][?host=…&node_name=…&hosts=name=ip,…]`` → (master URI, options)."""
     parts = urlsplit(url)
     if parts.scheme.lower() != "ros" or not parts.hostname:
         raise InvalidArgument(f"not a ros://host[:port] URL: {url!r}")
@@ -55,8 +120,8 @@ def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
             raise InvalidArgument(f"unknown option {key!r} in {url!r}")
         try:
             options[key] = _QUERY_OPTIONS[key](values[-1])
-        except ValueError as exc:
-            raise InvalidArgument(f"bad value for {key} in {url!r}") from exc
+        except ValueError as exc:  # InvalidArgument is one too
+            raise InvalidArgument(f"bad value for {key} in {url!r}: {exc}") from exc
     return f"http://{host}:{port}/", options
 
 
@@ -74,9 +139,12 @@ class RosLink(BaseLink):
         connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
         rpc_timeout: float = DEFAULT_RPC_TIMEOUT,
         master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
+        hosts: str | Mapping[str, str] | None = None,
         name: str | None = None,
         **base_options: Any,
     ) -> None:
+        #: Host name → IP for peers' advertised names (else: the name, or the master's address).
+        self.hosts = {} if hosts is None else parse_hosts(hosts)
         super().__init__(store, **base_options)
         self.master_uri = master_uri
         # Like rospy: an explicit option, else ROS_IP / ROS_HOSTNAME, else the route's address.
@@ -91,9 +159,14 @@ class RosLink(BaseLink):
         #: Undecodable status messages over the link's life (their bytes are in bytes_discarded).
         self.decode_errors = 0
         self._counted = NodeStats()
+        self._goal_num: int | None = None
 
     def __repr__(self) -> str:
         return f"<RosLink {self.name}>"
+
+    def map_target_count(self) -> int | None:
+        """``/galileo/goal_num`` as read at the last connect (dynamic targets included)."""
+        return self._goal_num
 
     async def _connect(self) -> None:
         await self._drop_node()
@@ -108,16 +181,35 @@ class RosLink(BaseLink):
             connect_timeout=self.connect_timeout,
             rpc_timeout=self.rpc_timeout,
             master_check_interval=self.master_check_interval,
+            hosts=self.hosts,
         )
         self._counted = NodeStats()
+        # Kept even if start() fails: a start cancelled by an anyio scope cannot finish the
+        # node's close (unregistering), so _drop_node finishes it when the link closes.
+        self.node = node
         try:
             await node.start()
-        except GalileoConnectionError:
-            raise
-        except OSError as exc:  # foreign errors are translated at the link edge
-            raise GalileoConnectionError(f"cannot connect to {self.master_uri}: {exc}") from exc
-        self.node = node
+        except (GalileoConnectionError, OSError) as exc:  # foreign errors: at the link edge
+            raise GalileoConnectionError(f"cannot connect to {self.name}: {exc}") from exc
         _log.info("connected to %s as %s", self.master_uri, node.name)
+        await self._read_goal_num(node)
+
+    async def _read_goal_num(self, node: RosNode) -> None:
+        try:
+            value = await node.get_param(GOAL_NUM_PARAM)
+        except RosApiError as exc:  # keep what the last connect read
+            _log.warning("cannot read %s from %s: %s", GOAL_NUM_PARAM, self.master_uri, exc)
+            return
+        # The vendor's navigation node stores it as a string ("5"); the SDK accepts an int too.
+        if isinstance(value, str) and value.strip().isdigit():
+            value = int(value)
+        if value is None or isinstance(value, bool) or not isinstance(value, int):
+            count = None
+        else:
+            count = value if 0 <= value <= _MAX_TARGETS else None
+        if count is None and value is not None:
+            _log.warning("ignoring %s = %r on %s", GOAL_NUM_PARAM, value, self.master_uri)
+        self._goal_num = count
 
     def _status_from_node(self, status: GalileoStatus) -> None:
         if self.node is not None:
@@ -148,20 +240,20 @@ class RosLink(BaseLink):
         await self._drop_node()
 
     async def _drop_node(self) -> None:
-        node, self.node = self.node, None
+        node = self.node
         if node is not None:
             self._count(node)
-            await node.close()
+            try:
+                await node.close()
+            finally:  # kept until closed: a cancelled drop is finished by the next one
+                if self.node is node:
+                    self.node = None
 
 
 def open_ros_link(url: str, store: StatusSink, **options: Any) -> RosLink:
     """A RosLink (not yet opened) for ``ros://host[:port]``; options as RosLink and BaseLink."""
+    check_ros_options(url, options)
     master_uri, url_options = parse_ros_url(url)
-    for key in _IGNORED_OPTIONS:
+    for key in (*_IGNORED_OPTIONS, "layout"):
         options.pop(key, None)
-    layout = options.pop("layout", None)
-    if layout is not None and str(layout) != "ros":
-        raise InvalidArgument(
-            f"layout {layout!r} does not apply to ros:// (status is decoded by name)"
-        )
     return RosLink(store, master_uri, name=url, **(url_options | options))

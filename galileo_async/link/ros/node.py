@@ -10,7 +10,7 @@ import logging
 import os
 import socket
 import time
-from collections.abc import Awaitable, Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine, Mapping
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlsplit
@@ -18,6 +18,7 @@ from urllib.parse import urlsplit
 from ...errors import ConnectionLost, GalileoConnectionError
 from ...models import GalileoStatus
 from ...protocol.commands import Command
+from .hosts import PeerAddresses
 from .messages import (
     CMDS_DEFINITION,
     CMDS_MD5,
@@ -109,6 +110,7 @@ class RosNode:
         connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
         rpc_timeout: float = DEFAULT_RPC_TIMEOUT,
         master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
+        hosts: Mapping[str, str] | None = None,
     ) -> None:
         self.master_uri = master_uri
         self.name = name or default_node_name()
@@ -123,6 +125,7 @@ class RosNode:
         self._on_status = on_status
         self._on_lost = on_lost
         self._master = MasterClient(master_uri, self.name, timeout=rpc_timeout)
+        self._peers = PeerAddresses(hosts or {}, urlsplit(master_uri).hostname or "127.0.0.1")
         self._slave = SlaveServer(self.name, master_uri)
         self._cmds = TcprosPublisher(
             topic=CMDS_TOPIC,
@@ -136,6 +139,7 @@ class RosNode:
         self._publishers_changed = asyncio.Event()
         self._first_status = asyncio.Event()
         self._watch_task: asyncio.Task[None] | None = None
+        self._close_task: asyncio.Future[None] | None = None
         self._master_pid: int | None = None
         self._last_seq: int | None = None
         self._seq = 0
@@ -239,7 +243,10 @@ class RosNode:
     async def _subscribe_at(self, slave_uri: str, deadline: float) -> None:
         remaining = max(0.01, deadline - asyncio.get_running_loop().time())
         timeout = min(self.rpc_timeout, remaining)
-        host, port = await request_topic(slave_uri, self.name, STATUS_TOPIC, timeout=timeout)
+        # The robot's nodes advertise its host name, which this host may not resolve.
+        reachable_uri = await self._peers.uri(slave_uri)
+        host, port = await request_topic(reachable_uri, self.name, STATUS_TOPIC, timeout=timeout)
+        host = await self._peers.address(host)
         header = {
             "callerid": self.name,
             "topic": STATUS_TOPIC,
@@ -309,6 +316,10 @@ class RosNode:
             except RosApiError as exc:
                 _log.debug("master %s unreachable: %s", self.master_uri, exc)
 
+    async def get_param(self, key: str) -> Any:
+        """A parameter from the master's parameter server; None when it is not set."""
+        return await self._master.get_param(key)
+
     def publish(self, command: Command) -> None:
         """Publish one command as GalileoNativeCmds; raise ConnectionLost if nobody listens."""
         if not self._up:
@@ -319,17 +330,24 @@ class RosNode:
             raise ConnectionLost(f"nobody subscribes to {CMDS_TOPIC}")
 
     async def close(self) -> None:
-        """Release every socket and task, then unregister (best effort); bounded by CLOSE_BOUND."""
-        if self._closed:
-            return
-        self._closed = True
-        self._up = False
-        # Local sockets first, synchronously: an unreachable master must not leave them open.
-        if self._status_transport is not None:
-            self._status_transport.abort()
-            self._status_transport = None
-        self._cmds.stop()
-        self._slave.stop()
+        """Release every socket and task, then unregister (best effort); bounded by CLOSE_BOUND.
+
+        The sockets are released at once; the rest runs as one task, which a cancelled caller
+        leaves running (an anyio scope cancels every await): awaiting close() again finishes it.
+        """
+        if self._close_task is None:
+            self._closed = True
+            self._up = False
+            # Local sockets first, synchronously: an unreachable master must not leave them open.
+            if self._status_transport is not None:
+                self._status_transport.abort()
+                self._status_transport = None
+            self._cmds.stop()
+            self._slave.stop()
+            self._close_task = asyncio.ensure_future(self._finish_close())
+        await asyncio.shield(self._close_task)
+
+    async def _finish_close(self) -> None:
         if self._watch_task is not None:
             self._watch_task.cancel()
             await asyncio.gather(self._watch_task, return_exceptions=True)
@@ -345,7 +363,7 @@ class RosNode:
             _, pending = await asyncio.wait(tasks, timeout=CLOSE_BOUND)
             if pending:
                 _log.debug("closing %r: %d steps cut at %.1f s", self, len(pending), CLOSE_BOUND)
-        finally:  # also when close() itself is cancelled: no task may outlive it
+        finally:  # no task may outlive it
             for task in tasks:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)

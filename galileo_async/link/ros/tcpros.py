@@ -322,7 +322,11 @@ async def subscribe(
     except BaseException as exc:
         if isinstance(transport, asyncio.Transport):
             transport.abort()
-        if isinstance(exc, (OSError, asyncio.TimeoutError)) and not isinstance(exc, TcprosError):
+        if isinstance(exc, asyncio.TimeoutError):
+            raise TcprosError(
+                f"cannot subscribe at {host}:{port}: no TCPROS handshake within {timeout:.2f} s"
+            ) from exc
+        if isinstance(exc, OSError) and not isinstance(exc, TcprosError):
             raise TcprosError(f"cannot subscribe at {host}:{port}: {exc!r}") from exc
         raise
     assert isinstance(transport, asyncio.Transport)

@@ -91,7 +91,9 @@ async def xmlrpc_call(uri: str, method: str, *params: Any, timeout: float) -> An
         (result,), _ = xmlrpc.client.loads(reply)
     except RosApiError:
         raise
-    except (OSError, asyncio.TimeoutError, asyncio.IncompleteReadError) as exc:
+    except asyncio.TimeoutError:
+        raise RosApiError(f"{method} at {uri}: no reply within {timeout} s (rpc_timeout)") from None
+    except (OSError, asyncio.IncompleteReadError) as exc:
         raise RosApiError(f"{method} at {uri} failed: {exc!r}") from exc
     except (xmlrpc.client.Fault, xmlrpc.client.ResponseError, ValueError) as exc:
         raise RosApiError(f"{method} at {uri}: bad reply: {exc!r}") from exc
@@ -138,6 +140,15 @@ class MasterClient:
     async def unregister_subscriber(self, topic: str, caller_api: str) -> None:
         """Withdraw a subscription."""
         await self._call("unregisterSubscriber", topic, caller_api)
+
+    async def get_param(self, key: str) -> Any:
+        """A parameter's value; None when the parameter server does not have it."""
+        result = await xmlrpc_call(
+            self.master_uri, "getParam", self.caller_id, key, timeout=self.timeout
+        )
+        if isinstance(result, (list, tuple)) and len(result) == 3 and result[0] == -1:
+            return None  # rosmaster: "Parameter [key] is not set"
+        return _value("getParam", result)
 
     async def get_pid(self) -> int:
         """The master's process id (changes when the master restarts)."""

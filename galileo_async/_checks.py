@@ -1,0 +1,111 @@
+"""Argument checks shared by every layer: a named InvalidArgument before anything is sent.
+
+Pure (no I/O, no asyncio): protocol/ uses them too.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import math
+import numbers
+from collections.abc import Collection, Iterable, Iterator
+
+from .errors import InvalidArgument
+
+__all__ = [
+    "check_bool",
+    "check_int",
+    "check_names",
+    "check_number",
+    "check_seconds",
+    "check_timeout",
+    "naming",
+]
+
+
+def check_number(
+    name: str,
+    value: object,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+) -> float:
+    """``value`` as a finite float within [low, high] (``low_open``: above low); else raise.
+
+    Rejects bool, str, NaN, ±inf and ints beyond float range (10**400).
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InvalidArgument(f"{name} must be a number, got {value!r}")
+    try:
+        number = float(value)
+    except (OverflowError, ValueError):
+        raise InvalidArgument(f"{name} is out of range, got {_short(value)}") from None
+    if not math.isfinite(number):
+        raise InvalidArgument(f"{name} must be finite, got {value!r}")
+    if low is not None and (number <= low if low_open else number < low):
+        bound = f"> {low:g}" if low_open else f">= {low:g}"
+        raise InvalidArgument(f"{name} must be {bound}, got {value!r}")
+    if high is not None and number > high:
+        raise InvalidArgument(f"{name} must be <= {high:g}, got {value!r}")
+    return number
+
+
+def check_int(name: str, value: object, low: int, high: int) -> int:
+    """``value`` as an int in low..high; bool, float and str raise InvalidArgument."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InvalidArgument(f"{name} must be an int, got {value!r}")
+    if not low <= value <= high:
+        raise InvalidArgument(f"{name} must be in {low}..{high}, got {_short(value)}")
+    return int(value)
+
+
+def check_bool(name: str, value: object) -> bool:
+    """``value`` if it is True or False (not 1, "no" or None); else raise InvalidArgument."""
+    if not isinstance(value, bool):
+        raise InvalidArgument(f"{name} must be True or False, got {value!r}")
+    return value
+
+
+def check_seconds(name: str, value: object, *, allow_zero: bool = False) -> float:
+    """``value`` as a finite number of seconds, positive (or zero if allowed); else raise."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InvalidArgument(f"{name} must be a number of seconds, got {value!r}")
+    return check_number(name, value, low=0.0, low_open=not allow_zero)
+
+
+def check_timeout(name: str, value: object, *, allow_none: bool = True) -> float | None:
+    """None (no limit, if allowed) or ``value`` as positive finite seconds; else raise."""
+    if value is None and allow_none:
+        return None
+    return check_seconds(name, value)
+
+
+def check_names(given: Iterable[str], accepted: Collection[str]) -> None:
+    """Raise InvalidArgument for the first name not in ``accepted``, with a near miss if any."""
+    for name in given:
+        if name in accepted:
+            continue
+        close = difflib.get_close_matches(name, list(accepted), n=1)
+        known = ", ".join(sorted(accepted))
+        hint = f"; did you mean {close[0]!r}?" if close else f" (known: {known})"
+        raise InvalidArgument(f"unknown option {name!r}{hint}")
+
+
+@contextlib.contextmanager
+def naming(url: str, what: str) -> Iterator[None]:
+    """Put ``what`` in front of an InvalidArgument raised inside that does not name ``url``."""
+    try:
+        yield
+    except InvalidArgument as exc:
+        if url in str(exc):
+            raise
+        raise InvalidArgument(f"{what}: {exc}") from exc
+
+
+def _short(value: object) -> str:
+    """repr of ``value``, or its size for a huge int (repr of 10**5000 raises ValueError)."""
+    if isinstance(value, int) and value.bit_length() > 64:
+        return f"an int of {value.bit_length()} bits"
+    return repr(value)

@@ -1,0 +1,95 @@
+"""rotate_to reports success only when the angle goal it sent is done (PROTOCOL.md §2.g).
+
+Real firmware ignores ``a`` and derives angle_goal_status from the goal state (0 while a
+goal works, 1 once free), so a navigation goal that starts and ends while rotate_to waits
+shows the 0 then 1 a rotation would: that must not be taken for the rotation. The
+Simulator over TCP loopback plays the robot; a second connection plays another host.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+from collections.abc import AsyncIterator
+
+import anyio
+import pytest
+from sim_integration import NEAR, SPEED, TARGETS, WAIT, near, sim_seconds, time_limit
+
+import galileo_async as galileo
+from galileo_async import OperationFailed, TargetStatus, UnconfirmedOperation
+from galileo_async.protocol import Goto
+from galileo_async.sim import Simulator
+
+
+@contextlib.asynccontextmanager
+async def two_hosts(firmware: str) -> AsyncIterator[tuple[Simulator, galileo.Robot, galileo.Robot]]:
+    """A navigating simulated robot, this host's Robot and another host's, both over TCP."""
+    async with Simulator(speed=SPEED, targets=TARGETS, firmware=firmware) as sim:
+        server = await sim.serve_tcp()
+        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        async with galileo.connect(url) as robot, galileo.connect(url) as other:
+            await robot.start_navigation(timeout=WAIT)
+            yield sim, robot, other
+
+
+async def _rotating(robot: galileo.Robot, degrees: float) -> asyncio.Task[None]:
+    """rotate_to(degrees) in a task, once its ``a`` is written."""
+    sent = robot.link.commands_sent
+    task = asyncio.create_task(robot.rotate_to(degrees, timeout=WAIT))
+    await robot.wait_until(lambda _s: robot.link.commands_sent > sent, timeout=WAIT)
+    return task
+
+
+@pytest.mark.parametrize("firmware", ["real", "document"])
+async def test_a_goal_of_this_robot_ending_while_rotate_to_waits_is_not_success(
+    firmware: str,
+) -> None:
+    async with two_hosts(firmware) as (_sim, robot, _other):
+        rotation = await _rotating(robot, 90)
+        result = await robot.goto(NEAR, timeout=WAIT)  # works (0), then arrives (1)
+        assert result.target_id == NEAR
+        with anyio.fail_after(WAIT), pytest.raises(OperationFailed, match="goal 0") as caught:
+            await rotation
+    assert caught.value.status is not None
+
+
+@pytest.mark.parametrize("firmware", ["real", "document"])
+async def test_a_goal_of_another_host_while_rotate_to_waits_is_not_success(
+    firmware: str,
+) -> None:
+    async with two_hosts(firmware) as (sim, robot, other):
+        rotation = await _rotating(robot, 90)
+        await other.send(Goto(NEAR))
+        with anyio.fail_after(WAIT), pytest.raises(OperationFailed, match="navigation goal"):
+            await rotation
+        # The goal runs on: rotate_to does not touch it.
+        await robot.wait_until(
+            lambda s: s.target_num_id == NEAR and s.target_status == TargetStatus.FREE,
+            timeout=WAIT,
+        )
+        assert near(sim.state.pose.x, TARGETS[NEAR][0])
+
+
+async def test_firmware_ignoring_a_still_times_out_with_the_documented_error() -> None:
+    async with two_hosts("real") as (sim, robot, _other):
+        with pytest.raises(UnconfirmedOperation, match="ignore the rotate command 'a'"):
+            await robot.rotate_to(90, timeout=sim_seconds(30))
+        assert sim.state.pose.theta == 0.0
+
+
+async def test_a_rotation_that_runs_to_its_end_is_success() -> None:
+    async with two_hosts("document") as (sim, robot, _other):
+        await robot.rotate_to(90, timeout=WAIT)
+        assert near(sim.state.pose.theta, math.pi / 2)
+
+
+async def test_rotate_to_under_a_time_limit_leaves_nothing_running() -> None:
+    async with two_hosts("real") as (_sim, robot, _other):
+        with pytest.raises(TimeoutError):
+            async with time_limit(sim_seconds(5)):
+                await robot.rotate_to(90)
+        with anyio.move_on_after(sim_seconds(5)) as scope:
+            await robot.rotate_to(-90)
+        assert scope.cancelled_caught
