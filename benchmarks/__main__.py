@@ -1,4 +1,4 @@
-"""``python -m benchmarks [--quick] [ingest latency fleet] [--fleet 10,100,1000] [--rounds R]``.
+"""``python -m benchmarks [--quick] [ingest latency fleet fleet_merged] [--fleet N,…]``.
 
 ``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "vda5050")
+BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050")
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -78,8 +78,9 @@ def main(argv: list[str] | None = None) -> int:
         module = importlib.import_module(f".{name}", __package__)
         print(f"running {name} …", flush=True)
         options: dict[str, object] = {"quick": args.quick}
-        if name == "fleet":
-            sizes = args.fleet or ("10,100" if args.quick else "10,100,1000")
+        if name in ("fleet", "fleet_merged"):
+            default = "1000" if name == "fleet_merged" else "10,100,1000"
+            sizes = args.fleet or ("10,100" if args.quick else default)
             options["sizes"] = [int(n) for n in sizes.split(",")]
             options["seconds"] = args.seconds or (3.0 if args.quick else 6.0)
             options["repeats"] = args.rounds

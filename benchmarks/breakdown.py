@@ -9,7 +9,9 @@ round-robin the way a socket transport feeds them: into the link's read buffer, 
 * **build**: + building the ``GalileoStatus`` (then dropped);
 * **store**: + ``StatusStore.update`` (nobody subscribed);
 * **statuses() task**: + a task per link iterating ``statuses()``, as the fleet benchmark's
-  driver phase.
+  driver phase;
+* **fleet.statuses()**: store, then instead of a task per link the fleet's listener and
+  ONE consumer iterating the merged ``fleet.statuses()`` (compared with **store**).
 
 Each stage runs in a fresh process. Timed: process CPU per frame, the median of the runs.
 With ``--instructions`` (needs valgrind): instructions and simulated L2 misses per frame,
@@ -37,7 +39,9 @@ from .common import Row
 
 __all__ = ["STAGES", "run"]
 
-STAGES = ("read", "decode", "build", "store", "statuses() task")
+STAGES = ("read", "decode", "build", "store", "statuses() task", "fleet.statuses()")
+#: Stages with their consumers: a task per link, or one merged fleet consumer.
+TASK_STAGE, FLEET_STAGE = STAGES[-2], STAGES[-1]
 #: Links fed per event loop turn.
 BATCH = 50
 #: Distinct frames each link is fed in turn.
@@ -67,7 +71,7 @@ def _knock_out(stage: str) -> None:
         )
 
 
-async def _feed(robots: int, frames: list[bytes], consumers: bool) -> dict[str, float]:
+async def _feed(robots: int, frames: list[bytes], consumers: str) -> dict[str, float]:
     """CPU µs per frame for ``robots`` links fed ``frames`` each, and what got where."""
     from galileo_async.link import StreamLink
     from galileo_async.state import StatusStore
@@ -92,7 +96,20 @@ async def _feed(robots: int, frames: list[bytes], consumers: bool) -> dict[str, 
         async for _status in store.statuses():
             received[0] += 1
 
-    tasks = [asyncio.create_task(consume(store)) for store in stores] if consumers else []
+    async def consume_fleet() -> None:
+        from galileo_async._fleet_streams import FleetHub
+
+        hub = FleetHub()
+        for index, store in enumerate(stores):
+            hub.attach(str(index), store)
+        async for _item in hub.statuses():
+            received[0] += 1
+
+    tasks = []
+    if consumers == TASK_STAGE:
+        tasks = [asyncio.create_task(consume(store)) for store in stores]
+    elif consumers == FLEET_STAGE:
+        tasks = [asyncio.create_task(consume_fleet())]
     await asyncio.sleep(0)
     reads = [(p.get_buffer(-1), p.buffer_updated) for p in protocols]
     size = len(frames[0])
@@ -126,8 +143,7 @@ def _child(stage: str, robots: int, count: int) -> None:
     moving = make_frames(100 + FRAMES)[100:]
     frames = [moving[index % FRAMES] for index in range(count)]
     _knock_out(stage)
-    consumers = stage == STAGES[-1]
-    print(json.dumps(asyncio.run(_feed(robots, frames, consumers))))
+    print(json.dumps(asyncio.run(_feed(robots, frames, stage))))
 
 
 def _spawn(
@@ -176,6 +192,14 @@ def _cachegrind(stage: str, robots: int, count: int, l2: int) -> dict[str, float
     return {name: (totals[1][name] - totals[0][name]) / frames for name in totals[0]}
 
 
+def _before(stage: str) -> str | None:
+    """The stage ``stage`` adds its part to (both consumer stages build on store)."""
+    if stage == FLEET_STAGE:
+        return "store"
+    index = STAGES.index(stage)
+    return STAGES[index - 1] if index else None
+
+
 def run(*, quick: bool = False, robots: int = 1000, instructions: bool = False) -> list[Row]:
     """Time each stage (and count its instructions and L2 misses when asked)."""
     name = f"breakdown N={robots}"
@@ -186,29 +210,29 @@ def run(*, quick: bool = False, robots: int = 1000, instructions: bool = False) 
         for stage in order:
             times[stage].append(_spawn(stage, robots, count)["us_per_frame"])
     rows = []
-    previous: float | None = None
     for stage in STAGES:
         value = statistics.median(times[stage])
-        rows.append(Row(name, f"CPU up to {stage}", value, "µs/frame", previous,
-                        "stage before", "", None,
+        before = _before(stage)
+        rows.append(Row(name, f"CPU up to {stage}", value, "µs/frame",
+                        statistics.median(times[before]) if before else None,
+                        before or "", "", None,
                         {"runs": [round(t, 3) for t in times[stage]]}))  # fmt: skip
-        previous = value
     if instructions:
         if shutil.which("valgrind") is None:
             print("  valgrind not found: no instruction counts", flush=True)
             return rows
         l2 = _l2_size()
-        before: dict[str, float] | None = None
+        counted: dict[str, dict[str, float]] = {}
         for stage in STAGES:
             print(f"  cachegrind: {stage} …", flush=True)
-            events = _cachegrind(stage, robots, 5, l2)
+            events = counted[stage] = _cachegrind(stage, robots, 5, l2)
+            earlier = counted.get(_before(stage) or "")
             rows.append(Row(name, f"instructions up to {stage}", events["Ir"], "per frame",
-                            before["Ir"] if before else None, "stage before"))  # fmt: skip
+                            earlier["Ir"] if earlier else None, _before(stage) or ""))  # fmt: skip
             rows.append(Row(name, f"L2 misses up to {stage} (L2 {l2 >> 10} KiB)",
                             events["DLmr"] + events["DLmw"], "per frame",
-                            before["DLmr"] + before["DLmw"] if before else None,
-                            "stage before"))  # fmt: skip
-            before = events
+                            earlier["DLmr"] + earlier["DLmw"] if earlier else None,
+                            _before(stage) or ""))  # fmt: skip
     return rows
 
 

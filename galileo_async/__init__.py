@@ -22,6 +22,7 @@ from .models import (
 
 if TYPE_CHECKING:
     from .discovery import DiscoveredRobot, discover
+    from .fleet import Fleet, FleetResult, RobotState, connect_fleet
     from .robot import Connection, GoalResult, Robot, connect
 
 __version__ = "0.1.0"
@@ -34,17 +35,21 @@ __all__ = [
     "ChargeStatus",
     "Connection",
     "DiscoveredRobot",
+    "Fleet",
+    "FleetResult",
     "GalileoStatus",
     "GoalResult",
     "MapStatus",
     "NavStatus",
     "Pose",
     "Robot",
+    "RobotState",
     "StatusLayout",
     "TargetStatus",
     "VisualStatus",
     "__version__",
     "connect",
+    "connect_fleet",
     "discover",
     "errors",
     "protocol",
@@ -55,6 +60,10 @@ __all__ = [
 _LAZY: dict[str, str] = {
     "DiscoveredRobot": "discovery",
     "discover": "discovery",
+    "Fleet": "fleet",
+    "FleetResult": "fleet",
+    "RobotState": "fleet",
+    "connect_fleet": "fleet",
     "Connection": "robot",
     "GoalResult": "robot",
     "Robot": "robot",

@@ -59,7 +59,8 @@ class StatusStore:
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
         "_event_streams", "_frame_waiters", "_link_error", "_status_hooks", "_waiters",
-        "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update",
+        "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update", "on_event",
+        "on_update",
         "placeholder_frames", "status", "updates",
     )  # fmt: skip
 
@@ -94,6 +95,12 @@ class StatusStore:
         self._frame_waiters: list[asyncio.Future[None]] = []
         # One-shot callbacks of call_on_next_status().
         self._status_hooks: list[Callable[[GalileoStatus], None]] = []
+        # --- listener hooks (fleet.py) ---
+        #: Called with every recorded status, synchronously; must be cheap and never raise.
+        self.on_update: Callable[[GalileoStatus], None] | None = None
+        #: Called with every event (set it with listen_events); never raises.
+        self.on_event: Callable[[Event], None] | None = None
+        # --- end of listener hooks ---
 
     @property
     def awaiting_robot(self) -> bool:
@@ -114,7 +121,7 @@ class StatusStore:
             return
         if self._frame_waiters:
             self._wake_frame_waiters()
-        if self._event_refs:
+        if self._event_refs or self.on_event is not None:
             key = _EVENT_KEY(status)
             if key != self._event_key:
                 self._event_key = key
@@ -164,6 +171,9 @@ class StatusStore:
                 if len(buffer) == buffer.maxlen:
                     watch.dropped += 1
                 buffer.append(status)
+        on_update = self.on_update
+        if on_update is not None:
+            on_update(status)
 
     def _placeholder(self) -> None:
         """A placeholder frame: the link is up, but the robot's state is unknown (again)."""
@@ -320,9 +330,15 @@ class StatusStore:
     def _set_watch_refs(self, refs: tuple[weakref.ref[Watch], ...]) -> None:
         self._watch_refs = refs
 
+    def listen_events(self, on_event: Callable[[Event], None] | None) -> None:
+        """Call ``on_event`` with every later event (None: stop); events are derived for it."""
+        self.on_event = on_event
+        if on_event is None and not self._event_refs:
+            self._event_key = None
+
     def _set_event_refs(self, refs: tuple[weakref.ref[EventStream], ...]) -> None:
         self._event_refs = refs
-        if not refs:
+        if not refs and self.on_event is None:
             # Nobody listens: forget the key so that the next listener compares the status
             # before its first frame with that frame.
             self._event_key = None
@@ -374,5 +390,7 @@ class StatusStore:
     def _emit(self, event: Event) -> None:
         for stream in self._event_streams:
             stream._push(event)
+        if self.on_event is not None:
+            self.on_event(event)
         if _log.isEnabledFor(logging.DEBUG):
             _log.debug("event %s", type(event).__name__)

@@ -28,7 +28,10 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested() -> None:
     # vda5050_vehicle.py needs a broker: tests/test_vda5050_links.py runs it.
-    tested = {"goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "vda5050_vehicle.py"}
+    tested = {
+        "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
+        "vda5050_vehicle.py",
+    }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
 
 
@@ -66,3 +69,12 @@ def test_fleet_example_drives_robots_concurrently(urls: tuple[str, ...]) -> None
     robots = len(urls) or 3
     assert out.count("finished its tour") == robots
     assert out.count("arrived at") == 3 * robots
+
+
+def test_fleet_dashboard_example_uses_one_merged_stream() -> None:
+    out = run_example("fleet_dashboard.py", "3")
+    assert "3 robots: robot-0, robot-1, robot-2" in out
+    for number in range(3):
+        assert f"robot-{number}: arrived at {number}" in out
+        assert f"robot-{number}: event GoalReached" in out
+        assert f"robot-{number}: pose unknown target -1" in out  # the first merged statuses

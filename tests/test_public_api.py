@@ -14,8 +14,7 @@ PUBLIC = {
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
     "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
-    "discover", "errors",
-    "protocol",
+    "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from .. import __version__
-from . import capture, demo, ops, serve, teleop, vda5050, watch
+from . import capture, demo, fleet_cmd, ops, serve, teleop, vda5050, watch
 from .runner import DEFAULT_PORT, Settings, setup_logging
 
 __all__ = ["app", "main"]
@@ -67,6 +68,14 @@ def options(
             "it, ros:// reads /galileo/goal_num).",
         ),
     ] = None,
+    fleet: Annotated[
+        Path | None,
+        typer.Option(
+            "--fleet",
+            envvar="GALILEO_FLEET",
+            help="Fleet file (TOML, [robots.NAME] port = …) for the fleet commands.",
+        ),
+    ] = None,
     verbose: Annotated[
         int, typer.Option("--verbose", "-v", count=True, help="-v debug logs, -vv raw frames.")
     ] = 0,
@@ -88,6 +97,7 @@ def options(
         verbose=verbose,
         json=json_output,
         map_targets=map_targets,
+        fleet=fleet,
     )
     setup_logging(verbose)
 
@@ -120,6 +130,7 @@ app.command("sim")(serve.sim)
 app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)
+app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
 
 
 def main() -> None:

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import anyio
 import typer
+from rich.console import Group
 from rich.live import Live
 from rich.table import Table
 from rich.text import Text
@@ -17,6 +18,8 @@ from rich.text import Text
 from ..errors import GalileoError, GoalRejected
 from ..models import TargetStatus
 from .goals import aclose
+from .map_model import MapModel, known_targets
+from .map_render import map_panel
 from .render import status_line
 from .runner import (
     ExitCode,
@@ -38,6 +41,8 @@ __all__ = ["Step", "demo", "tour"]
 DEMO_SPEED = 3.0
 #: Real seconds any single step may take before the demo gives up on it.
 STEP_TIMEOUT = 40.0
+#: Rows of the map the demo shows while the robot drives.
+DEMO_MAP_ROWS = 14
 #: A target id the default six-target map does not have.
 MISSING_TARGET = 42
 
@@ -132,12 +137,13 @@ async def _arrive(robot: Robot, target_id: int) -> str:
     return f"arrived, {result.distance or 0.0:.2f} m off"
 
 
-async def _arrive_point(robot: Robot, x: float, y: float) -> str:
+async def _arrive_point(robot: Robot, x: float, y: float, model: MapModel) -> str:
     result = await robot.goto_point(x, y, timeout=STEP_TIMEOUT)
+    model.add_target(result.target_id, x, y, "dynamic")  # this host added it: on the map
     return f"arrived at dynamic target {result.target_id}, {result.distance or 0.0:.2f} m off"
 
 
-def _plan(robot: Robot) -> list[tuple[str, Callable[[], Awaitable[str]]]]:
+def _plan(robot: Robot, model: MapModel) -> list[tuple[str, Callable[[], Awaitable[str]]]]:
     async def start() -> str:
         await robot.start_navigation(timeout=STEP_TIMEOUT)
         return "navigation open, visual initialised"
@@ -150,17 +156,18 @@ def _plan(robot: Robot) -> list[tuple[str, Callable[[], Awaitable[str]]]]:
         ("start navigation", start),
         ("go to target 0", lambda: _arrive(robot, 0)),
         ("go to target 1, pause and resume on the way", lambda: _pause_and_resume(robot, 1)),
-        ("go to the point (1.0, -2.0)", lambda: _arrive_point(robot, 1.0, -2.0)),
+        ("go to the point (1.0, -2.0)", lambda: _arrive_point(robot, 1.0, -2.0, model)),
         (f"go to target {MISSING_TARGET} (not on the map)", lambda: _rejected(robot)),
         ("patrol two targets, 1 s dwell", lambda: _patrol(robot, 2)),
         ("stop navigation", stop),
     ]
 
 
-async def tour(robot: Robot, *, show: bool) -> list[Step]:
-    """Run every demo step in order; stop at the first failure."""
+async def tour(robot: Robot, *, show: bool, model: MapModel | None = None) -> list[Step]:
+    """Run every demo step in order; stop at the first failure (``show``: live map too)."""
     steps: list[Step] = []
-    plan = _plan(robot)
+    model = MapModel() if model is None else model
+    plan = _plan(robot, model)
     with Live(Text(""), console=err_console(), transient=True, refresh_per_second=8) as live:
         for number, (what, action) in enumerate(plan, 1):
             label = f"[{number}/{len(plan)}] {what}"
@@ -169,7 +176,7 @@ async def tour(robot: Robot, *, show: bool) -> list[Step]:
             began = time.monotonic()
             async with anyio.create_task_group() as group:
                 if show:
-                    group.start_soon(_progress, robot, label, live)
+                    group.start_soon(_progress, robot, label, live, model)
                 try:
                     result, ok = await action(), True
                 except (GalileoError, TimeoutError) as exc:
@@ -181,11 +188,13 @@ async def tour(robot: Robot, *, show: bool) -> list[Step]:
     return steps
 
 
-async def _progress(robot: Robot, label: str, live: Live) -> None:
+async def _progress(robot: Robot, label: str, live: Live, model: MapModel) -> None:
     stream = robot.statuses()
     try:
         async for status in stream:
-            live.update(Text(f"{label}\n  {status_line(status)}"))
+            model.update("robot", status)
+            line = Text(f"{label}\n  {status_line(status)}")
+            live.update(Group(line, map_panel(model, DEMO_MAP_ROWS)))
     finally:
         await aclose(stream)
 
@@ -223,7 +232,7 @@ def demo(
         began = time.monotonic()
         show = err_console().is_terminal
         async with connect(url, **settings.connect_options()) as robot:
-            steps = await tour(robot, show=show)
+            steps = await tour(robot, show=show, model=known_targets([url], None))
         out_console().print(_summary(steps, time.monotonic() - began, url))
         return 0 if all(step.ok for step in steps) else int(ExitCode.ERROR)
 

@@ -9,6 +9,7 @@ import os
 import sys
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
@@ -79,6 +80,8 @@ class Settings:
     json: bool = False
     map_targets: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    #: The fleet file of ``--fleet`` (fleet commands).
+    fleet: Path | None = None
 
     @property
     def url(self) -> str:

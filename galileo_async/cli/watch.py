@@ -5,18 +5,21 @@ from __future__ import annotations
 import json
 from collections import deque
 from collections.abc import AsyncIterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import anyio
 import typer
-from rich.console import RenderableType
+from rich.console import Group, RenderableType
 from rich.live import Live
 
-from ..errors import ConnectionLost, GalileoTimeout, NotReady
+from ..errors import ConnectionLost, GalileoTimeout, InvalidArgument, NotReady
 from ..events import ConnectionLost as LostEvent
 from ..events import Event
 from ..models import GalileoStatus
 from .goals import aclose
+from .map_model import MapModel, known_targets
+from .map_render import map_panel, save_svg
 from .render import (
     dashboard,
     event_dict,
@@ -26,12 +29,12 @@ from .render import (
     status_dict,
     status_line,
 )
-from .runner import ExitCode, err_console, out_console, run_robot, settings_of
+from .runner import ExitCode, err_console, fail, out_console, run_robot, settings_of
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["monitor", "status"]
+__all__ = ["SvgOption", "TargetsOption", "map_model", "monitor", "status"]
 
 #: How many recent events the monitor keeps on screen.
 RECENT_EVENTS = 10
@@ -149,14 +152,36 @@ async def _report_link(
             err_console().print(text, markup=False, style="yellow")
 
 
+#: The --targets option of both monitors.
+TargetsOption = Annotated[
+    Path | None,
+    typer.Option("--targets", help="CSV of known targets for the map: id,x,y (metres)."),
+]
+#: The --svg option of both monitors.
+SvgOption = Annotated[
+    Path | None, typer.Option("--svg", help="On exit, write the last screen as an SVG file.")
+]
+
+
+def map_model(urls: list[str], targets: Path | None) -> MapModel:
+    """The map of a monitor; a bad --targets file exits 2 before anything is opened."""
+    try:
+        return known_targets(urls, targets)
+    except InvalidArgument as exc:
+        fail(str(exc), ExitCode.USAGE)
+
+
 def monitor(
     ctx: typer.Context,
     duration: Annotated[
         float | None, typer.Option(min=0.1, help="Stop after seconds (default: Ctrl-C).")
     ] = None,
+    targets: TargetsOption = None,
+    svg: SvgOption = None,
 ) -> None:
-    """Live dashboard: states, pose, speeds, goal and distance, link statistics, events."""
+    """Live dashboard and map: states, pose, speeds, goal and distance, link, events."""
     settings = settings_of(ctx)
+    model = map_model([settings.url], targets)
 
     async def body(robot: Robot) -> int:
         started = anyio.current_time()
@@ -180,26 +205,34 @@ def monitor(
             try:
                 async for current in stream:
                     latest[0] = current
+                    model.update("robot", current)
             finally:
                 await aclose(stream)
 
         def screen() -> RenderableType:
-            return dashboard(latest[0], robot.link, list(recent), url=settings.url)
+            board = dashboard(latest[0], robot.link, list(recent), url=settings.url)
+            return Group(board, map_panel(model))
 
-        async with anyio.create_task_group() as group:
-            group.start_soon(follow_events)
-            group.start_soon(follow_statuses)
-            deadline = None if duration is None else started + duration
-            if settings.json:
-                while await _tick(deadline, 1.0):
-                    if latest[0] is not None:
-                        data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
-                        console.print(json.dumps(data), markup=False)
-            else:
-                with Live(screen(), console=console, refresh_per_second=MONITOR_REFRESH) as live:
-                    while await _tick(deadline, 1 / MONITOR_REFRESH):
-                        live.update(screen())
-            group.cancel_scope.cancel()
+        try:
+            async with anyio.create_task_group() as group:
+                group.start_soon(follow_events)
+                group.start_soon(follow_statuses)
+                deadline = None if duration is None else started + duration
+                if settings.json:
+                    while await _tick(deadline, 1.0):
+                        if latest[0] is not None:
+                            data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
+                            console.print(json.dumps(data), markup=False)
+                else:
+                    with Live(
+                        screen(), console=console, refresh_per_second=MONITOR_REFRESH
+                    ) as live:
+                        while await _tick(deadline, 1 / MONITOR_REFRESH):
+                            live.update(screen())
+                group.cancel_scope.cancel()
+        finally:
+            if svg is not None:
+                save_svg(screen(), svg, title=f"galileo monitor {settings.url}")
         return 0
 
     run_robot(settings, body, interrupted=ExitCode.OK, long_running=True)

@@ -1,0 +1,130 @@
+"""Fleet files (TOML): ``[robots.NAME] port = "…"`` plus per-robot and shared options.
+
+```toml
+targets = "targets.csv"        # optional: known target positions for the map (id,x,y)
+
+[defaults]                     # optional: options of every robot
+stale_timeout = 2.0
+
+[robots.alpha]
+port = "socket://10.0.0.5:4001"
+map_targets = 6
+
+[robots.beta]
+port = "/dev/ttyUSB0"
+layout = "v1"
+```
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import InvalidArgument
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[import-not-found]
+
+__all__ = ["OPTION_TYPES", "FleetFileError", "FleetSpec", "load_fleet_file", "parse_fleet"]
+
+#: Options a robot (or ``[defaults]``) may set, and the type each must have.
+OPTION_TYPES: dict[str, type] = {
+    "map_targets": int, "layout": str, "reconnect": bool, "baudrate": int,
+    "stale_timeout": float, "stale_reconnect": float, "reconnect_initial": float,
+    "reconnect_max": float, "connect_timeout": float, "first_status_timeout": float,
+    "accept_timeout": float, "arrive_tolerance": float, "goal_timeout": float,
+    "wait_timeout": float, "min_command_interval": float,
+}  # fmt: skip
+_TOP_LEVEL = ("robots", "defaults", "targets")
+
+
+class FleetFileError(InvalidArgument):
+    """A fleet file that cannot be used; the message names the file, robot and key."""
+
+
+@dataclass(frozen=True)
+class FleetSpec:
+    """A parsed fleet file: URLs by name, options per robot, shared options, targets file."""
+
+    ports: dict[str, str]
+    robot_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    defaults: dict[str, Any] = field(default_factory=dict)
+    targets: Path | None = None
+
+    def connect(self, **options: Any) -> Any:
+        """``connect_fleet`` for this fleet (``options`` override the file's defaults)."""
+        from .fleet import connect_fleet
+
+        return connect_fleet(
+            self.ports, robot_options=self.robot_options, **{**self.defaults, **options}
+        )
+
+
+def _check_option(where: str, key: str, value: object) -> Any:
+    expected = OPTION_TYPES.get(key)
+    if expected is None:
+        known = ", ".join(sorted(OPTION_TYPES))
+        raise FleetFileError(f"{where}: unknown option {key!r} (known: port, {known})")
+    if expected is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if (expected is not bool and isinstance(value, bool)) or not isinstance(value, expected):
+        raise FleetFileError(f"{where}: {key} must be {expected.__name__}, got {value!r}")
+    return value
+
+
+def _options(where: str, table: Mapping[str, Any]) -> dict[str, Any]:
+    return {key: _check_option(where, key, value) for key, value in table.items()}
+
+
+def parse_fleet(
+    data: Mapping[str, Any], source: str = "fleet file", base: Path | None = None
+) -> FleetSpec:
+    """Validate a fleet file's TOML tables; relative paths are taken from ``base``."""
+    unknown = [key for key in data if key not in _TOP_LEVEL]
+    if unknown:
+        raise FleetFileError(
+            f"{source}: unknown key {unknown[0]!r} (known: {', '.join(_TOP_LEVEL)})"
+        )
+    robots = data.get("robots")
+    if not isinstance(robots, Mapping) or not robots:
+        raise FleetFileError(f'{source}: no robots: add [robots.NAME] tables with port = "…"')
+    defaults = data.get("defaults", {})
+    if not isinstance(defaults, Mapping):
+        raise FleetFileError(f"{source}: [defaults] must be a table")
+    ports: dict[str, str] = {}
+    robot_options: dict[str, dict[str, Any]] = {}
+    for name, table in robots.items():
+        where = f"{source}: robot {name!r}"
+        if not isinstance(table, Mapping):
+            raise FleetFileError(f'{where}: must be a table ([robots.{name}] port = "…")')
+        port = table.get("port")
+        if not isinstance(port, str) or not port:
+            raise FleetFileError(f'{where}: port must be a non-empty string (port = "…")')
+        ports[name] = port
+        options = _options(where, {k: v for k, v in table.items() if k != "port"})
+        if options:
+            robot_options[name] = options
+    targets = data.get("targets")
+    if targets is not None and not isinstance(targets, str):
+        raise FleetFileError(f"{source}: targets must be a path string, got {targets!r}")
+    path = None if targets is None else (base or Path()) / targets
+    return FleetSpec(ports, robot_options, _options(f"{source}: [defaults]", defaults), path)
+
+
+def load_fleet_file(path: str | Path) -> FleetSpec:
+    """Read and validate the fleet file at ``path`` (FleetFileError naming what is wrong)."""
+    file = Path(path)
+    try:
+        with file.open("rb") as handle:
+            data = tomllib.load(handle)
+    except OSError as exc:
+        raise FleetFileError(f"{file}: cannot read the fleet file: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise FleetFileError(f"{file}: not valid TOML: {exc}") from None
+    return parse_fleet(data, str(file), file.parent)

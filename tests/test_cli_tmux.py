@@ -1,0 +1,105 @@
+"""``galileo monitor`` as a person sees it: run in tmux against the simulator, read the screen.
+
+The test drives the simulated robot over its own connection while the monitor, in a tmux
+pane of a tmux server of its own (``-L``), shows it; the map panel must show the robot's
+arrow at different places as it drives, and the trail it leaves.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import anyio
+import pytest
+from peers import missing_peer
+
+import galileo_async as galileo
+from galileo_async.cli.map_render import ARROWS
+from galileo_async.sim import Simulator
+
+#: Bound, in real seconds, of each wait on the screen.
+WAIT = 30.0
+#: The pane's size: the dashboard and the map fit in it.
+COLUMNS, ROWS = 120, 60
+#: target 1 of the default map is 5 m away: a drive of several seconds at speed 4.
+SIM_URL = "sim://?speed=4&visual_init_time=0.5"
+
+
+@pytest.fixture
+def tmux() -> Iterator[list[str]]:
+    """The tmux command of a server of this test's own, killed afterwards."""
+    if shutil.which("tmux") is None:
+        missing_peer("tmux")
+    command = ["tmux", "-L", f"galileo-test-{os.getpid()}"]
+    subprocess.run([*command, "new-session", "-d", "-s", "main", "-x", str(COLUMNS),
+                    "-y", str(ROWS)], check=True)  # fmt: skip
+    try:
+        yield command
+    finally:
+        subprocess.run([*command, "kill-server"], check=False)
+
+
+def _map_rows(screen: str) -> list[str]:
+    """The lines inside the map panel of a captured screen."""
+    lines = screen.splitlines()
+    top = next((i for i, line in enumerate(lines) if "─ map ─" in line), None)
+    if top is None:
+        return []
+    inside = []
+    for line in lines[top + 1 :]:
+        if line.lstrip().startswith("╰"):
+            break
+        inside.append(line)
+    return inside
+
+
+def _robot_at(rows: list[str]) -> tuple[int, int] | None:
+    """(row, column) of the robot's arrow on the map, or None while it is not drawn."""
+    for row, line in enumerate(rows):
+        for column, char in enumerate(line):
+            if char in ARROWS:
+                return row, column
+    return None
+
+
+async def _screen(tmux: list[str]) -> str:
+    done = await anyio.run_process([*tmux, "capture-pane", "-p", "-t", "main"])
+    return done.stdout.decode()
+
+
+async def test_monitor_map_shows_the_robot_moving(tmux: list[str], tmp_path: Path) -> None:
+    async with Simulator.from_url(SIM_URL) as simulator:
+        server = await simulator.serve_tcp()
+        try:
+            port = server.sockets[0].getsockname()[1]
+            url = f"socket://127.0.0.1:{port}"
+            # Over socket:// the monitor knows the map's targets from a --targets file.
+            targets = tmp_path / "targets.csv"
+            rows = [f"{i},{x},{y}" for i, (x, y) in enumerate(simulator.state.targets)]
+            targets.write_text("id,x,y\n" + "\n".join(rows) + "\n")
+            monitor = f"{sys.executable} -m galileo_async -p {url} monitor --targets {targets}"
+            await anyio.run_process([*tmux, "send-keys", "-t", "main", monitor, "Enter"])
+            async with galileo.connect(url, map_targets=6) as robot:
+                await robot.start_navigation(timeout=WAIT)
+                places: set[tuple[int, int]] = set()
+                trail = False
+                with anyio.fail_after(WAIT):
+                    async with anyio.create_task_group() as group:
+                        group.start_soon(robot.goto, 1)
+                        while len(places) < 3 or not trail:
+                            rows = _map_rows(await _screen(tmux))
+                            spot = _robot_at(rows)
+                            if spot is not None:
+                                places.add(spot)
+                            trail = any("·" in line for line in rows)
+                            await anyio.sleep(0.2)
+                        group.cancel_scope.cancel()
+            assert "◆1" in "".join(_map_rows(await _screen(tmux)))  # the simulator's map
+            await anyio.run_process([*tmux, "send-keys", "-t", "main", "C-c", ""])
+        finally:
+            server.close()
