@@ -5,10 +5,10 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Iterable
 
-import anyio
 import pytest
+from cancel_ways import WAYS, stop_waiting
 from ros_support import free_port
 
 from galileo_async.discovery import DiscoveredRobot, discover, parse_announcement
@@ -73,55 +73,9 @@ def port_is_free(port: int) -> bool:
     return True
 
 
-async def cancel_by_fail_after(listen: Callable[[], Awaitable[object]]) -> None:
-    with pytest.raises(TimeoutError):
-        with anyio.fail_after(0.05):
-            await listen()
-
-
-async def cancel_by_move_on_after(listen: Callable[[], Awaitable[object]]) -> None:
-    with anyio.move_on_after(0.05) as scope:
-        await listen()
-    assert scope.cancelled_caught
-
-
-async def cancel_by_asyncio_timeout(listen: Callable[[], Awaitable[object]]) -> None:
-    with pytest.raises(TimeoutError):
-        await asyncio.wait_for(listen(), 0.05)
-
-
-async def cancel_the_task(listen: Callable[[], Awaitable[object]]) -> None:
-    task = asyncio.ensure_future(listen())
-    await asyncio.sleep(0.05)  # let it bind and listen a while: there is no event to await
-    task.cancel()
-    with pytest.raises(asyncio.CancelledError):
-        await task
-
-
-async def fail_a_sibling(listen: Callable[[], Awaitable[object]]) -> None:
-    async def failing() -> None:
-        await asyncio.sleep(0.05)
-        raise RuntimeError("sibling failed")
-
-    async def both() -> None:
-        async with anyio.create_task_group() as group:
-            group.start_soon(listen)
-            group.start_soon(failing)
-
-    with pytest.raises(Exception) as caught:  # noqa: PT011 - an ExceptionGroup, checked below
-        await both()
-    assert caught.group_contains(RuntimeError, match="sibling failed")
-
-
-@pytest.mark.parametrize(
-    "cancel",
-    [cancel_by_fail_after, cancel_by_move_on_after, cancel_by_asyncio_timeout, cancel_the_task,
-     fail_a_sibling],
-)  # fmt: skip
-async def test_cancelled_discover_releases_its_port(
-    udp_port: int, cancel: Callable[[Callable[[], Awaitable[object]]], Awaitable[None]]
-) -> None:
-    await cancel(lambda: discover(30, bind="127.0.0.1", port=udp_port))
+@pytest.mark.parametrize("how", WAYS)
+async def test_cancelled_discover_releases_its_port(udp_port: int, how: str) -> None:
+    await stop_waiting(how, lambda: discover(30, bind="127.0.0.1", port=udp_port), 0.05)
     assert port_is_free(udp_port)
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 
-import anyio
 import pytest
+from cancel_ways import WAYS, stop_waiting
 from ros_support import RobotNode, RosMaster, eventually
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
@@ -80,54 +80,9 @@ async def test_the_hosts_map_in_the_url_overrides_the_master_address(master: Ros
         assert (await robot.goto(2, timeout=10)).target_id == 2
 
 
-async def cancel_by_fail_after(opening: Callable[[], Awaitable[object]]) -> None:
-    with pytest.raises(TimeoutError):
-        with anyio.fail_after(0.3):
-            await opening()
-
-
-async def cancel_by_move_on_after(opening: Callable[[], Awaitable[object]]) -> None:
-    with anyio.move_on_after(0.3) as scope:
-        await opening()
-    assert scope.cancelled_caught
-
-
-async def cancel_by_asyncio_timeout(opening: Callable[[], Awaitable[object]]) -> None:
-    with pytest.raises(TimeoutError):
-        async with asyncio.timeout(0.3):
-            await opening()
-
-
-async def cancel_the_task(opening: Callable[[], Awaitable[object]]) -> None:
-    task = asyncio.ensure_future(opening())
-    await asyncio.sleep(0.3)  # connect is waiting for a robot that never comes: no event
-    task.cancel()
-    with pytest.raises(asyncio.CancelledError):
-        await task
-
-
-async def fail_a_sibling(opening: Callable[[], Awaitable[object]]) -> None:
-    async def failing() -> None:
-        await asyncio.sleep(0.3)
-        raise RuntimeError("sibling failed")
-
-    async def both() -> None:
-        async with anyio.create_task_group() as group:
-            group.start_soon(opening)
-            group.start_soon(failing)
-
-    with pytest.raises(Exception) as caught:  # noqa: PT011 - an ExceptionGroup, checked below
-        await both()
-    assert caught.group_contains(RuntimeError, match="sibling failed")
-
-
-@pytest.mark.parametrize(
-    "cancel",
-    [cancel_by_fail_after, cancel_by_move_on_after, cancel_by_asyncio_timeout, cancel_the_task,
-     fail_a_sibling],
-)  # fmt: skip
+@pytest.mark.parametrize("how", WAYS)
 async def test_a_cancelled_connect_with_a_hosts_map_leaves_nothing_registered(
-    master: RosMaster, cancel: Callable[[Callable[[], Awaitable[object]]], Awaitable[None]]
+    master: RosMaster, how: str
 ) -> None:
     url = f"{master.url}?hosts={UNRESOLVABLE}=127.0.0.2"
 
@@ -135,7 +90,7 @@ async def test_a_cancelled_connect_with_a_hosts_map_leaves_nothing_registered(
         async with connect(url, connect_timeout=20):
             pytest.fail("no robot node runs: connect cannot succeed")
 
-    await cancel(opening)
+    await stop_waiting(how, opening, 0.3)  # connect waits for a robot that never comes
     assert not await cmds_publisher_registered(master)
 
 
