@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import sys
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -35,7 +36,8 @@ def tmux() -> Iterator[list[str]]:
     """The tmux command of a server of this test's own, killed afterwards."""
     if shutil.which("tmux") is None:
         missing_peer("tmux")
-    command = ["tmux", "-L", f"galileo-test-{os.getpid()}"]
+    # A server name of each test's own: a killed server's socket may linger a moment.
+    command = ["tmux", "-L", f"galileo-test-{os.getpid()}-{uuid.uuid4().hex[:8]}"]
     subprocess.run([*command, "new-session", "-d", "-s", "main", "-x", str(COLUMNS),
                     "-y", str(ROWS)], check=True)  # fmt: skip
     try:
@@ -103,3 +105,19 @@ async def test_monitor_map_shows_the_robot_moving(tmux: list[str], tmp_path: Pat
             await anyio.run_process([*tmux, "send-keys", "-t", "main", "C-c", ""])
         finally:
             server.close()
+
+
+async def test_demo_shows_the_map_as_the_robot_drives(tmux: list[str]) -> None:
+    demo = f"{sys.executable} -m galileo_async demo"
+    await anyio.run_process([*tmux, "send-keys", "-t", "main", demo, "Enter"])
+    places: set[tuple[int, int]] = set()
+    with anyio.fail_after(2 * WAIT):
+        while len(places) < 2:
+            spot = _robot_at(_map_rows(await _screen(tmux)))
+            if spot is not None:
+                places.add(spot)
+            await anyio.sleep(0.1)
+        # A screen has no event to wait on: poll it until the demo ends, its steps all done.
+        while "total" not in await _screen(tmux):  # noqa: ASYNC110
+            await anyio.sleep(0.2)
+    assert "✔" in await _screen(tmux)
