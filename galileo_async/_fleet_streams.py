@@ -11,11 +11,11 @@ from __future__ import annotations
 import asyncio
 import weakref
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 from .events import Event
 from .models import GalileoStatus
-from .subscriptions import _Queue, _Subscribers
+from .subscriptions import Subscribers, _Queue
 
 if TYPE_CHECKING:
     from .state import StatusStore
@@ -127,8 +127,8 @@ class FleetHub:
     def __init__(self) -> None:
         self.stores: dict[str, StatusStore] = {}
         self.closed = False
-        self.status_streams: _Subscribers[FleetStatusStream] = _Subscribers(self._set_status_refs)
-        self.event_streams: _Subscribers[FleetEventStream] = _Subscribers(self._set_event_refs)
+        self.status_streams: Subscribers[FleetStatusStream] = Subscribers(self._set_status_refs)
+        self.event_streams: Subscribers[FleetEventStream] = Subscribers(self._set_event_refs)
         self._status_refs: tuple[weakref.ref[FleetStatusStream], ...] = ()
         self._listening_events = False
 
@@ -163,7 +163,7 @@ class FleetHub:
     def _event_listener(self, name: str) -> Callable[[Event], None]:
         def on_event(event: Event) -> None:
             for stream in self.event_streams:
-                stream._push((name, event))
+                stream.offer((name, event))
 
         return on_event
 
@@ -181,9 +181,9 @@ class FleetHub:
     def events(self, maxlen: int) -> FleetEventStream:
         """A new merged event stream of events after now."""
         # A fleet's event stream spans many stores: it has none of its own.
-        stream = FleetEventStream(cast("StatusStore", None), self.event_streams, maxlen)
+        stream = FleetEventStream(self.event_streams, maxlen)
         if self.closed:
-            stream._close()
+            stream.close()
         else:
             self.event_streams.add(stream)
         return stream
@@ -194,7 +194,7 @@ class FleetHub:
         for stream in self.status_streams:
             stream._end()
         for events in self.event_streams:
-            events._close()
+            events.close()
         self.status_streams.clear()
         self.event_streams.clear()
         for name in list(self.stores):

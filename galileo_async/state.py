@@ -14,15 +14,7 @@ from . import events as ev
 from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event, derive_events
 from .models import GalileoStatus
-from .subscriptions import (
-    EventStream,
-    StatusStream,
-    Watch,
-    _expire,
-    _Queue,
-    _Subscribers,
-    _Waiter,
-)
+from .subscriptions import EventStream, StatusStream, Subscribers, Subscription, Watch, expire
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",
@@ -34,7 +26,6 @@ __all__ = [
 ]
 
 _log = logging.getLogger(__name__)
-InvalidStateError = asyncio.InvalidStateError
 
 #: Statuses a Watch keeps before it drops the oldest.
 DEFAULT_WATCH_QUEUE = 256
@@ -48,7 +39,17 @@ _EVENT_KEY = attrgetter(
     "target_num_id", "target_status", "busy_status",
 )  # fmt: skip
 
-_Sub = TypeVar("_Sub", bound="_Queue[Any]")
+_Sub = TypeVar("_Sub", bound="Subscription[Any]")
+
+
+class _Waiter:
+    __slots__ = ("future", "predicate")
+
+    def __init__(
+        self, predicate: Callable[[GalileoStatus], bool], future: asyncio.Future[GalileoStatus]
+    ) -> None:
+        self.predicate = predicate
+        self.future = future
 
 
 class StatusStore:
@@ -85,11 +86,11 @@ class StatusStore:
         # update() reads the registries' snapshots from the store's own slots: at 1000
         # robots, two objects fewer touched per frame (BENCHMARKS.md §2).
         self._watch_refs: tuple[weakref.ref[Watch], ...] = ()
-        self._watches: _Subscribers[Watch] = _Subscribers(self._set_watch_refs)
+        self._watches: Subscribers[Watch] = Subscribers(self._set_watch_refs)
         # Only streams whose consumer waits: the others read `status` when they ask.
         self._waiting_streams: list[StatusStream] = []
         self._event_refs: tuple[weakref.ref[EventStream], ...] = ()
-        self._event_streams: _Subscribers[EventStream] = _Subscribers(self._set_event_refs)
+        self._event_streams: Subscribers[EventStream] = Subscribers(self._set_event_refs)
         self._link_error: GalileoConnectionError | None = None
         # Futures of first_frame(): resolved by any valid frame, placeholders included.
         self._frame_waiters: list[asyncio.Future[None]] = []
@@ -140,37 +141,15 @@ class StatusStore:
             self._check_waiters(status)
         waiting = self._waiting_streams
         if waiting:
-            # A wake-up future is rarely done already (a cancelled wait): asking done()
-            # first would cost a call per subscriber on every frame, the try nothing.
             for stream in waiting:
-                wakeup = stream._wakeup
-                stream._wakeup = None
-                if wakeup is not None:
-                    try:
-                        wakeup.set_result(status)
-                    except InvalidStateError:
-                        continue  # its wait was cancelled or ended: the status stays unseen
-                    stream._seen = updates
+                stream.offer(status, updates)
             # Emptied in place, not replaced: set_result only schedules its callbacks, so
             # no stream joins the list meanwhile, and a fleet frees no list per frame.
             waiting.clear()
-        # _Queue._push inlined: this loop runs for every watch on every frame.
         for watch_ref in self._watch_refs:
             watch = watch_ref()
             if watch is not None:
-                signal = watch._wakeup
-                if signal is not None:
-                    watch._wakeup = None
-                    try:
-                        # Its consumer waits, so nothing is buffered: hand the status over.
-                        signal.set_result(status)
-                        continue
-                    except InvalidStateError:
-                        pass  # woken already or cancelled: queue the status
-                buffer = watch.buffer
-                if len(buffer) == buffer.maxlen:
-                    watch.dropped += 1
-                buffer.append(status)
+                watch.offer(status)
         on_update = self.on_update
         if on_update is not None:
             on_update(status)
@@ -256,12 +235,14 @@ class StatusStore:
                 future.set_exception(closed)
         for subscriptions in (self._watches, self._event_streams):
             for subscription in subscriptions:
-                subscription._close()
+                subscription.close()
         self._watches.clear()
         self._event_streams.clear()
-        waiting, self._waiting_streams = self._waiting_streams, []
+        # Emptied in place: every stream holds this list.
+        waiting = list(self._waiting_streams)
+        self._waiting_streams.clear()
         for stream in waiting:
-            stream._end()
+            stream.close()
 
     # --- used by robot and users -------------------------------------------------------
 
@@ -277,7 +258,7 @@ class StatusStore:
         future: asyncio.Future[GalileoStatus] = loop.create_future()
         waiter = _Waiter(predicate, future)
         self._waiters.append(waiter)
-        timer = None if timeout is None else loop.call_later(timeout, _expire, future)
+        timer = None if timeout is None else loop.call_later(timeout, expire, future)
         try:
             return await future
         except TimeoutError:
@@ -299,7 +280,7 @@ class StatusStore:
         loop = asyncio.get_running_loop()
         future: asyncio.Future[None] = loop.create_future()
         self._frame_waiters.append(future)
-        timer = None if timeout is None else loop.call_later(timeout, _expire, future)
+        timer = None if timeout is None else loop.call_later(timeout, expire, future)
         try:
             await future
         except TimeoutError:
@@ -312,18 +293,18 @@ class StatusStore:
 
     def watch(self, *, maxlen: int = DEFAULT_WATCH_QUEUE) -> Watch:
         """Register now (before sending) for every later status; a context manager."""
-        watch = self._subscribe(Watch(self, self._watches, maxlen))
+        watch = self._subscribe(Watch(self, self._watches, maxlen), self._watches)
         if self._link_error is not None and not self.closed:
-            watch._fail(self._link_error)
+            watch.fail(self._link_error)
         return watch
 
     def statuses(self) -> StatusStream:
         """Newest-only async iterator (starts with the latest); survives reconnects."""
-        return StatusStream(self)
+        return StatusStream(self, self._waiting_streams)
 
     def events(self, *, maxlen: int = DEFAULT_EVENT_QUEUE) -> EventStream:
         """Async iterator of events after now (bounded queue); ends when the store closes."""
-        return self._subscribe(EventStream(self, self._event_streams, maxlen))
+        return self._subscribe(EventStream(self._event_streams, maxlen), self._event_streams)
 
     # --- internals ---------------------------------------------------------------------
 
@@ -343,11 +324,11 @@ class StatusStore:
             # before its first frame with that frame.
             self._event_key = None
 
-    def _subscribe(self, subscription: _Sub) -> _Sub:
+    def _subscribe(self, subscription: _Sub, registry: Subscribers[_Sub]) -> _Sub:
         if self.closed:
-            subscription._close()
+            subscription.close()
         else:
-            subscription._registry.add(subscription)
+            registry.add(subscription)
         return subscription
 
     def _raise_if_unusable(self) -> None:
@@ -379,7 +360,7 @@ class StatusStore:
     def _fail_all(self, exc: GalileoConnectionError) -> None:
         self._fail_waiters(exc)
         for watch in self._watches:
-            watch._fail(exc)
+            watch.fail(exc)
 
     def _fail_waiters(self, exc: GalileoConnectionError) -> None:
         waiters, self._waiters = self._waiters, []
@@ -389,7 +370,7 @@ class StatusStore:
 
     def _emit(self, event: Event) -> None:
         for stream in self._event_streams:
-            stream._push(event)
+            stream.offer(event)
         if self.on_event is not None:
             self.on_event(event)
         if _log.isEnabledFor(logging.DEBUG):

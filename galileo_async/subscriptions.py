@@ -1,4 +1,8 @@
-"""Subscriptions of the state store: watches, status streams and event streams (no I/O)."""
+"""Subscriptions of the state store: watches, status streams and event streams (no I/O).
+
+The store feeds them through ``offer``, ``fail`` and ``close`` only, and they read the store
+through StatusSource: this module imports nothing of the store.
+"""
 
 from __future__ import annotations
 
@@ -7,43 +11,66 @@ import weakref
 from collections import deque
 from collections.abc import Callable, Iterator
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout
 from .events import Event
 from .models import GalileoStatus
 
-if TYPE_CHECKING:
-    from .state import StatusStore
-
-__all__ = ["EventStream", "StatusStream", "Watch"]
+__all__ = [
+    "EventStream",
+    "StatusSource",
+    "StatusStream",
+    "Subscribers",
+    "Subscription",
+    "Watch",
+    "expire",
+]
 
 _running_loop = asyncio.get_running_loop
+InvalidStateError = asyncio.InvalidStateError
 
 _T = TypeVar("_T")
+_T_contra = TypeVar("_T_contra", contravariant=True)
 
 
-class _Waiter:
-    __slots__ = ("future", "predicate")
+class StatusSource(Protocol):
+    """What a subscription reads of its store (StatusStore is one)."""
 
-    def __init__(
-        self, predicate: Callable[[GalileoStatus], bool], future: asyncio.Future[GalileoStatus]
-    ) -> None:
-        self.predicate = predicate
-        self.future = future
+    @property
+    def status(self) -> GalileoStatus | None:
+        """The latest robot status, None before the first one."""
+
+    @property
+    def updates(self) -> int:
+        """How many statuses the store has recorded."""
+
+    @property
+    def closed(self) -> bool:
+        """True once the store is closed."""
+
+
+class Subscription(Protocol[_T_contra]):
+    """What the store calls on a queued subscription: offer an item, fail it, close it."""
+
+    def offer(self, item: _T_contra) -> None:
+        """Take ``item`` (hot path; never raises)."""
+
+    def fail(self, exc: GalileoConnectionError) -> None:
+        """Report a link error to the consumer."""
+
+    def close(self) -> None:
+        """End the subscription; buffered items stay readable."""
 
 
 class _Queue(Generic[_T]):
     """A bounded FIFO with one wake-up future: the core of every subscription."""
 
-    __slots__ = (
-        "__weakref__", "_registry", "_store", "_wakeup", "buffer", "closed", "dropped", "error"
-    )  # fmt: skip
+    __slots__ = ("__weakref__", "_registry", "_wakeup", "buffer", "closed", "dropped", "error")
 
-    def __init__(self, store: StatusStore, registry: _Subscribers[Any], maxlen: int) -> None:
+    def __init__(self, registry: Subscribers[Any], maxlen: int) -> None:
         if maxlen < 1:
             raise ValueError(f"maxlen must be at least 1, got {maxlen}")
-        self._store = store
         self._registry = registry
         self.buffer: deque[_T] = deque(maxlen=maxlen)
         # Resolved with None to look at the queue again, or (watches) with the item itself
@@ -53,19 +80,17 @@ class _Queue(Generic[_T]):
         self.closed = False
         self.error: GalileoConnectionError | None = None
 
-    def _push(self, item: _T) -> None:
+    def offer(self, item: _T) -> None:
+        """Queue ``item`` (the oldest is dropped when full) and wake the consumer."""
         buffer = self.buffer
         if len(buffer) == buffer.maxlen:
             self.dropped += 1
         buffer.append(item)
         self._wake()
 
-    def _fail(self, exc: GalileoConnectionError) -> None:
+    def fail(self, exc: GalileoConnectionError) -> None:
+        """Raise ``exc`` to the consumer once (watches; other queues only wake)."""
         self.error = exc
-        self._wake()
-
-    def _close(self) -> None:
-        self.closed = True
         self._wake()
 
     def _wake(self) -> None:
@@ -78,7 +103,7 @@ class _Queue(Generic[_T]):
         loop = asyncio.get_running_loop()
         wakeup: asyncio.Future[_T | None] = loop.create_future()
         self._wakeup = wakeup
-        timer = None if timeout is None else loop.call_later(timeout, _expire, wakeup)
+        timer = None if timeout is None else loop.call_later(timeout, expire, wakeup)
         try:
             return await wakeup
         finally:
@@ -113,7 +138,7 @@ class _Queue(Generic[_T]):
         self.close()
 
 
-class _Subscribers(Generic[_T]):
+class Subscribers(Generic[_T]):
     """Weakly held subscriptions: one a consumer dropped unregisters itself when collected."""
 
     __slots__ = ("_by_id", "_publish", "refs")
@@ -158,7 +183,8 @@ class _Subscribers(Generic[_T]):
                 yield item
 
 
-def _expire(future: asyncio.Future[Any]) -> None:
+def expire(future: asyncio.Future[Any]) -> None:
+    """Fail ``future`` with TimeoutError unless it is done (a call_later callback)."""
     if not future.done():
         future.set_exception(TimeoutError())
 
@@ -166,7 +192,27 @@ def _expire(future: asyncio.Future[Any]) -> None:
 class Watch(_Queue[GalileoStatus]):
     """Every status after registration (bounded: oldest dropped); raises pushed link errors."""
 
-    __slots__ = ()
+    __slots__ = ("_source",)
+
+    def __init__(self, source: StatusSource, registry: Subscribers[Any], maxlen: int) -> None:
+        super().__init__(registry, maxlen)
+        self._source = source
+
+    def offer(self, item: GalileoStatus) -> None:
+        """Hand ``item`` to a waiting consumer, else queue it (the oldest dropped when full)."""
+        wakeup = self._wakeup
+        if wakeup is not None:
+            self._wakeup = None
+            try:
+                # Its consumer waits, so nothing is buffered: hand the status over.
+                wakeup.set_result(item)
+                return
+            except InvalidStateError:
+                pass  # woken already or cancelled: queue the status
+        buffer = self.buffer
+        if len(buffer) == buffer.maxlen:
+            self.dropped += 1
+        buffer.append(item)
 
     async def next(self, timeout: float | None = None) -> GalileoStatus:
         """The next status; GalileoTimeout after ``timeout`` s, link errors as pushed."""
@@ -181,7 +227,7 @@ class Watch(_Queue[GalileoStatus]):
             try:
                 handed = await self._wait(timeout)
             except TimeoutError:
-                status = self._store.status
+                status = self._source.status
                 raise GalileoTimeout(f"no status within {timeout} s", status=status) from None
             if handed is not None:
                 return handed
@@ -220,14 +266,16 @@ class StatusStream:
     and a waiting consumer is handed the status itself (no buffer).
     """
 
-    __slots__ = ("_loop", "_seen", "_store", "_wakeup", "closed", "dropped")
+    __slots__ = ("_loop", "_seen", "_store", "_waiting", "_wakeup", "closed", "dropped")
 
-    def __init__(self, store: StatusStore) -> None:
+    def __init__(self, store: StatusSource, waiting: list[StatusStream]) -> None:
+        """``waiting``: the store's list of streams to offer the next status to."""
         self._store = store
+        self._waiting = waiting
         # The store's update count when this stream last handed out a status; one behind
         # while a status exists, so the first item is the latest status.
         self._seen = store.updates - 1 if store.status is not None else store.updates
-        # While set, the stream is on the store's list of waiting streams.
+        # While set, the stream is on ``waiting``.
         self._wakeup: asyncio.Future[GalileoStatus] | None = None
         self.dropped = 0
         self.closed = store.closed
@@ -267,9 +315,9 @@ class StatusStream:
         fresh: asyncio.Future[GalileoStatus] = loop.create_future()
         self._wakeup = fresh
         if wakeup is None:
-            store._waiting_streams.append(self)
+            self._waiting.append(self)
         # else: its last wait was cancelled and the store still lists it: only the future
-        # is new. StatusStore.update resolves it with the next status and unlists it.
+        # is new. The store offers it the next status and unlists it.
         return fresh
 
     async def next(self, timeout: float | None = None) -> GalileoStatus:
@@ -287,17 +335,24 @@ class StatusStream:
             status = self._store.status
             raise GalileoTimeout(f"no new status within {timeout} s", status=status) from None
 
-    def _end(self) -> None:
-        """The store closed or the stream did: a waiting consumer stops iterating."""
+    def offer(self, status: GalileoStatus, seen: int) -> None:
+        """Hand ``status``, the store's ``seen``-th, to the waiting consumer (hot path)."""
         wakeup = self._wakeup
         self._wakeup = None
-        if wakeup is not None and not wakeup.done():
-            wakeup.set_exception(StopAsyncIteration())
+        if wakeup is not None:
+            try:
+                wakeup.set_result(status)
+            except InvalidStateError:
+                return  # its wait was cancelled or ended: the status stays unseen
+            self._seen = seen
 
     def close(self) -> None:
         """Stop iterating (idempotent): a waiting consumer and every later step end."""
         self.closed = True
-        self._end()
+        wakeup = self._wakeup
+        self._wakeup = None
+        if wakeup is not None and not wakeup.done():
+            wakeup.set_exception(StopAsyncIteration())
 
     async def aclose(self) -> None:
         """Same as close(), for ``contextlib.aclosing``."""
