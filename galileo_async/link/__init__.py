@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Collection, Mapping
 from types import ModuleType
 from typing import Any
@@ -106,7 +105,9 @@ def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink
         connector = socket_connector(host, port, connect_timeout=connect_timeout, name=url)
         return StreamLink(store, connector, name=url, **options)
     if scheme == "sim":
-        simulator = importlib.import_module("galileo_async.sim").Simulator.from_url(url)
+        from ..sim import Simulator  # loaded only for sim:// URLs
+
+        simulator = Simulator.from_url(url)
         link = StreamLink(store, simulator.connector(), name=url, **options)
         link.simulator = simulator
         link.add_closer(simulator.close)
@@ -118,11 +119,12 @@ def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink
 
 def _ros_module(url: str) -> ModuleType:
     try:
-        return importlib.import_module("galileo_async.link.ros")
+        from . import ros  # optional: loaded only for ros:// URLs and their options
     except ImportError as exc:
         raise GalileoConnectionError(
             f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
         ) from exc
+    return ros
 
 
 def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Awaitable, Callable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from ..errors import GalileoError
+from ..robot import Robot
+from .execution import Executor
 from .models import Action, ActionState, ActionStatus, Error
-from .order import Rejection
+from .order import OrderProgress, Rejection
 
-if TYPE_CHECKING:
-    from .vehicle import Vehicle
-
-__all__ = ["MAX_ACTION_ERRORS", "MAX_ENDED_ACTIONS", "ActionRunner"]
+__all__ = ["MAX_ACTION_ERRORS", "MAX_ENDED_ACTIONS", "ActionRunner", "VehicleHost"]
 
 _log = logging.getLogger(__name__)
 
@@ -23,10 +22,35 @@ MAX_ACTION_ERRORS = 10
 MAX_ENDED_ACTIONS = 50
 
 
+class VehicleHost(Protocol):
+    """What the actions use of their vehicle (vehicle.Vehicle is one)."""
+
+    @property
+    def robot(self) -> Robot:
+        """The robot the vehicle drives."""
+
+    @property
+    def executor(self) -> Executor:
+        """The vehicle's order executor."""
+
+    @property
+    def progress(self) -> OrderProgress:
+        """The vehicle's order progress."""
+
+    def changed(self) -> None:
+        """The state changed: publish it soon."""
+
+    async def publish_state(self) -> None:
+        """Publish the state now."""
+
+    async def publish_factsheet(self) -> None:
+        """Publish the factsheet now."""
+
+
 class ActionRunner:
     """Runs one vehicle's instant actions and remembers their states."""
 
-    def __init__(self, vehicle: Vehicle) -> None:
+    def __init__(self, vehicle: VehicleHost) -> None:
         self._vehicle = vehicle
         self._states: dict[str, ActionState] = {}
         self.errors: list[Error] = []

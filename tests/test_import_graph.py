@@ -1,0 +1,206 @@
+"""The package's import graph has no circle, and every import of its own modules is visible.
+
+Every import statement counts, wherever it sits: at module level, inside functions (loaded
+lazily) and inside ``if TYPE_CHECKING:`` blocks. A lazy or type-only import still ties two
+modules together, and a circle through one is a circle a refactoring can close by moving
+one line, so none is allowed.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import galileo_async
+
+PACKAGE = "galileo_async"
+PACKAGE_DIR = Path(galileo_async.__file__).parent
+#: The package's lazy loader (``galileo_async.X`` on first use, so that ``import
+#: galileo_async.protocol`` loads no asyncio layer); its targets must be imported visibly too.
+LAZY_LOADER = PACKAGE
+
+
+def module_files(root: Path = PACKAGE_DIR, package: str = PACKAGE) -> dict[str, Path]:
+    """Dotted module name → source file, for every module under ``root``."""
+    files = {}
+    for path in sorted(root.rglob("*.py")):
+        parts = path.relative_to(root).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        files[".".join((package, *parts))] = path
+    return files
+
+
+def _owner(name: str, modules: Mapping[str, object]) -> str | None:
+    """The module ``name`` is, or the nearest module containing it (an attribute's owner)."""
+    while name and name not in modules:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def imported_modules(
+    source: str, module: str, modules: Mapping[str, object], *, is_package: bool
+) -> set[str]:
+    """The package's own modules that the import statements in ``source`` load."""
+    package = module if is_package else module.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                base = ".".join([*parts[: len(parts) - node.level + 1], *([base] if base else [])])
+            # `from . import state` loads the module state; `from .state import X` loads state.
+            targets = [
+                f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base
+                for alias in node.names
+            ]
+        else:
+            continue
+        found |= {owner for t in targets if (owner := _owner(t, modules)) is not None}
+    found.discard(module)
+    return found
+
+
+def import_graph(files: Mapping[str, Path]) -> dict[str, set[str]]:
+    """Module → the package modules it imports (every import statement, at any depth)."""
+    return {
+        module: imported_modules(
+            path.read_text(encoding="utf-8"), module, files, is_package=path.name == "__init__.py"
+        )
+        for module, path in files.items()
+    }
+
+
+def cycles(graph: Mapping[str, set[str]]) -> list[list[str]]:
+    """Every strongly connected group of more than one module (Tarjan), sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            group = []
+            while True:
+                member = stack.pop()
+                group.append(member)
+                if member == node:
+                    break
+            if len(group) > 1:
+                found.append(sorted(group))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return sorted(found)
+
+
+def import_by_name_calls(source: str) -> Iterator[ast.Call]:
+    """``importlib.import_module(…)``, ``import_module(…)`` and ``__import__(…)`` calls."""
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call):
+            func = node.func
+            called = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+            if called in ("import_module", "__import__"):
+                yield node
+
+
+def lazy_targets(source: str) -> set[str]:
+    """The module names of the package ``__init__``'s ``_LAZY`` table."""
+    for node in ast.walk(ast.parse(source)):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and getattr(node.target, "id", None) == "_LAZY"
+            and isinstance(node.value, ast.Dict)
+        ):
+            return {v.value for v in node.value.values if isinstance(v, ast.Constant)}
+    raise AssertionError("no _LAZY table")
+
+
+# --- the package -------------------------------------------------------------------------
+
+FILES = module_files()
+GRAPH = import_graph(FILES)
+
+
+def test_the_package_has_no_import_circle() -> None:
+    assert cycles(GRAPH) == []
+
+
+def test_the_graph_covers_the_package() -> None:
+    assert {"galileo_async.state", "galileo_async.subscriptions", "galileo_async.link"} <= set(
+        GRAPH
+    )
+    assert "galileo_async.subscriptions" in GRAPH["galileo_async.state"]
+    # Imports inside functions count: the link package loads the simulator for sim:// only.
+    assert {"galileo_async.sim", "galileo_async.link.ros"} <= GRAPH["galileo_async.link"]
+
+
+def test_no_own_module_is_loaded_by_name() -> None:
+    """Only the package's lazy loader may; every module it loads is also imported visibly."""
+    hidden = []
+    for module, path in FILES.items():
+        if module == LAZY_LOADER:
+            continue
+        for call in import_by_name_calls(path.read_text(encoding="utf-8")):
+            name = (
+                call.args[0].value if call.args and isinstance(call.args[0], ast.Constant) else None
+            )
+            if not isinstance(name, str) or name == PACKAGE or name.startswith(f"{PACKAGE}."):
+                hidden.append(f"{module}:{call.lineno} loads {name or 'a computed name'}")
+    assert hidden == [], "import own modules with import statements"
+    lazy = {f"{PACKAGE}.{name}" for name in lazy_targets(FILES[LAZY_LOADER].read_text())}
+    assert lazy
+    assert lazy <= GRAPH[LAZY_LOADER], "import the lazy loader's modules under TYPE_CHECKING"
+
+
+# --- the checks themselves ---------------------------------------------------------------
+
+
+def _graph_of(sources: dict[str, str]) -> dict[str, set[str]]:
+    modules = dict.fromkeys(sources)
+    return {
+        name: imported_modules(text, name, modules, is_package=name == "pkg")
+        for name, text in sources.items()
+    }
+
+
+def test_a_circle_through_a_lazy_or_type_only_import_is_found() -> None:
+    sources = {
+        "pkg": "",
+        "pkg.a": "from .b import B\n",
+        "pkg.b": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .c import C\n",
+        "pkg.c": "def f():\n    from . import a\n",
+        "pkg.d": "import pkg.a.thing\n",
+    }
+    graph = _graph_of(sources)
+    assert graph["pkg.c"] == {"pkg.a"}
+    assert graph["pkg.d"] == {"pkg.a"}
+    assert cycles(graph) == [["pkg.a", "pkg.b", "pkg.c"]]
+    del sources["pkg.c"]
+    assert cycles(_graph_of(sources)) == []
+
+
+def test_relative_imports_resolve_to_modules() -> None:
+    modules = dict.fromkeys(["p", "p.x", "p.x.y", "p.z"])
+    source = "from .. import z\nfrom ..x import y\nfrom . import thing\nfrom ...outside import q\n"
+    assert imported_modules(source, "p.x.w", modules, is_package=False) == {"p.z", "p.x.y", "p.x"}
+
+
+def test_loading_by_name_is_seen() -> None:
+    source = "import importlib\nimportlib.import_module('galileo_async.sim')\n__import__(name)\n"
+    calls = list(import_by_name_calls(source))
+    assert [getattr(c.args[0], "value", None) for c in calls] == ["galileo_async.sim", None]
+    assert lazy_targets("_LAZY: dict[str, str] = {'Robot': 'robot'}\n") == {"robot"}
