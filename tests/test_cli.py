@@ -394,6 +394,15 @@ def test_record_reports_chunks_dropped_when_the_writer_falls_behind(
     assert "error: the file writer fell behind: dropped 3 chunks (30 bytes)" in result.stderr
 
 
+def test_record_refuses_a_ros_url_before_opening_anything(tmp_path: Path) -> None:
+    # The one URL switch of the library (galileo_async.link) serves the CLI too.
+    capture = tmp_path / "capture.bin"
+    result = invoke("record", str(capture), port="ros://127.0.0.1:9")
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "not a byte stream" in result.stderr
+    assert not capture.exists()
+
+
 def test_record_raw_and_decode_from_stdin(tmp_path: Path) -> None:
     capture = tmp_path / "capture.bin"
     assert invoke("record", str(capture), "--raw", "--duration", "0.2").exit_code == 0

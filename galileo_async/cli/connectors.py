@@ -5,9 +5,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import AsyncIterator
-from urllib.parse import urlsplit
 
-from ..link.connectors import Connector, parse_socket_url, serial_connector, socket_connector
+from ..link import byte_connector
 
 __all__ = ["RECORD_QUEUE_CHUNKS", "ChunkQueue", "open_raw"]
 
@@ -66,19 +65,7 @@ class _Tap(asyncio.Protocol):
 async def open_raw(url: str, chunks: ChunkQueue) -> AsyncIterator[float]:
     """Stream the bytes arriving from ``url`` into ``chunks``; yield the start (loop time)."""
     loop = asyncio.get_running_loop()
-    simulator = None
-    scheme = urlsplit(url).scheme.lower()
-    connector: Connector
-    if scheme == "sim":
-        from ..sim import Simulator
-
-        simulator = Simulator.from_url(url)
-        connector = simulator.connector()
-    elif scheme == "socket":
-        host, port = parse_socket_url(url)
-        connector = socket_connector(host, port)
-    else:
-        connector = serial_connector(url)
+    connector, simulator = byte_connector(url)
     try:
         started = loop.time()
         transport, _protocol = await connector(loop, lambda: _Tap(chunks))

@@ -27,6 +27,7 @@ from ..errors import (
     InvalidArgument,
     NotReady,
 )
+from ..link import link_kind
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -120,7 +121,7 @@ def with_query(url: str, **defaults: str) -> str:
 
 def is_sim(url: str) -> bool:
     """True for the in-process simulator URL (``sim://…``)."""
-    return url.startswith("sim:")
+    return link_kind(url) == "sim"
 
 
 def settings_of(ctx: typer.Context) -> Settings:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 from .._checks import check_names, naming
@@ -34,6 +34,9 @@ from .options import (
 )
 from .stream import StreamLink
 
+if TYPE_CHECKING:
+    from ..sim import Simulator
+
 __all__ = [
     "CLOSE_TIMEOUT",
     "DEFAULT_BAUDRATE",
@@ -52,6 +55,7 @@ __all__ = [
     "LinkStats",
     "StatusSink",
     "StreamLink",
+    "byte_connector",
     "check_link_options",
     "link_kind",
     "open_link",
@@ -93,33 +97,54 @@ def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
         return _open_link(url, store, options)
 
 
-def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
-    scheme = link_kind(url)
-    if scheme == "ros":
-        return _ros_link(url, store, options)
-    baudrate = options.pop("baudrate", DEFAULT_BAUDRATE)
-    serial_options = options.pop("serial_options", None) or {}
-    connect_timeout = options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT)
-    if scheme == "socket":
+def byte_connector(
+    url: str,
+    *,
+    baudrate: int = DEFAULT_BAUDRATE,
+    serial_options: Mapping[str, Any] | None = None,
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+) -> tuple[Connector, Simulator | None]:
+    """The connector of a byte-stream URL, and the simulator it runs for ``sim://``.
+
+    InvalidArgument for ``ros://`` (messages, not bytes) or a bad socket URL; opens nothing.
+    The caller closes the simulator.
+    """
+    kind = link_kind(url)
+    if kind == "ros":
+        raise InvalidArgument(f"{url!r}: a ros:// link carries ROS messages, not a byte stream")
+    if kind == "socket":
         host, port = parse_socket_url(url)
-        connector = socket_connector(host, port, connect_timeout=connect_timeout, name=url)
-        return StreamLink(store, connector, name=url, **options)
-    if scheme == "sim":
+        return socket_connector(host, port, connect_timeout=connect_timeout, name=url), None
+    if kind == "sim":
         from ..sim import Simulator  # loaded only for sim:// URLs
 
         simulator = Simulator.from_url(url)
-        link = StreamLink(store, simulator.connector(), name=url, **options)
+        return simulator.connector(), simulator
+    # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
+    return serial_connector(url, baudrate=baudrate, **(serial_options or {})), None
+
+
+def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
+    if link_kind(url) == "ros":
+        return _ros_link(url, store, options)
+    connector, simulator = byte_connector(
+        url,
+        baudrate=options.pop("baudrate", DEFAULT_BAUDRATE),
+        serial_options=options.pop("serial_options", None),
+        connect_timeout=options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT),
+    )
+    link = StreamLink(store, connector, name=url, **options)
+    if simulator is not None:
         link.simulator = simulator
         link.add_closer(simulator.close)
-        return link
-    # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
-    connector = serial_connector(url, baudrate=baudrate, **serial_options)
-    return StreamLink(store, connector, name=url, **options)
+    return link
 
 
 def _ros_module(url: str) -> ModuleType:
     try:
-        from . import ros  # optional: loaded only for ros:// URLs and their options
+        # Optional, loaded only for ros:// URLs; spelled absolute so that the import asks
+        # sys.modules (`from . import ros` would take a package attribute set earlier).
+        import galileo_async.link.ros as ros
     except ImportError as exc:
         raise GalileoConnectionError(
             f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
