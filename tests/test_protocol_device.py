@@ -30,6 +30,7 @@ from galileo_async.protocol import (
     SetPatrolDwell,
     StartNavigation,
     StatusDecoder,
+    StatusEncoder,
     Stop,
     StopNavigation,
     encode,
@@ -189,6 +190,21 @@ def test_encode_status_in_another_layout() -> None:
         v.V2_FORMAT, 1, 1, 0, 0, 0, 0, 0, 12.5, 4, 0, 0.004999999888241291, 1, 0.25, -0.5,
         0.125, 0.0625, 77, 0.0, 0.0, 0.0, 0,
     ) + b"\x00"  # fmt: skip
+
+
+@pytest.mark.parametrize("layout", ALL_LAYOUTS)
+def test_status_encoder_takes_values_in_any_order(layout: StatusLayout) -> None:
+    status = v.V2_ACTIVE_STATUS
+    fields = ("power", "target_status", "nav_status", "current_pose_x")  # most left out
+    encoder = StatusEncoder(layout, fields)
+    values = tuple(getattr(status, name) for name in fields)
+    # A field left out goes out as the firmware default, like a field the status lacks.
+    expected = GalileoStatus(layout=layout, **{name: getattr(status, name) for name in fields})
+    assert encoder.frame(values) == encode_status(expected)
+    assert encoder.encode(values) == encode_status(expected)
+    stamped = encode_status(expected.model_copy(update={"time_stamp": 9}))
+    assert encoder.encode(values, time_stamp=9) == stamped
+    assert encoder.encode(values, time_stamp=9) == stamped  # the cached frame, stamped again
 
 
 @given(st.tuples(st.sampled_from(ALL_LAYOUTS), statuses(V2)))

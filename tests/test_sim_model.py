@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from galileo_async.errors import InvalidArgument
 from galileo_async.models import StatusLayout
-from galileo_async.protocol import StatusDecoder, encode_status
+from galileo_async.protocol import StatusDecoder, StatusEncoder, encode_status
 from galileo_async.protocol import commands as c
 from galileo_async.sim import FRAME_RATE, FrameEncoder, RobotModel, SimConfig, parse_sim_url
 
@@ -84,6 +84,12 @@ def test_frame_encoder_matches_encode_status(layout: StatusLayout) -> None:
     assert same == encode_status(
         model.status().model_copy(update={"time_stamp": model.time_stamp + 1}), layout
     )
+
+
+def test_the_simulator_sends_frames_with_the_protocols_encoder() -> None:
+    assert issubclass(FrameEncoder, StatusEncoder)
+    own = {name for name in vars(FrameEncoder) if not name.startswith("__")}
+    assert own == set()  # no encoding of its own: the field order only
 
 
 # ---------------------------------------------------------------- navigation start/stop

@@ -37,7 +37,13 @@ from .commands import (
     encode,
     nudge_coordinates,
 )
-from .device import CommandDecoder, CommandDecoderStats, encode_status, parse_payload
+from .device import (
+    CommandDecoder,
+    CommandDecoderStats,
+    StatusEncoder,
+    encode_status,
+    parse_payload,
+)
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS, Layout
 from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder
 
@@ -75,6 +81,7 @@ __all__ = [
     "StartNavigation",
     "StartPatrol",
     "StatusDecoder",
+    "StatusEncoder",
     "Stop",
     "StopCharging",
     "StopMapping",

@@ -1,12 +1,15 @@
-"""Device side of the protocol: the firmware's command parser, for simulators and tests."""
+"""Device side of the protocol: the firmware's command parser and status encoder (sim, tests)."""
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
+from operator import itemgetter
+from typing import Any
 
 from ..errors import InvalidArgument
-from ..models import GalileoStatus, StatusLayout
+from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from .commands import (
     COMMAND_TYPES,
     MAX_COMMAND_PAYLOAD,
@@ -23,7 +26,13 @@ from .commands import (
 )
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS
 
-__all__ = ["CommandDecoder", "CommandDecoderStats", "encode_status", "parse_payload"]
+__all__ = [
+    "CommandDecoder",
+    "CommandDecoderStats",
+    "StatusEncoder",
+    "encode_status",
+    "parse_payload",
+]
 
 _FIXED: dict[bytes, type[_Fixed]] = {
     cls.data: cls for cls in COMMAND_TYPES.values() if issubclass(cls, _Fixed)
@@ -32,6 +41,7 @@ _PERCENT: dict[int, type[_Percent]] = {
     cls.code: cls for cls in COMMAND_TYPES.values() if issubclass(cls, _Percent)
 }
 _TWO_F32 = struct.Struct("<ff")
+_U32 = struct.Struct("<I")
 
 
 def parse_payload(payload: bytes) -> Command:
@@ -117,19 +127,65 @@ class CommandDecoder:
         return out
 
 
+class StatusEncoder:
+    """Status values → frames of one layout, as the robot sends them (PROTOCOL.md §1)."""
+
+    __slots__ = (
+        "_defaults", "_extra", "_frame", "_last", "_pack", "_pick", "_prefix", "_size",
+        "_stamp_at", "_tail",
+    )  # fmt: skip
+
+    def __init__(self, layout: StatusLayout | str, fields: Sequence[str] = STATUS_FIELDS) -> None:
+        """Values come in ``fields`` order; a wire field not among them is sent as its default."""
+        name = StatusLayout(layout)
+        if name is StatusLayout.ROS:  # a ROS status has the v2 fields
+            name = StatusLayout.V2
+        target = LAYOUTS[name]
+        # The truncated layout is the v2 struct cut short (PROTOCOL.md §1, v2_truncated).
+        source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
+        index = {field: i for i, field in enumerate(fields)}
+        missing = [field for field in source.fields if field not in index]
+        index |= {field: len(fields) + i for i, field in enumerate(missing)}
+        self._extra = tuple(V2_DEFAULTS[field] for field in missing)
+        self._defaults = tuple(V2_DEFAULTS[field] for field in source.fields)
+        self._pick = itemgetter(*(index[field] for field in source.fields))
+        self._pack = source.struct.pack
+        self._prefix = HEADER + bytes((target.length_byte,))
+        self._tail = b"\x00" if target.terminated else b""
+        self._size = target.frame_size - len(self._prefix) - len(self._tail)
+        self._stamp_at: int | None = None
+        if "time_stamp" in target.fields:
+            self._stamp_at = len(self._prefix) + 4 * target.fields.index("time_stamp")
+        self._last: tuple[Any, ...] | None = None
+        self._frame = bytearray()
+
+    def frame(self, values: Sequence[Any]) -> bytes:
+        """The frame of ``values``, a None among them sent as its field's default; stateless."""
+        picked = self._pick((*values, *self._extra))
+        if None in picked:
+            picked = tuple(
+                d if v is None else v for v, d in zip(picked, self._defaults, strict=True)
+            )
+        return self._build(picked)
+
+    def encode(self, values: tuple[Any, ...], time_stamp: int | None = None) -> bytes:
+        """The frame of ``values`` (no None) with ``time_stamp``; repacks only on a change."""
+        if values != self._last:
+            self._frame = bytearray(self._build(self._pick((*values, *self._extra))))
+            self._last = values
+        if time_stamp is not None and self._stamp_at is not None:
+            _U32.pack_into(self._frame, self._stamp_at, time_stamp & 0xFFFFFFFF)
+        return bytes(self._frame)
+
+    def _build(self, picked: tuple[Any, ...]) -> bytes:
+        return self._prefix + self._pack(*picked)[: self._size] + self._tail
+
+
+# One stateless encoder per layout for encode_status (frame() keeps no state).
+_ENCODERS = {layout: StatusEncoder(layout) for layout in StatusLayout}
+
+
 def encode_status(status: GalileoStatus, layout: StatusLayout | str | None = None) -> bytes:
     """Encode a status as the robot sends it in ``layout`` (default: the status's own)."""
-    name = StatusLayout(layout) if layout is not None else status.layout
-    if name is StatusLayout.ROS:
-        name = StatusLayout.V2
-    target = LAYOUTS[name]
-    source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
-    values = []
-    for field in source.fields:
-        value = getattr(status, field)
-        values.append(V2_DEFAULTS[field] if value is None else value)
-    payload = source.struct.pack(*values)
-    if name is StatusLayout.V2_TRUNCATED:
-        payload = payload[: target.frame_size - len(HEADER) - 1]
-    tail = b"\x00" if target.terminated else b""
-    return HEADER + bytes((target.length_byte,)) + payload + tail
+    encoder = _ENCODERS[status.layout if layout is None else StatusLayout(layout)]
+    return encoder.frame([getattr(status, field) for field in STATUS_FIELDS])

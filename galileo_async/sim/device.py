@@ -5,17 +5,14 @@ from __future__ import annotations
 import asyncio
 import math
 import random
-import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from operator import itemgetter
 from typing import Any
 
 from ..models import StatusLayout
-from ..protocol import LAYOUTS, CommandDecoder
-from ..protocol.layouts import HEADER
+from ..protocol import CommandDecoder, StatusEncoder
 from .config import FRAME_RATE, SimConfig
-from .robot_model import WIRE_FIELDS, RobotModel, WireValues
+from .robot_model import WIRE_FIELDS, RobotModel
 
 __all__ = ["DeviceConnection", "DeviceStats", "FrameEncoder", "SimDevice", "Ticker"]
 
@@ -23,41 +20,15 @@ __all__ = ["DeviceConnection", "DeviceStats", "FrameEncoder", "SimDevice", "Tick
 MAX_CATCH_UP_FRAMES = 120
 #: A connection whose unsent bytes exceed this drops frames (a full serial buffer).
 WRITE_BUFFER_LIMIT = 64 * 1024
-_U32 = struct.Struct("<I")
 
 
-class FrameEncoder:
-    """Status values → frame bytes for one layout; repacks only when a value changed."""
+class FrameEncoder(StatusEncoder):
+    """The protocol's StatusEncoder for the model's wire values (WIRE_FIELDS order)."""
 
-    __slots__ = ("_frame", "_last", "_pack", "_pick", "_stamp_offset", "_static")
+    __slots__ = ()
 
     def __init__(self, layout: StatusLayout) -> None:
-        target = LAYOUTS[layout]
-        # The truncated layout is the v2 struct cut short (PROTOCOL.md §1, v2_truncated).
-        source = LAYOUTS[StatusLayout.V2] if layout is StatusLayout.V2_TRUNCATED else target
-        index = {name: i for i, name in enumerate(WIRE_FIELDS)}
-        stamp = len(WIRE_FIELDS)  # time_stamp is packed as 0 and patched per frame
-        self._pick = itemgetter(*(index.get(name, stamp) for name in source.fields))
-        self._pack = source.struct.pack
-        payload_size = target.frame_size - 4 - (1 if target.terminated else 0)
-        self._static = HEADER + bytes((target.length_byte,)), payload_size, target.terminated
-        self._stamp_offset: int | None = None
-        if "time_stamp" in target.fields:
-            self._stamp_offset = 4 + 4 * target.fields.index("time_stamp")
-        self._last: WireValues | None = None
-        self._frame = bytearray()
-
-    def encode(self, values: WireValues, time_stamp: int) -> bytes:
-        """The frame for ``values`` with ``time_stamp``."""
-        if values != self._last:
-            prefix, payload_size, terminated = self._static
-            payload = self._pack(*self._pick((*values, 0)))[:payload_size]
-            self._frame = bytearray(prefix + payload + (b"\x00" if terminated else b""))
-            self._last = values
-        if self._stamp_offset is None:
-            return bytes(self._frame)
-        _U32.pack_into(self._frame, self._stamp_offset, time_stamp & 0xFFFFFFFF)
-        return bytes(self._frame)
+        super().__init__(layout, WIRE_FIELDS)
 
 
 @dataclass
