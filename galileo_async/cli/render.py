@@ -88,7 +88,12 @@ def link_dict(link: object) -> dict[str, Any]:
     """Link statistics (robot.link) as plain values, including last_frame_age."""
     values: dict[str, Any] = {}
     if dataclasses.is_dataclass(link) and not isinstance(link, type):
-        values.update({f.name: getattr(link, f.name) for f in dataclasses.fields(link) if f.repr})
+        for f in dataclasses.fields(link):
+            value = getattr(link, f.name)
+            if dataclasses.is_dataclass(value) and not isinstance(value, type):
+                values.update(dataclasses.asdict(value))  # LinkStats.decoder: its counters
+            elif f.repr:
+                values[f.name] = value
     age = getattr(link, "last_frame_age", None)
     values["last_frame_age"] = None if age is None else round(float(age), 3)
     layout = values.get("layout")

@@ -175,8 +175,8 @@ class BaseLink(CommandQueue, abc.ABC):
         StreamLink's protocol does the same per read, its decoder having counted already.
         """
         stats = self.stats
-        stats.frames += 1
-        stats.layout = status.layout
+        stats.decoder.frames += 1
+        stats.decoder.layout = status.layout
         # Only a timestamp per status: the watchdog re-arms itself from it (_check_stale).
         stats.last_frame_at = _monotonic()
         if stats.stale:

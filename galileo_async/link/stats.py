@@ -4,29 +4,81 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 from ..errors import GalileoConnectionError, LinkStale
-from ..models import GalileoStatus
+from ..models import GalileoStatus, StatusLayout
 from ..protocol import DecoderStats
 
 __all__ = ["LinkStats", "StatusSink"]
 
 
-@dataclass(slots=True)
-class LinkStats(DecoderStats):
+@dataclass(slots=True, init=False)
+class LinkStats:
     """Counters and health of one link (read by users as ``robot.link``).
 
     A byte link's decoder counts frames, discards, resyncs, lost frames, counter resets
-    and the layout straight into it.
+    and the layout into ``decoder``; they read through as this object's own attributes.
     """
 
-    bytes_received: int = 0
-    reconnects: int = 0
-    commands_sent: int = 0
-    connected: bool = False
-    stale: bool = False
-    last_frame_at: float | None = field(default=None, repr=False)
+    decoder: DecoderStats
+    bytes_received: int
+    reconnects: int
+    commands_sent: int
+    connected: bool
+    stale: bool
+    last_frame_at: float | None = field(repr=False)
+
+    def __init__(
+        self,
+        *,
+        decoder: DecoderStats | None = None,
+        bytes_received: int = 0,
+        reconnects: int = 0,
+        commands_sent: int = 0,
+        connected: bool = False,
+        stale: bool = False,
+        last_frame_at: float | None = None,
+        **decoder_counts: Any,
+    ) -> None:
+        """``decoder_counts``: DecoderStats fields (``frames=3``) when ``decoder`` is None."""
+        self.decoder = DecoderStats(**decoder_counts) if decoder is None else decoder
+        self.bytes_received = bytes_received
+        self.reconnects = reconnects
+        self.commands_sent = commands_sent
+        self.connected = connected
+        self.stale = stale
+        self.last_frame_at = last_frame_at
+
+    @property
+    def frames(self) -> int:
+        """Valid frames (statuses) received."""
+        return self.decoder.frames
+
+    @property
+    def bytes_discarded(self) -> int:
+        """Bytes thrown away while looking for a frame."""
+        return self.decoder.bytes_discarded
+
+    @property
+    def resyncs(self) -> int:
+        """Times the decoder lost the frame boundary and searched again."""
+        return self.decoder.resyncs
+
+    @property
+    def lost_frames(self) -> int:
+        """Frames missing from the time_stamp sequence."""
+        return self.decoder.lost_frames
+
+    @property
+    def counter_resets(self) -> int:
+        """Times the robot's time_stamp started over."""
+        return self.decoder.counter_resets
+
+    @property
+    def layout(self) -> StatusLayout | None:
+        """The frame layout seen last, None before the first frame."""
+        return self.decoder.layout
 
     @property
     def last_frame_age(self) -> float | None:

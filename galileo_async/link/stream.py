@@ -167,7 +167,7 @@ class StreamLink(BaseLink):
     ) -> None:
         super().__init__(store, **base_options)
         self.name = name
-        self.decoder = StatusDecoder(layout, stats=self.stats)
+        self.decoder = StatusDecoder(layout, stats=self.stats.decoder)
         #: The in-process simulator behind a ``sim://`` link, else None.
         self.simulator: Any = None
         self._connector = connector

@@ -219,8 +219,8 @@ class RosLink(BaseLink):
     def _count(self, node: RosNode) -> None:
         stats, counted, current = self.stats, self._counted, node.stats
         stats.bytes_received += current.bytes_received - counted.bytes_received
-        stats.lost_frames += current.lost_messages - counted.lost_messages
-        stats.bytes_discarded += current.bytes_discarded - counted.bytes_discarded
+        stats.decoder.lost_frames += current.lost_messages - counted.lost_messages
+        stats.decoder.bytes_discarded += current.bytes_discarded - counted.bytes_discarded
         self.decode_errors += current.decode_errors - counted.decode_errors
         self._counted = dataclasses.replace(current)
 
