@@ -204,3 +204,24 @@ def test_loading_by_name_is_seen() -> None:
     calls = list(import_by_name_calls(source))
     assert [getattr(c.args[0], "value", None) for c in calls] == ["galileo_async.sim", None]
     assert lazy_targets("_LAZY: dict[str, str] = {'Robot': 'robot'}\n") == {"robot"}
+
+
+def foreign_private_attributes(source: str) -> list[str]:
+    """``x._name`` where ``x`` is not ``self``: reaching into another object's internals."""
+    return [
+        f"{node.lineno}: {ast.unparse(node)}"
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.Attribute)
+        and node.attr.startswith("_")
+        and not node.attr.startswith("__")
+        and not (isinstance(node.value, ast.Name) and node.value.id == "self")
+    ]
+
+
+def test_the_store_and_its_subscriptions_meet_at_public_methods_only() -> None:
+    # The store feeds subscriptions through offer/fail/close; they read it as a StatusSource.
+    for module in ("galileo_async.state", "galileo_async.subscriptions"):
+        assert foreign_private_attributes(FILES[module].read_text(encoding="utf-8")) == []
+    assert "galileo_async.state" not in GRAPH["galileo_async.subscriptions"]
+    sample = "self._ok = 1\nstream._wakeup = None\nwatch._push(x)\n"
+    assert foreign_private_attributes(sample) == ["2: stream._wakeup", "3: watch._push"]

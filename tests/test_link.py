@@ -23,12 +23,12 @@ from galileo_async.errors import (
     InvalidArgument,
     LinkStale,
 )
-from galileo_async.link import BaseLink, StreamLink, open_link
+from galileo_async.link import BaseLink, LinkStats, StreamLink, open_link
 from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 from galileo_async.link.sockets import SocketTransport
 from galileo_async.link.stream import READ_SIZE, _read_buffer, _StreamProtocol
 from galileo_async.models import GalileoStatus, StatusLayout
-from galileo_async.protocol import CommandDecoder, Goto, Pause, Stop, encode
+from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
 
 STEP = 2.0  # upper bound for anything that should happen promptly
@@ -94,6 +94,15 @@ async def test_status_flows_and_is_counted(device: FakeDevice, links: list[BaseL
     age = stats.last_frame_age
     assert age is not None
     assert 0 <= age < STEP
+
+
+def test_link_stats_hold_the_decoders_counters_not_inherit_them() -> None:
+    link = open_link("socket://127.0.0.1:9", StatusStore())
+    assert isinstance(link, StreamLink)
+    assert not issubclass(LinkStats, DecoderStats)
+    assert link.decoder.stats is link.stats.decoder  # the decoder counts straight into it
+    link.stats.decoder.frames = 2
+    assert link.stats.frames == 2
 
 
 async def test_pacing_one_command_per_write_fifo_on_the_wire(
