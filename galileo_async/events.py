@@ -53,8 +53,8 @@ class Event:
 
     status: GalileoStatus | None
 
-    def __init_subclass__(cls, **kwargs: object) -> None:
-        super().__init_subclass__(**kwargs)
+    def __init_subclass__(cls) -> None:
+        # No super(): slots=True dataclasses replace the class, which breaks its cell.
         cls.name = cls.__name__.removesuffix("Event") or cls.__name__
 
     def __str__(self) -> str:
