@@ -214,7 +214,7 @@ def derive_events(
     """Events for the transition prev → cur; a field unknown (None) on either side is no change.
 
     The goal's events follow transitions.goal_transition (the goal rule); ``last_distance``
-    is the running goal's last valid distance seen before ``prev`` (GoalDistance), if known.
+    is the running goal's last valid distance seen before ``prev`` (running_distance), if known.
     """
     if prev is None:
         return []
@@ -273,9 +273,7 @@ def _goal(
     tolerance: float,
     last_distance: float | None,
 ) -> None:
-    transition = goal_transition(
-        prev, cur, arrive_tolerance=tolerance, last_distance=last_distance
-    )
+    transition = goal_transition(prev, cur, arrive_tolerance=tolerance, last_distance=last_distance)
     for change in transition.changes:
         if change is GoalChange.REACHED:
             out.append(

@@ -23,7 +23,7 @@ from .subscriptions import (
     _Subscribers,
     _Waiter,
 )
-from .transitions import GoalDistance
+from .transitions import running_distance
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",
@@ -59,7 +59,7 @@ class StatusStore:
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_goal_distance", "_link_error", "_status_hooks",
+        "_event_streams", "_frame_waiters", "_link_error", "_measured", "_status_hooks",
         "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update",
         "on_event", "on_update",
         "placeholder_frames", "status", "updates",
@@ -81,8 +81,8 @@ class StatusStore:
         self._clock = clock
         self._arrive_tolerance = arrive_tolerance
         self._event_key: tuple[Any, ...] | None = None
-        # The running goal's last valid distance, for the goal rule (transitions.py).
-        self._goal_distance = GoalDistance()
+        # The last status with a valid distance: the goal rule's memory (transitions.py).
+        self._measured: GalileoStatus | None = None
         self._waiters: list[_Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         # update() reads the registries' snapshots from the store's own slots: at 1000
@@ -130,15 +130,16 @@ class StatusStore:
                 self._event_key = key
                 prev = self.status
                 if prev is not None:
-                    goal = self._goal_distance
                     for event in derive_events(
                         prev,
                         status,
                         arrive_tolerance=self._arrive_tolerance,
-                        last_distance=goal.last(prev.target_num_id),
+                        last_distance=running_distance(self._measured, prev),
                     ):
                         self._emit(event)
-            self._goal_distance.note(status)
+            distance = status.target_distance
+            if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
+                self._measured = status
         self.status = status
         self.updates = updates = self.updates + 1
         self.last_update = self._clock()

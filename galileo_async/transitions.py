@@ -17,11 +17,11 @@ __all__ = [
     "DEFAULT_ARRIVE_TOLERANCE",
     "FAILED",
     "GoalChange",
-    "GoalDistance",
     "GoalTransition",
     "arrived",
     "end_distance",
     "goal_transition",
+    "running_distance",
     "valid_distance",
 ]
 
@@ -84,7 +84,7 @@ def goal_transition(
     """How the goal changed from ``prev`` to ``cur``; unknown target_status on either side: none.
 
     ``last_distance``: the last valid distance of the goal ``prev`` shows, seen before
-    ``prev`` (GoalDistance); prev's own valid distance is newer and wins over it.
+    ``prev`` (running_distance); prev's own valid distance is newer and wins over it.
     """
     old, new = prev.target_status, cur.target_status
     if old is None or new is None:
@@ -114,25 +114,14 @@ def goal_transition(
     return _NONE
 
 
-class GoalDistance:
-    """The last valid target_distance of the goal that runs, fed one status at a time."""
+def running_distance(measured: GalileoStatus | None, prev: GalileoStatus) -> float | None:
+    """The valid distance ``measured`` shows if it shows ``prev``'s goal running, else None.
 
-    __slots__ = ("target_id", "value")
-
-    def __init__(self) -> None:
-        self.target_id: int | None = None
-        self.value: float | None = None
-
-    def note(self, status: GalileoStatus) -> None:
-        """Remember ``status``'s distance if it shows a goal running and the distance is valid."""
-        if status.target_status not in ACTIVE:
-            return
-        if status.target_num_id != self.target_id:
-            self.target_id, self.value = status.target_num_id, None
-        distance = status.target_distance
-        if distance is not None and distance >= 0.0:
-            self.value = distance
-
-    def last(self, target_id: int | None) -> float | None:
-        """The last valid distance seen while goal ``target_id`` ran (None if none)."""
-        return self.value if target_id == self.target_id else None
+    ``measured``: the last status with a valid distance before ``prev``'s successor; a
+    feeder that keeps it (one comparison a frame) gives goal_transition its last_distance.
+    """
+    if measured is None or measured.target_status not in ACTIVE:
+        return None
+    if measured.target_num_id != prev.target_num_id:
+        return None
+    return valid_distance(measured.target_distance)

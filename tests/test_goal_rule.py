@@ -15,10 +15,10 @@ from galileo_async.events import Event, derive_events
 from galileo_async.protocol import Goto
 from galileo_async.transitions import (
     GoalChange,
-    GoalDistance,
     arrived,
     end_distance,
     goal_transition,
+    running_distance,
     valid_distance,
 )
 
@@ -127,14 +127,15 @@ def test_goal_transition_cancel_and_preempt() -> None:
     assert goal_transition(working, st(target_num_id=3)).changes == ()
 
 
-def test_goal_distance_remembers_only_the_running_goal() -> None:
-    memory = GoalDistance()
-    memory.note(st(target_num_id=3, target_status=WORKING, target_distance=0.4))
-    memory.note(st(target_num_id=3, target_status=WORKING, target_distance=-1.0))
-    memory.note(st(target_num_id=3, target_status=FREE, target_distance=5.0))  # not running
-    assert (memory.last(3), memory.last(4)) == (0.4, None)
-    memory.note(st(target_num_id=4, target_status=WORKING, target_distance=-1.0))
-    assert (memory.last(3), memory.last(4)) == (None, None)
+def test_running_distance_counts_only_the_running_goal() -> None:
+    prev = st(target_num_id=3, target_status=WORKING, target_distance=-1.0)
+    measured = st(target_num_id=3, target_status=WORKING, target_distance=0.4)
+    assert running_distance(measured, prev) == 0.4
+    assert running_distance(None, prev) is None
+    other_goal = measured.model_copy(update={"target_num_id": 4})
+    assert running_distance(other_goal, prev) is None
+    not_running = measured.model_copy(update={"target_status": FREE})
+    assert running_distance(not_running, prev) is None
 
 
 def test_derive_events_uses_the_rule() -> None:
@@ -155,7 +156,8 @@ def test_old_event_names_warn_and_give_the_new_class(old: str) -> None:
     new = getattr(ev, f"{old}Event")
     with pytest.warns(DeprecationWarning, match=f"{old}Event"):
         assert getattr(ev, old) is new
-    assert old not in ev.__all__ and f"{old}Event" in ev.__all__
+    assert old not in ev.__all__
+    assert f"{old}Event" in ev.__all__
     # The error keeps its name; the event is another class.
     error = getattr(galileo_async, old)
     assert issubclass(error, Exception)
@@ -165,14 +167,14 @@ def test_old_event_names_warn_and_give_the_new_class(old: str) -> None:
 
 
 def test_from_import_of_an_old_name_warns() -> None:
-    with pytest.warns(DeprecationWarning):
+    with pytest.warns(DeprecationWarning, match="GoalAbortedEvent"):
         from galileo_async.events import GoalAborted as OldName
     assert OldName is ev.GoalAbortedEvent
 
 
 def test_unknown_names_still_raise_attribute_error() -> None:
     with pytest.raises(AttributeError, match="NoSuchEvent"):
-        getattr(ev, "NoSuchEvent")
+        ev.NoSuchEvent  # noqa: B018
 
 
 def test_every_event_has_a_name() -> None:
