@@ -402,4 +402,4 @@ class StatusStore:
         if self.on_event is not None:
             self.on_event(event)
         if _log.isEnabledFor(logging.DEBUG):
-            _log.debug("event %s", event.name)
+            _log.debug("event %s", type(event).__name__)
