@@ -304,7 +304,7 @@ _RENAMED = {
 }
 
 
-def __getattr__(name: str) -> object:
+def __getattr__(name: str) -> type[Event]:
     """The deprecated event names, each with a DeprecationWarning naming its new name."""
     event = _RENAMED.get(name)
     if event is None:
