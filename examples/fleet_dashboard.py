@@ -39,8 +39,8 @@ async def dashboard(fleet: galileo.Fleet) -> None:
 async def events(fleet: galileo.Fleet) -> None:
     """Print the goal events of every robot, from ONE merged event stream."""
     async for name, event in fleet.events():
-        if type(event).__name__.startswith("Goal"):
-            print(f"{name}: event {type(event).__name__}")
+        if event.name.startswith("Goal"):
+            print(f"{name}: event {event.name}")
 
 
 async def main() -> int:

@@ -34,7 +34,7 @@ async def print_changes(statuses: AsyncIterator[galileo.GalileoStatus]) -> None:
 
 async def print_events(events: AsyncIterator[Event]) -> None:
     async for event in events:
-        print(f"event: {type(event).__name__}")
+        print(f"event: {event.name}")
 
 
 async def drive(robot: galileo.Robot) -> None:

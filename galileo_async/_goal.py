@@ -20,6 +20,7 @@ from .errors import (
 )
 from .models import GalileoStatus, TargetStatus
 from .protocol import Goto
+from .transitions import ACTIVE, arrived, end_distance, valid_distance
 
 __all__ = [
     "ALREADY_THERE_FRAMES",
@@ -183,12 +184,12 @@ class GoalTracker:
             return self._accept(status)
         if not ours:
             return self._id_changed(status)
-        if state in (TargetStatus.WORKING, TargetStatus.PAUSED):
+        if state in ACTIVE:
             self._note_distance(status)
             return False
         if state == TargetStatus.FREE:
             self._note_distance(status)
-            if self.distance is not None and abs(self.distance) <= self.arrive_tolerance:
+            if arrived(self.distance, self.arrive_tolerance):
                 return True
             where = (
                 "at an unknown distance" if self.distance is None else (f"{self.distance:.2f} m")
@@ -224,17 +225,12 @@ class GoalTracker:
         self._restarting = False
 
     def _near(self, status: GalileoStatus) -> bool:
-        distance = status.target_distance
-        return (
-            status.target_status == TargetStatus.FREE
-            and distance is not None
-            and 0 <= distance <= self.arrive_tolerance
+        return status.target_status == TargetStatus.FREE and arrived(
+            valid_distance(status.target_distance), self.arrive_tolerance
         )
 
     def _note_distance(self, status: GalileoStatus) -> None:
-        distance = status.target_distance
-        if distance is not None and distance >= 0:  # -1 means "invalid" (PROTOCOL.md §1)
-            self.distance = distance
+        self.distance = end_distance(status, self.distance)
 
 
 def _name(value: TargetStatus | None) -> str:

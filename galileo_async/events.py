@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
-from .models import ChargeStatus, GalileoStatus, TargetStatus, VisualStatus
+from .models import ChargeStatus, GalileoStatus, VisualStatus
+from .transitions import DEFAULT_ARRIVE_TOLERANCE, GoalChange, goal_transition
 
 __all__ = [
     "DEFAULT_ARRIVE_TOLERANCE",
@@ -12,19 +15,19 @@ __all__ = [
     "BusyEnded",
     "BusyStarted",
     "ChargeStateChanged",
-    "ConnectionLost",
+    "ConnectionLostEvent",
     "ConnectionRestored",
     "Event",
-    "GoalAborted",
+    "GoalAbortedEvent",
     "GoalAccepted",
-    "GoalCancelled",
+    "GoalCancelledEvent",
     "GoalEvent",
     "GoalFailed",
     "GoalPaused",
     "GoalReached",
     "GoalResumed",
     "LinkRestored",
-    "LinkStale",
+    "LinkStaleEvent",
     "MappingStarted",
     "MappingStopped",
     "NavigationClosed",
@@ -37,11 +40,6 @@ __all__ = [
     "derive_events",
 ]
 
-#: A goal that ends free within this many metres of its target counts as reached.
-DEFAULT_ARRIVE_TOLERANCE = 0.3
-
-_ACTIVE = (TargetStatus.WORKING, TargetStatus.PAUSED)
-_FAILED = (TargetStatus.ERROR, TargetStatus.INVALID)
 _INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
 
 
@@ -49,13 +47,21 @@ _INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
 class Event:
     """Base of every event: ``status`` is the status that showed it (None if none yet)."""
 
+    #: The event's own name, its class name without "Event": what str(), the CLI's JSON
+    #: lines and VDA 5050 error references show (e.g. "GoalAborted" for GoalAbortedEvent).
+    name: ClassVar[str] = "Event"
+
     status: GalileoStatus | None
+
+    def __init_subclass__(cls) -> None:
+        # No super(): slots=True dataclasses replace the class, which breaks its cell.
+        cls.name = cls.__name__.removesuffix("Event") or cls.__name__
 
     def __str__(self) -> str:
         details = ", ".join(
             f"{f.name}={getattr(self, f.name)!r}" for f in fields(self) if f.name != "status"
         )
-        return f"{type(self).__name__}({details})"
+        return f"{self.name}({details})"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -103,7 +109,7 @@ class GoalReached(GoalEvent):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class GoalAborted(GoalEvent):
+class GoalAbortedEvent(GoalEvent):
     """The goal ended free far from its target: the planner gave up."""
 
     distance: float | None
@@ -115,7 +121,7 @@ class GoalFailed(GoalEvent):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class GoalCancelled(GoalEvent):
+class GoalCancelledEvent(GoalEvent):
     """The goal was dropped (id changed); ``preempted`` when a new goal replaced it."""
 
     preempted: bool = False
@@ -175,7 +181,7 @@ class MappingStopped(Event):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class LinkStale(Event):
+class LinkStaleEvent(Event):
     """No valid status frame arrived for ``silent_for`` seconds; ``status`` is the last one."""
 
     silent_for: float
@@ -187,7 +193,7 @@ class LinkRestored(Event):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class ConnectionLost(Event):
+class ConnectionLostEvent(Event):
     """The transport dropped; ``reason`` says why."""
 
     reason: str
@@ -203,14 +209,19 @@ def derive_events(
     cur: GalileoStatus,
     *,
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    last_distance: float | None = None,
 ) -> list[Event]:
-    """Events for the transition prev → cur; a field unknown (None) on either side is no change."""
+    """Events for the transition prev → cur; a field unknown (None) on either side is no change.
+
+    The goal's events follow transitions.goal_transition (the goal rule); ``last_distance``
+    is the running goal's last valid distance seen before ``prev`` (running_distance), if known.
+    """
     if prev is None:
         return []
     out: list[Event] = []
     _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
     _visual(out, prev.visual_status, cur.visual_status, cur)
-    _goal(out, prev, cur, arrive_tolerance)
+    _goal(out, prev, cur, arrive_tolerance, last_distance)
     _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
     old, new = prev.charge_status, cur.charge_status
     if old is not None and new is not None and old != new:
@@ -247,36 +258,61 @@ def _visual(
         out.append(VisualRecovered(status=cur))
 
 
-def _goal(out: list[Event], prev: GalileoStatus, cur: GalileoStatus, tolerance: float) -> None:
-    old, new = prev.target_status, cur.target_status
-    if old is None or new is None:
-        return
-    old_id, new_id = prev.target_num_id, cur.target_num_id
-    same_id = old_id == new_id
-    if old in _ACTIVE:
-        if new in _ACTIVE and same_id:
-            if old != new:
-                kind = GoalPaused if new == TargetStatus.PAUSED else GoalResumed
-                out.append(kind(status=cur, target_id=new_id))
-            return
-        if new in _FAILED:
-            out.append(GoalFailed(status=cur, target_id=new_id))
-            return
-        if not same_id:
-            preempted = new in _ACTIVE
-            out.append(GoalCancelled(status=cur, target_id=old_id, preempted=preempted))
-            if preempted:
-                out.append(GoalAccepted(status=cur, target_id=new_id))
-            return
-        distance = cur.target_distance
-        if distance is None or abs(distance) <= tolerance:
-            out.append(GoalReached(status=cur, target_id=new_id, distance=distance))
+_SIMPLE_GOAL_EVENTS: dict[GoalChange, type[GoalEvent]] = {
+    GoalChange.ACCEPTED: GoalAccepted,
+    GoalChange.PAUSED: GoalPaused,
+    GoalChange.RESUMED: GoalResumed,
+    GoalChange.FAILED: GoalFailed,
+}
+
+
+def _goal(
+    out: list[Event],
+    prev: GalileoStatus,
+    cur: GalileoStatus,
+    tolerance: float,
+    last_distance: float | None,
+) -> None:
+    transition = goal_transition(prev, cur, arrive_tolerance=tolerance, last_distance=last_distance)
+    for change in transition.changes:
+        if change is GoalChange.REACHED:
+            out.append(
+                GoalReached(status=cur, target_id=cur.target_num_id, distance=transition.distance)
+            )
+        elif change is GoalChange.ABORTED:
+            out.append(
+                GoalAbortedEvent(
+                    status=cur, target_id=cur.target_num_id, distance=transition.distance
+                )
+            )
+        elif change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
+            preempted = change is GoalChange.PREEMPTED
+            out.append(
+                GoalCancelledEvent(status=cur, target_id=prev.target_num_id, preempted=preempted)
+            )
         else:
-            out.append(GoalAborted(status=cur, target_id=new_id, distance=distance))
-        return
-    if new in _ACTIVE:
-        out.append(GoalAccepted(status=cur, target_id=new_id))
-        if new == TargetStatus.PAUSED:
-            out.append(GoalPaused(status=cur, target_id=new_id))
-    elif new in _FAILED and (old not in _FAILED or not same_id):
-        out.append(GoalFailed(status=cur, target_id=new_id))
+            out.append(_SIMPLE_GOAL_EVENTS[change](status=cur, target_id=cur.target_num_id))
+
+
+#: The events' former names, the same as errors' names (GoalAborted, …): importable from
+#: this module for one release, with a DeprecationWarning.
+_RENAMED = {
+    "GoalAborted": GoalAbortedEvent,
+    "GoalCancelled": GoalCancelledEvent,
+    "LinkStale": LinkStaleEvent,
+    "ConnectionLost": ConnectionLostEvent,
+}
+
+
+def __getattr__(name: str) -> type[Event]:
+    """The deprecated event names, each with a DeprecationWarning naming its new name."""
+    event = _RENAMED.get(name)
+    if event is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    warnings.warn(
+        f"galileo_async.events.{name} is deprecated, use {event.__name__}: "
+        f"galileo_async.{name} is the error of the same name",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return event

@@ -15,6 +15,7 @@ from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, Link
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event, derive_events
 from .models import GalileoStatus
 from .subscriptions import EventStream, StatusStream, Subscribers, Subscription, Watch, expire
+from .transitions import running_distance
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",
@@ -59,9 +60,9 @@ class StatusStore:
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_link_error", "_status_hooks", "_waiters",
-        "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update", "on_event",
-        "on_update",
+        "_event_streams", "_frame_waiters", "_link_error", "_measured", "_status_hooks",
+        "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update",
+        "on_event", "on_update",
         "placeholder_frames", "status", "updates",
     )  # fmt: skip
 
@@ -81,6 +82,8 @@ class StatusStore:
         self._clock = clock
         self._arrive_tolerance = arrive_tolerance
         self._event_key: tuple[Any, ...] | None = None
+        # The last status with a valid distance: the goal rule's memory (transitions.py).
+        self._measured: GalileoStatus | None = None
         self._waiters: list[_Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         # update() reads the registries' snapshots from the store's own slots: at 1000
@@ -129,9 +132,15 @@ class StatusStore:
                 prev = self.status
                 if prev is not None:
                     for event in derive_events(
-                        prev, status, arrive_tolerance=self._arrive_tolerance
+                        prev,
+                        status,
+                        arrive_tolerance=self._arrive_tolerance,
+                        last_distance=running_distance(self._measured, prev),
                     ):
                         self._emit(event)
+            distance = status.target_distance
+            if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
+                self._measured = status
         self.status = status
         self.updates = updates = self.updates + 1
         self.last_update = self._clock()
@@ -196,7 +205,7 @@ class StatusStore:
         self._link_error = exc
         self._fail_all(exc)
         if not was_lost:
-            self._emit(ev.ConnectionLost(status=self.status, reason=str(exc)))
+            self._emit(ev.ConnectionLostEvent(status=self.status, reason=str(exc)))
 
     def connection_restored(self) -> None:
         """The transport is back (no-op unless it was lost)."""
@@ -208,12 +217,12 @@ class StatusStore:
             self._emit(ev.ConnectionRestored(status=self.status))
 
     def link_stale(self, exc: LinkStale) -> None:
-        """No frame for too long: fail every waiter and watch with ``exc`` and emit LinkStale."""
+        """No frame for too long: fail every waiter and watch with ``exc``; emit LinkStaleEvent."""
         if self._link_error is not None:
             return
         self._link_error = exc
         self._fail_all(exc)
-        self._emit(ev.LinkStale(status=self.status, silent_for=exc.silent_for))
+        self._emit(ev.LinkStaleEvent(status=self.status, silent_for=exc.silent_for))
 
     def link_fresh(self) -> None:
         """Frames arrive again after the link was stale."""

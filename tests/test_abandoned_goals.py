@@ -218,7 +218,7 @@ async def test_a_goal_that_ended_meanwhile_gets_no_cancel() -> None:
             f"socket://127.0.0.1:{relay.robot_port}", map_targets=len(TARGETS)
         ) as other:
             await other.cancel(timeout=WAIT)
-        await _next_event(events, ev.LinkStale)  # reconnected, and silent
+        await _next_event(events, ev.LinkStaleEvent)  # reconnected, and silent
         relay.to_host = True
         await _next_event(events, ev.LinkRestored)
         await _frames(robot, 30)

@@ -191,6 +191,7 @@ def test_goto_json_result() -> None:
     assert data["result"] == "arrived"
     assert data["target_id"] == 2
     assert isinstance(data["elapsed"], float)
+    assert data["already_there"] is False
 
 
 def test_goto_rejected_exit_code() -> None:

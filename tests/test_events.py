@@ -111,7 +111,7 @@ def test_goal_aborted_far_from_target() -> None:
     prev = st(target_num_id=3, target_status=1, target_distance=4.0)
     cur = st(target_num_id=3, target_status=0, target_distance=2.5)
     (event,) = derive_events(prev, cur)
-    assert isinstance(event, ev.GoalAborted)
+    assert isinstance(event, ev.GoalAbortedEvent)
     assert (event.target_id, event.distance) == (3, pytest.approx(2.5))
     assert kinds(derive_events(prev, cur, arrive_tolerance=3.0)) == [ev.GoalReached]
 
@@ -138,7 +138,7 @@ def test_goal_cancelled_when_id_drops_to_none() -> None:
     (event,) = derive_events(
         st(target_num_id=3, target_status=1), st(target_num_id=-1, target_status=0)
     )
-    assert isinstance(event, ev.GoalCancelled)
+    assert isinstance(event, ev.GoalCancelledEvent)
     assert (event.target_id, event.preempted) == (3, False)
 
 
@@ -146,9 +146,9 @@ def test_goal_preempted_by_a_new_goal() -> None:
     events = derive_events(
         st(target_num_id=3, target_status=2), st(target_num_id=5, target_status=1)
     )
-    assert kinds(events) == [ev.GoalCancelled, ev.GoalAccepted]
+    assert kinds(events) == [ev.GoalCancelledEvent, ev.GoalAccepted]
     cancelled, accepted = events
-    assert isinstance(cancelled, ev.GoalCancelled)
+    assert isinstance(cancelled, ev.GoalCancelledEvent)
     assert isinstance(accepted, ev.GoalAccepted)
     assert (cancelled.target_id, cancelled.preempted, accepted.target_id) == (3, True, 5)
 
@@ -180,7 +180,7 @@ def test_several_changes_in_one_frame() -> None:
     assert kinds(derive_events(prev, cur)) == [
         ev.NavigationClosed,
         ev.VisualLost,
-        ev.GoalCancelled,
+        ev.GoalCancelledEvent,
         ev.PatrolStopped,
     ]
 
@@ -192,7 +192,7 @@ def test_older_layout_without_map_fields() -> None:
 
 
 def test_events_are_frozen_and_typed() -> None:
-    event = ev.LinkStale(status=None, silent_for=1.5)
+    event = ev.LinkStaleEvent(status=None, silent_for=1.5)
     with pytest.raises(AttributeError):
         event.silent_for = 2.0  # type: ignore[misc]
     assert isinstance(event, ev.Event)
@@ -200,6 +200,6 @@ def test_events_are_frozen_and_typed() -> None:
 
 
 def test_str_is_compact() -> None:
-    event = ev.GoalCancelled(status=st(), target_id=3, preempted=True)
+    event = ev.GoalCancelledEvent(status=st(), target_id=3, preempted=True)
     assert str(event) == "GoalCancelled(target_id=3, preempted=True)"
     assert str(ev.NavigationOpened(status=None)) == "NavigationOpened()"

@@ -114,13 +114,13 @@ async def test_stale_then_lost_state_and_events() -> None:
             ) as fleet:  # fmt: skip
                 events = fleet.events()
                 name, event = await events.__anext__()
-                assert (name, type(event)) == ("r", ev.LinkStale)
+                assert (name, type(event)) == ("r", ev.LinkStaleEvent)
                 assert fleet.state("r") is RobotState.STALE
                 assert fleet.state("s") is RobotState.UP
                 for transport in _OneFrameRobot.transports:
                     transport.close()
                 name, event = await events.__anext__()
-                assert (name, type(event)) == ("r", ev.ConnectionLost)
+                assert (name, type(event)) == ("r", ev.ConnectionLostEvent)
                 assert fleet.state("r") is RobotState.LOST
                 events.close()
     finally:
@@ -144,7 +144,7 @@ async def test_a_dropped_robot_reconnects_and_stays_in_the_merged_stream() -> No
                         name, event = await events.__anext__()
                         assert name == "r"
                         seen.append(type(event))
-                    assert ev.ConnectionLost in seen
+                    assert ev.ConnectionLostEvent in seen
                     assert fleet["r"].link.reconnects >= 1
                     stream = fleet.statuses()
                     await stream.__anext__()  # the latest

@@ -147,7 +147,7 @@ async def test_events_are_named_and_derived_only_while_read() -> None:
         assert isinstance(event, ev.NavigationOpened)
         name, event = await anext(events)
         assert name == "b"
-        assert isinstance(event, ev.LinkStale)
+        assert isinstance(event, ev.LinkStaleEvent)
     events.close()
     del events
     assert stores["a"].on_event is None

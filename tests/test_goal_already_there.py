@@ -8,6 +8,8 @@ showing goal N free within arrive_tolerance, and no working frame, are the proof
 from __future__ import annotations
 
 import asyncio
+import json
+import sys
 
 import anyio
 import pytest
@@ -92,3 +94,24 @@ async def test_cancelling_while_counting_frames_sends_cancel_and_leaves_nothing(
         with pytest.raises(asyncio.CancelledError):
             await task
         await fake.command(Cancel)
+
+
+@pytest.mark.parametrize("json_output", [False, True])
+async def test_cli_goto_says_the_robot_was_already_there(json_output: bool) -> None:
+    fake = ScriptedRobot(**AT_TARGET_3)
+    fake.scripts[Goto] = ignore
+    await fake.start()
+    try:
+        process = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "galileo_async", "-p", fake.url,
+            *(["--json"] if json_output else []), "goto", "3",
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        out, err = await asyncio.wait_for(process.communicate(), 60)
+    finally:
+        await fake.close()
+    assert process.returncode == 0, err.decode()
+    if json_output:
+        assert json.loads(out)["already_there"] is True
+    else:
+        assert "(it was already there)" in out.decode()

@@ -45,9 +45,7 @@ from galileo_async import (
     UnconfirmedOperation,
     VisualStatus,
 )
-from galileo_async.events import ConnectionLost as ConnectionLostEvent
-from galileo_async.events import Event
-from galileo_async.events import LinkStale as LinkStaleEvent
+from galileo_async.events import ConnectionLostEvent, Event, LinkStaleEvent
 from galileo_async.models import STATUS_FIELDS, GalileoStatus
 from galileo_async.sim import SimState
 
@@ -249,7 +247,7 @@ async def test_statuses_and_events_follow_a_goal(mode: Mode) -> None:
 
         async def watch_events() -> None:
             async for event in robot.events():
-                names.append(type(event).__name__)
+                names.append(event.name)
                 if names[-1] == "GoalReached":
                     return
 
@@ -294,7 +292,7 @@ async def test_disconnect_fault_and_reconnect(mode: Mode) -> None:
 
         async def until_restored() -> None:
             async for event in robot.events():
-                names.append(type(event).__name__)
+                names.append(event.name)
                 if names[-1] == "ConnectionRestored":
                     return
 

@@ -31,8 +31,8 @@ BARE_PACKAGE = (
 )
 
 
-def loaded_io_modules(setup: str) -> list[str]:
-    code = f"import json, sys\n{setup}import galileo_async.protocol\n{REPORT}"
+def loaded_io_modules(setup: str, module: str = "galileo_async.protocol") -> list[str]:
+    code = f"import json, sys\n{setup}import {module}\n{REPORT}"
     result = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
@@ -46,6 +46,19 @@ def test_protocol_and_its_imports_load_no_io_library() -> None:
 def test_importing_galileo_async_protocol_loads_no_io_library() -> None:
     # Through the real package __init__: it must import the asyncio layers lazily.
     assert loaded_io_modules("") == []
+
+
+def test_transitions_and_its_imports_load_no_io_library() -> None:
+    # The goal rule is pure: goto, rotate_to and events() share it, none of its I/O.
+    assert loaded_io_modules(BARE_PACKAGE, "galileo_async.transitions") == []
+
+
+def test_transitions_imports_only_the_models() -> None:
+    names = imports_of(PACKAGE_DIR / "transitions.py")
+    assert not imported_modules((PACKAGE_DIR / "transitions.py").read_text()) & set(FORBIDDEN)
+    own = {n for n in names if n.startswith("galileo_async")}
+    assert own
+    assert within(own, "galileo_async.models") == own, own
 
 
 def test_the_subprocess_check_can_see_asyncio() -> None:
@@ -85,7 +98,7 @@ def test_import_scan_finds_imports() -> None:
 # --- layers above protocol (docs/architecture.md: a module never imports one above it) -----
 
 ROBOT_LAYER = ("robot", "_services", "_operations", "_goal")
-STATE_LAYER = ("state", "events")
+STATE_LAYER = ("state", "events", "transitions")
 #: Link modules that still import the state layer until their pending one-line change lands;
 #: each case XPASSes (strict: fails) once it does, so the entry must then be removed.
 LINK_PENDING: dict[str, str] = {}
@@ -222,7 +235,7 @@ def test_sim_imports_none_of_robot_state_link_or_cli() -> None:
         assert not found, f"sim/{path.name} imports {found}"
 
 
-@pytest.mark.parametrize("name", ["state.py", "events.py"])
+@pytest.mark.parametrize("name", ["state.py", "events.py", "transitions.py"])
 def test_state_knows_no_transport(name: str) -> None:
     path = PACKAGE_DIR / name
     names = imports_of(path)

@@ -181,7 +181,7 @@ async def test_peer_close_fails_every_waiter_at_once(
                 await asyncio.wait_for(task, STEP)
     assert not link.connected
     event = await asyncio.wait_for(anext(events), STEP)
-    assert isinstance(event, ev.ConnectionLost)
+    assert isinstance(event, ev.ConnectionLostEvent)
     with pytest.raises(ConnectionLost):
         await link.send(Goto(1))
     # Without reconnect nothing will feed the store again: its iterators end.
@@ -220,7 +220,7 @@ async def test_reads_from_a_replaced_connection_are_ignored(links: list[BaseLink
     connector.feed(status_frame(1))
     old = connector.transport
     old.lose(OSError("unplugged"))
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLostEvent)
     assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionRestored)
     assert len(connector.transports) == 2
     frames = link.stats.frames
@@ -241,7 +241,7 @@ async def test_reconnects_after_the_server_restarts(
     await store.wait_until(lambda s: s.time_stamp == 2, timeout=STEP)
     await device.stop()
     lost = await asyncio.wait_for(anext(events), STEP)
-    assert isinstance(lost, ev.ConnectionLost)
+    assert isinstance(lost, ev.ConnectionLostEvent)
     assert not link.connected
     with pytest.raises(ConnectionLost, match="reconnecting"):
         await link.send(Goto(1))
@@ -265,7 +265,7 @@ async def test_reconnect_backs_off_exponentially_up_to_the_cap(links: list[BaseL
     events = store.events()
     connector.failures = 5
     connector.transport.lose(None)
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLostEvent)
     assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionRestored)
     assert link.connected
     assert link.stats.reconnects == 1
@@ -281,7 +281,7 @@ async def test_reconnect_can_be_switched_off(links: list[BaseLink]) -> None:
     connector, link = await in_memory(links, reconnect=False)
     events = link.store.events()
     connector.transport.lose(None)
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLostEvent)
     with pytest.raises(StopAsyncIteration):  # the store closes: nothing will feed it again
         await asyncio.wait_for(anext(events), STEP)
     assert len(connector.attempts) == 1
@@ -304,7 +304,7 @@ async def test_stale_watchdog_fails_waiters_and_recovers(
         await asyncio.wait_for(waiter, STEP)
     assert info.value.silent_for >= 0.1
     stale = await asyncio.wait_for(anext(events), STEP)
-    assert isinstance(stale, ev.LinkStale)
+    assert isinstance(stale, ev.LinkStaleEvent)
     assert stale.silent_for >= 0.1
     assert link.stats.stale
     assert link.connected
@@ -368,7 +368,7 @@ async def test_close_while_reconnecting(device: FakeDevice, links: list[BaseLink
     link, store = await connect(device, links, reconnect_initial=0.001, reconnect_max=0.002)
     events = store.events()
     await device.stop()
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLostEvent)
     assert not link.connected
     await asyncio.sleep(0.02)  # let several refused attempts happen
     await asyncio.wait_for(link.close(), STEP)
@@ -466,9 +466,9 @@ async def test_silent_tcp_peer_is_given_up_and_reconnected(
     device.start_stream(0.01)
     await store.wait_until(lambda s: (s.time_stamp or 0) >= 3, timeout=STEP)
     await device.stop_stream()  # the robot goes quiet; its TCP connection stays open
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStaleEvent)
     lost = await asyncio.wait_for(anext(events), STEP)
-    assert isinstance(lost, ev.ConnectionLost)
+    assert isinstance(lost, ev.ConnectionLostEvent)
     assert "no valid status frame" in lost.reason
     assert link.stats.last_frame_at is not None
     assert time.monotonic() - link.stats.last_frame_at >= 3 * 0.05
@@ -587,13 +587,13 @@ async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseL
         seen.append(type(event))
         if len(seen) == 4:
             break
-    assert seen == [ev.LinkStale, ev.LinkRestored, ev.LinkStale, ev.LinkRestored]
+    assert seen == [ev.LinkStaleEvent, ev.LinkRestored, ev.LinkStaleEvent, ev.LinkRestored]
 
 
 async def test_stale_reconnect_none_stays_stale(links: list[BaseLink]) -> None:
     connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=None)
     events = link.store.events()
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStaleEvent)
     await asyncio.sleep(0.2)  # ten stale timeouts: the default factor would have given up
     assert link.connected
     assert link.stats.stale
@@ -604,9 +604,9 @@ async def test_stale_reconnect_none_stays_stale(links: list[BaseLink]) -> None:
 async def test_silent_peer_without_reconnect_closes_the_store(links: list[BaseLink]) -> None:
     connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=2, reconnect=False)
     events = link.store.events()
-    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStale)
+    assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStaleEvent)
     lost = await asyncio.wait_for(anext(events), STEP)
-    assert isinstance(lost, ev.ConnectionLost)
+    assert isinstance(lost, ev.ConnectionLostEvent)
     assert "no valid status frame" in lost.reason
     with pytest.raises(StopAsyncIteration):
         await asyncio.wait_for(anext(events), STEP)

@@ -110,7 +110,7 @@ async def test_unplugging_the_device_fails_waiters(pty: PtyDevice) -> None:
         pty.close()  # the adapter disappears: reads on the port fail
         with pytest.raises(ConnectionLost):
             await asyncio.wait_for(waiter, STEP)
-        assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLost)
+        assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.ConnectionLostEvent)
     finally:
         await asyncio.wait_for(link.close(), STEP)
 

@@ -429,15 +429,15 @@ async def test_events_from_updates_and_link() -> None:
     got = [await asyncio.wait_for(anext(stream), STEP) for _ in range(5)]
     assert [type(e) for e in got] == [
         ev.NavigationOpened,
-        ev.LinkStale,
+        ev.LinkStaleEvent,
         ev.LinkRestored,
-        ev.ConnectionLost,
+        ev.ConnectionLostEvent,
         ev.ConnectionRestored,
     ]
     stale, lost = got[1], got[3]
-    assert isinstance(stale, ev.LinkStale)
+    assert isinstance(stale, ev.LinkStaleEvent)
     assert stale.silent_for == 1.5
-    assert isinstance(lost, ev.ConnectionLost)
+    assert isinstance(lost, ev.ConnectionLostEvent)
     assert "unplugged" in lost.reason
     assert got[0].status is not None
     assert got[0].status.time_stamp == 3

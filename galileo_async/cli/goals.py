@@ -101,11 +101,13 @@ async def follow_goal(
             "target_id": result.target_id,
             "distance": None if result.distance is None else round(result.distance, 3),
             "elapsed": round(result.elapsed, 3),
+            "already_there": result.already_there,
         }
         out_console().print(json.dumps(payload), markup=False)
     else:
+        there = " (it was already there)" if result.already_there else ""
         out_console().print(
             f"arrived at target {result.target_id}: {result.distance or 0.0:.2f} m from it "
-            f"after {result.elapsed:.1f} s"
+            f"after {result.elapsed:.1f} s{there}"
         )
     return int(ExitCode.OK)

@@ -12,7 +12,7 @@ from rich.console import Group, RenderableType
 from rich.panel import Panel
 from rich.table import Table
 
-from ..events import ConnectionLost, ConnectionRestored, LinkRestored, LinkStale
+from ..events import ConnectionLostEvent, ConnectionRestored, Event, LinkRestored, LinkStaleEvent
 from ..models import GalileoStatus
 
 __all__ = [
@@ -103,8 +103,9 @@ def link_dict(link: object) -> dict[str, Any]:
 
 
 def event_dict(event: object) -> dict[str, Any]:
-    """An event as its type name and data fields (the status it carries is left out)."""
-    values: dict[str, Any] = {"event": type(event).__name__}
+    """An event as its name (Event.name) and data fields (the status it carries is left out)."""
+    name = event.name if isinstance(event, Event) else type(event).__name__
+    values: dict[str, Any] = {"event": name}
     if dataclasses.is_dataclass(event) and not isinstance(event, type):
         for item in dataclasses.fields(event):
             if item.name != "status":
@@ -123,11 +124,11 @@ def event_text(event: object) -> str:
 
 def link_event_text(event: object, *, reconnecting: bool) -> str | None:
     """A line about the link's health for a link event (None for any other event)."""
-    if isinstance(event, LinkStale):
+    if isinstance(event, LinkStaleEvent):
         return f"link stale: no valid status frame for {event.silent_for:.1f} s"
     if isinstance(event, LinkRestored):
         return "link restored: status frames arrive again"
-    if isinstance(event, ConnectionLost):
+    if isinstance(event, ConnectionLostEvent):
         reason = event.reason
         text = reason if reason.startswith("connection lost") else f"connection lost: {reason}"
         return f"{text}; reconnecting…" if reconnecting else text

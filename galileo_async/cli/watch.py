@@ -14,8 +14,7 @@ from rich.console import Group, RenderableType
 from rich.live import Live
 
 from ..errors import ConnectionLost, GalileoTimeout, InvalidArgument, NotReady
-from ..events import ConnectionLost as LostEvent
-from ..events import Event
+from ..events import ConnectionLostEvent, Event
 from ..models import GalileoStatus
 from .goals import aclose
 from .map_model import MapModel, known_targets
@@ -144,7 +143,7 @@ async def _report_link(
         text = link_event_text(event, reconnecting=reconnecting)
         if text is None:
             continue
-        if isinstance(event, LostEvent):
+        if isinstance(event, ConnectionLostEvent):
             lost.append(event.reason)
         if as_json:
             out_console().print(json.dumps(event_dict(event)), markup=False)

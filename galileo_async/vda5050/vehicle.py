@@ -12,7 +12,7 @@ import anyio
 from pydantic import BaseModel, ValidationError
 
 from ..errors import GalileoError, InvalidArgument
-from ..events import ConnectionLost, ConnectionRestored, LinkRestored, LinkStale
+from ..events import ConnectionLostEvent, ConnectionRestored, LinkRestored, LinkStaleEvent
 from ..models import TargetStatus
 from ..robot import Robot
 from . import report
@@ -245,11 +245,11 @@ class Vehicle:
 
     async def _watch_link(self) -> None:
         async for event in self.robot.events():
-            if isinstance(event, (ConnectionLost, LinkStale)):
+            if isinstance(event, (ConnectionLostEvent, LinkStaleEvent)):
                 self._link_error = Error(
                     errorType="robotLinkLost", errorLevel="FATAL",
                     errorDescription=f"the link to the robot is down: {event}",
-                    errorReferences=[reference("link", type(event).__name__)],
+                    errorReferences=[reference("link", event.name)],
                 )  # fmt: skip
                 await self.executor.stop_driving()
                 if self.progress.active:
