@@ -14,7 +14,16 @@ from . import events as ev
 from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event, derive_events
 from .models import GalileoStatus
-from .subscriptions import EventStream, StatusStream, Subscribers, Subscription, Watch, expire
+from .subscriptions import (
+    EventStream,
+    StatusStream,
+    Subscribers,
+    Subscription,
+    Watch,
+    expire,
+    offer_to_waiting,
+    offer_to_watches,
+)
 from .transitions import running_distance
 
 __all__ = [
@@ -148,17 +157,10 @@ class StatusStore:
             self._run_status_hooks(status)
         if self._waiters:
             self._check_waiters(status)
-        waiting = self._waiting_streams
-        if waiting:
-            for stream in waiting:
-                stream.offer(status, updates)
-            # Emptied in place, not replaced: set_result only schedules its callbacks, so
-            # no stream joins the list meanwhile, and a fleet frees no list per frame.
-            waiting.clear()
-        for watch_ref in self._watch_refs:
-            watch = watch_ref()
-            if watch is not None:
-                watch.offer(status)
+        if self._waiting_streams:
+            offer_to_waiting(self._waiting_streams, status, updates)
+        if self._watch_refs:
+            offer_to_watches(self._watch_refs, status)
         on_update = self.on_update
         if on_update is not None:
             on_update(status)

@@ -25,6 +25,8 @@ __all__ = [
     "Subscription",
     "Watch",
     "expire",
+    "offer_to_waiting",
+    "offer_to_watches",
 ]
 
 _running_loop = asyncio.get_running_loop
@@ -198,22 +200,6 @@ class Watch(_Queue[GalileoStatus]):
         super().__init__(registry, maxlen)
         self._source = source
 
-    def offer(self, item: GalileoStatus) -> None:
-        """Hand ``item`` to a waiting consumer, else queue it (the oldest dropped when full)."""
-        wakeup = self._wakeup
-        if wakeup is not None:
-            self._wakeup = None
-            try:
-                # Its consumer waits, so nothing is buffered: hand the status over.
-                wakeup.set_result(item)
-                return
-            except InvalidStateError:
-                pass  # woken already or cancelled: queue the status
-        buffer = self.buffer
-        if len(buffer) == buffer.maxlen:
-            self.dropped += 1
-        buffer.append(item)
-
     async def next(self, timeout: float | None = None) -> GalileoStatus:
         """The next status; GalileoTimeout after ``timeout`` s, link errors as pushed."""
         while True:
@@ -317,7 +303,7 @@ class StatusStream:
         if wakeup is None:
             self._waiting.append(self)
         # else: its last wait was cancelled and the store still lists it: only the future
-        # is new. The store offers it the next status and unlists it.
+        # is new. The store's offer_to_waiting hands it the next status and unlists it.
         return fresh
 
     async def next(self, timeout: float | None = None) -> GalileoStatus:
@@ -335,17 +321,6 @@ class StatusStream:
             status = self._store.status
             raise GalileoTimeout(f"no new status within {timeout} s", status=status) from None
 
-    def offer(self, status: GalileoStatus, seen: int) -> None:
-        """Hand ``status``, the store's ``seen``-th, to the waiting consumer (hot path)."""
-        wakeup = self._wakeup
-        self._wakeup = None
-        if wakeup is not None:
-            try:
-                wakeup.set_result(status)
-            except InvalidStateError:
-                return  # its wait was cancelled or ended: the status stays unseen
-            self._seen = seen
-
     def close(self) -> None:
         """Stop iterating (idempotent): a waiting consumer and every later step end."""
         self.closed = True
@@ -357,3 +332,46 @@ class StatusStream:
     async def aclose(self) -> None:
         """Same as close(), for ``contextlib.aclosing``."""
         self.close()
+
+
+# The store's hot path: one call per frame offers a status to every subscriber of a kind.
+# A method call per subscriber instead cost 0.14 µs a frame with four subscribers
+# (`python -m benchmarks ingest --quick`, medians of 8 interleaved runs).
+
+
+def offer_to_watches(refs: tuple[weakref.ref[Watch], ...], status: GalileoStatus) -> None:
+    """Watch.offer(status) for every live watch of ``refs``; a waiting consumer is handed it."""
+    for ref in refs:
+        watch = ref()
+        if watch is not None:
+            wakeup = watch._wakeup
+            if wakeup is not None:
+                watch._wakeup = None
+                try:
+                    # Its consumer waits, so nothing is buffered: hand the status over.
+                    wakeup.set_result(status)
+                    continue
+                except InvalidStateError:
+                    pass  # woken already or cancelled: queue the status
+            buffer = watch.buffer
+            if len(buffer) == buffer.maxlen:
+                watch.dropped += 1
+            buffer.append(status)
+
+
+def offer_to_waiting(streams: list[StatusStream], status: GalileoStatus, seen: int) -> None:
+    """Hand ``status``, the store's ``seen``-th, to every stream in ``streams``, then empty it."""
+    # A wake-up future is rarely done already (a cancelled wait): asking done() first
+    # would cost a call per stream on every frame, the try nothing.
+    for stream in streams:
+        wakeup = stream._wakeup
+        stream._wakeup = None
+        if wakeup is not None:
+            try:
+                wakeup.set_result(status)
+            except InvalidStateError:
+                continue  # its wait was cancelled or ended: the status stays unseen
+            stream._seen = seen
+    # Emptied in place, not replaced: every stream holds this list, set_result only
+    # schedules callbacks (no stream joins meanwhile), and a fleet frees no list per frame.
+    streams.clear()
