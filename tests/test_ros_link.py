@@ -7,7 +7,8 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
-from ros_support import RobotNode, RosMaster, eventually, free_port
+from ports import refused_port
+from ros_support import RobotNode, RosMaster, eventually
 
 import galileo_async as galileo
 from galileo_async.errors import ConnectionLost, GalileoConnectionError, LinkStale
@@ -60,10 +61,11 @@ async def test_link_without_robot_fails_open_and_cleans_up(master: RosMaster) ->
 
 async def test_link_without_master_fails_open(tmp_path: Path) -> None:
     store = StatusStore()
-    link = open_ros_link(f"ros://127.0.0.1:{free_port()}", store, rpc_timeout=0.5)
-    with pytest.raises(GalileoConnectionError, match="getPid"):
-        await link.open()
-    await link.close()
+    with refused_port() as port:
+        link = open_ros_link(f"ros://127.0.0.1:{port}", store, rpc_timeout=0.5)
+        with pytest.raises(GalileoConnectionError, match="getPid"):
+            await link.open()
+        await link.close()
 
 
 async def test_raw_link_sends_and_counts(master: RosMaster) -> None:

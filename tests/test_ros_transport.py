@@ -10,7 +10,7 @@ from collections.abc import AsyncIterator
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from ros_support import free_port
+from ports import refused_port
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
 from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
@@ -152,8 +152,8 @@ async def test_publisher_refuses_a_wrong_md5(publisher: TcprosPublisher) -> None
 
 
 async def test_subscribe_to_nothing_is_a_connection_error() -> None:
-    with pytest.raises(GalileoConnectionError):
-        await subscribe("127.0.0.1", free_port(), {}, print, print, timeout=1)
+    with refused_port() as port, pytest.raises(GalileoConnectionError):
+        await subscribe("127.0.0.1", port, {}, print, print, timeout=1)
 
 
 @pytest.fixture
@@ -191,9 +191,10 @@ async def test_slave_server_forwards_publisher_updates(slave: SlaveServer) -> No
 
 
 async def test_master_client_errors_are_connection_errors() -> None:
-    client = MasterClient(f"http://127.0.0.1:{free_port()}/", "/me", timeout=0.5)
-    with pytest.raises(RosApiError):
-        await client.get_pid()
+    with refused_port() as port:
+        client = MasterClient(f"http://127.0.0.1:{port}/", "/me", timeout=0.5)
+        with pytest.raises(RosApiError):
+            await client.get_pid()
     with pytest.raises(RosApiError):
         MasterClient("ftp://nowhere/", "/me")
 

@@ -18,6 +18,7 @@ from typing import Any
 
 import anyio
 import pytest
+from ports import refused_port
 from scripted_robot import connected, nothing_was_sent_before_marker
 
 import galileo_async as galileo
@@ -302,13 +303,6 @@ async def test_a_bad_argument_is_refused_and_nothing_is_sent(case: str) -> None:
 # --- connect errors name the URL and what was waited for (item 9) --------------------------
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-    return port
-
-
 async def test_the_connect_timeout_says_what_it_waited_for_and_names_the_url() -> None:
     # A listener that never accepts, its backlog full: the next connect gets no answer.
     with socket.socket() as listener:
@@ -335,9 +329,10 @@ async def test_the_connect_timeout_says_what_it_waited_for_and_names_the_url() -
 
 
 async def test_a_refused_connection_names_the_url() -> None:
-    url = f"socket://127.0.0.1:{_free_port()}"
-    with anyio.fail_after(5), pytest.raises(GalileoConnectionError, match=url):
-        await galileo.connect(url, reconnect=False)
+    with refused_port() as port:
+        url = f"socket://127.0.0.1:{port}"
+        with anyio.fail_after(5), pytest.raises(GalileoConnectionError, match=url):
+            await galileo.connect(url, reconnect=False)
 
 
 async def test_a_missing_serial_port_names_the_url() -> None:
@@ -354,9 +349,10 @@ async def test_a_silent_serial_port_names_the_url_and_the_wait() -> None:
 
 
 async def test_an_unreachable_ros_master_names_the_url() -> None:
-    url = f"ros://127.0.0.1:{_free_port()}"
-    with anyio.fail_after(10), pytest.raises(GalileoConnectionError, match=url):
-        await galileo.connect(url, reconnect=False, connect_timeout=1.0, rpc_timeout=1.0)
+    with refused_port() as port:
+        url = f"ros://127.0.0.1:{port}"
+        with anyio.fail_after(10), pytest.raises(GalileoConnectionError, match=url):
+            await galileo.connect(url, reconnect=False, connect_timeout=1.0, rpc_timeout=1.0)
 
 
 async def test_a_silent_ros_master_names_the_url_and_the_wait() -> None:
