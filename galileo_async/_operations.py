@@ -194,20 +194,19 @@ class Operations:
         self.ensure_open()
         if not even_stale:
             self.check_link(what)
-        if deadline is not None:
-            status = self.store.status
-            if status is None and (require is not None or then is not None):
-                status = await self._first_status(what, require, deadline)
+        status = self.store.status
+        if status is None and deadline is not None and (require is not None or then is not None):
+            status = await self._first_status(what, require, deadline)
+        if require is not None:
+            self._check(require, what)
+        if unless is not None and status is not None and unless(status):
+            return None
+        if deadline is not None and status is not None and status.is_busy:
+            await self._not_busy(what, deadline)
             if require is not None:
                 self._check(require, what)
-            if unless is not None and status is not None and unless(status):
-                return None
-            if status is not None and status.is_busy:
-                await self._not_busy(what, deadline)
-                if require is not None:
-                    self._check(require, what)
-            if not even_stale:
-                self.check_link(what)
+        if not even_stale:
+            self.check_link(what)  # the link may have dropped while waiting above
         if then is None:
             await self.link.send(command)
             return None
