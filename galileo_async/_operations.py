@@ -117,7 +117,7 @@ class Confirm:
         """Nothing to prepare: only statuses after the write count."""
 
     async def follow(self, watch: Watch, sent: Sent) -> GalileoStatus:
-        """The first status after the write where ``done`` holds."""
+        """The first status from the write on where ``done`` holds."""
         what, deadline, latest = sent
         if latest is not None and getattr(latest, self.field) is None:
             raise UnconfirmedOperation(
