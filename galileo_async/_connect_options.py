@@ -7,7 +7,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from ._checks import check_int, check_number, check_timeout, naming
-from ._services import MAX_TARGET_ID
+from ._targets import MAX_TARGET_ID
 from .link import check_link_options
 
 __all__ = ["CONNECT_OPTIONS", "ROBOT_OPTIONS", "check_connect_options", "check_robot_options"]

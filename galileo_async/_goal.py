@@ -1,13 +1,14 @@
-"""The goto state machine: statuses seen after ``g N`` in, a verdict out (no I/O)."""
+"""Goals: GoalTracker (statuses after ``g N`` in, a verdict out; no I/O) and GoalRunner."""
 
 from __future__ import annotations
 
 import asyncio
 import logging
 from dataclasses import dataclass
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
-from ._operations import Deadline, Operations
+from ._operations import GOAL_READY, Operations, Sent
+from ._runtime import Deadline
 from .errors import (
     AcceptTimeout,
     ConnectionLost,
@@ -22,13 +23,15 @@ from .models import GalileoStatus, TargetStatus
 from .protocol import Goto
 from .transitions import ACTIVE, arrived, end_distance, valid_distance
 
+if TYPE_CHECKING:
+    from .subscriptions import Watch
+
 __all__ = [
     "ALREADY_THERE_FRAMES",
     "ALREADY_THERE_TIME",
-    "GoalHandle",
     "GoalResult",
+    "GoalRunner",
     "GoalTracker",
-    "run_goal",
 ]
 
 _log = logging.getLogger(__name__)
@@ -53,28 +56,6 @@ class GoalResult:
     elapsed: float
     status: GalileoStatus
     already_there: bool = False
-
-
-class GoalHandle:
-    """One running ``goto`` of a Robot; a newer goal of the same Robot preempts it."""
-
-    __slots__ = ("cancelled", "preempted", "target_id")
-
-    def __init__(self, target_id: int) -> None:
-        self.target_id = target_id
-        self.preempted = False
-        #: Robot.cancel() was called while this goal ran.
-        self.cancelled = False
-
-    def check(self, status: GalileoStatus | None) -> None:
-        """Raise GoalCancelled(preempted=True) once a newer goal of this Robot was started."""
-        if self.preempted:
-            raise GoalCancelled(
-                f"goal {self.target_id} was preempted by a newer goal",
-                target_id=self.target_id,
-                preempted=True,
-                status=status,
-            )
 
 
 def _failed_transition(previous: GalileoStatus | None, status: GalileoStatus) -> bool:
@@ -237,84 +218,149 @@ def _name(value: TargetStatus | None) -> str:
     return "unknown" if value is None else f"{int(value)} ({value.name})"
 
 
-async def run_goal(
-    ops: Operations,
-    handle: GoalHandle,
-    *,
-    deadline: Deadline,
-    accept_timeout: float,
-    arrive_tolerance: float,
-    cancel_on_exit: bool,
-) -> GoalResult:
-    """Send ``g N`` (registered first) and follow the goal to its end; see Robot.goto."""
-    loop = asyncio.get_running_loop()
-    target_id = handle.target_id
-    sent = False
-    with ops.store.watch() as watch:
-        tracker = GoalTracker(target_id, before=ops.store.status, arrive_tolerance=arrive_tolerance)
-        ops.check_link(f"goto({target_id})")  # below, LinkStale means the goal was sent
-        ops.goal_started()
+class GoalRunner:
+    """Runs the goals of one Robot; a newer goal preempts the running one."""
+
+    def __init__(self, ops: Operations) -> None:
+        self._ops = ops
+        self._running: _Goal | None = None
+
+    def cancelling(self) -> None:
+        """Robot.cancel() was called: the running goal's end is a cancel, not a planner abort."""
+        if self._running is not None:
+            self._running.cancelled = True
+
+    async def run(
+        self,
+        command: Goto,
+        *,
+        deadline: Deadline,
+        accept_timeout: float,
+        arrive_tolerance: float,
+        cancel_on_exit: bool,
+    ) -> GoalResult:
+        """Send ``command`` through Operations.send and follow its goal to the end; see goto."""
+        ops = self._ops
+        goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance)
         try:
-            await ops.link.send(Goto(target_id))
-            sent = True
-            sent_at = loop.time()
-            accept_by = sent_at + accept_timeout
-            while True:
-                handle.check(ops.store.status)
-                now = loop.time()
-                if tracker.accepted:
-                    if now >= accept_by:
-                        tracker.settle()
-                    wait = deadline.remaining()
-                else:
-                    wait = accept_by - now
-                    if deadline.at is not None:
-                        wait = min(wait, deadline.at - now)
-                    wait = max(0.0, wait)
-                try:
-                    status = await watch.next(wait)
-                except (TimeoutError, asyncio.TimeoutError):
-                    overall = deadline.at is not None and deadline.at <= accept_by
-                    raise _timeout(
-                        tracker, ops.store.status, deadline, accept_timeout, overall=overall
-                    ) from None
-                handle.check(status)
-                was_accepted = tracker.accepted
-                elapsed = loop.time() - sent_at
-                if _feed(tracker, handle, status) or tracker.stood_there(status, elapsed):
-                    _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
-                    return GoalResult(
-                        target_id, tracker.distance, elapsed, status, tracker.already_there
-                    )
-                if tracker.accepted and not was_accepted:
-                    _log.debug("goal %d accepted", target_id)
+            return await ops.send(
+                command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
+                then=goal,
+            )  # fmt: skip
         except (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost) as exc:
-            # Leaving while the robot may still drive: stop it, unless a newer goal of
-            # this Robot already replaced this one (a cancel would stop the new goal).
-            if cancel_on_exit and not handle.preempted:
-                if sent and isinstance(exc, (LinkStale, ConnectionLost)):
-                    ops.abandon(target_id)  # unseen, it may drive on: check once back
+            # Leaving while the robot may still drive: stop it, unless a newer goal of this
+            # Robot already replaced this one (a cancel would stop the new goal). Before
+            # goal.tracker exists nothing was queued: nothing to stop.
+            if goal.tracker is not None and cancel_on_exit and not goal.preempted:
+                if goal.written and isinstance(exc, (LinkStale, ConnectionLost)):
+                    ops.abandon(goal.target_id)  # unseen, it may drive on: check once back
                 # A stale link may still transmit; a lost one cannot.
                 if not isinstance(exc, ConnectionLost):
-                    _log.info("goal %d left before its end: sending cancel", target_id)
+                    _log.info("goal %d left before its end: sending cancel", goal.target_id)
                     await ops.send_cancel_shielded()
             raise
+        finally:
+            if self._running is goal:
+                self._running = None
+
+    def _start(self, goal: _Goal) -> None:
+        """``goal`` is about to be written: it replaces the running one."""
+        if self._running is not None:
+            self._running.preempted = True
+        self._running = goal
+        self._ops.goal_started()
 
 
-def _feed(tracker: GoalTracker, handle: GoalHandle, status: GalileoStatus) -> bool:
-    """tracker.feed, where an end after Robot.cancel() is a cancel, not a planner abort."""
-    try:
-        return tracker.feed(status)
-    except GoalAborted:
-        if not handle.cancelled:
-            raise
-        # The document's cancel leaves target_num_id alone (only real firmware sets -1,
-        # PROTOCOL.md §2.c): free far from the target is then our own cancel.
-        raise GoalCancelled(
-            f"goal {handle.target_id} was cancelled",
-            target_id=handle.target_id,
-            status=status,
-        ) from None
+class _Goal:
+    """One goto of a Robot: the Follower of its ``g N``."""
+
+    __slots__ = (
+        "_runner", "accept_timeout", "arrive_tolerance", "cancelled", "preempted", "target_id",
+        "tracker", "written",
+    )  # fmt: skip
+
+    def __init__(
+        self, runner: GoalRunner, target_id: int, accept_timeout: float, arrive_tolerance: float
+    ) -> None:
+        self._runner = runner
+        self.target_id = target_id
+        self.accept_timeout = accept_timeout
+        self.arrive_tolerance = arrive_tolerance
+        self.tracker: GoalTracker | None = None
+        self.written = False
+        #: A newer goal of this Robot was started.
+        self.preempted = False
+        #: Robot.cancel() was called while this goal ran.
+        self.cancelled = False
+
+    def sending(self, before: GalileoStatus | None) -> None:
+        """The goal starts now; ``before`` is the latest status as ``g N`` is written."""
+        self._runner._start(self)
+        self.tracker = GoalTracker(
+            self.target_id, before=before, arrive_tolerance=self.arrive_tolerance
+        )
+
+    async def follow(self, watch: Watch, sent: Sent) -> GoalResult:
+        """Follow the goal from its write to its end: a GoalResult, or GoalError / timeout."""
+        self.written = True
+        tracker = self.tracker
+        assert tracker is not None
+        ops, deadline, target_id = self._runner._ops, sent.deadline, self.target_id
+        loop = asyncio.get_running_loop()
+        sent_at = loop.time()
+        accept_by = sent_at + self.accept_timeout
+        while True:
+            self._check(ops.store.status)
+            now = loop.time()
+            if tracker.accepted:
+                if now >= accept_by:
+                    tracker.settle()
+                wait = deadline.remaining()
+            else:
+                wait = accept_by - now
+                if deadline.at is not None:
+                    wait = min(wait, deadline.at - now)
+                wait = max(0.0, wait)
+            try:
+                status = await watch.next(wait)
+            except GalileoTimeout:
+                overall = deadline.at is not None and deadline.at <= accept_by
+                raise _timeout(
+                    tracker, ops.store.status, deadline, self.accept_timeout, overall=overall
+                ) from None
+            self._check(status)
+            was_accepted = tracker.accepted
+            elapsed = loop.time() - sent_at
+            if self._feed(tracker, status) or tracker.stood_there(status, elapsed):
+                _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
+                return GoalResult(
+                    target_id, tracker.distance, elapsed, status, tracker.already_there
+                )
+            if tracker.accepted and not was_accepted:
+                _log.debug("goal %d accepted", target_id)
+
+    def _check(self, status: GalileoStatus | None) -> None:
+        """Raise GoalCancelled(preempted=True) once a newer goal of this Robot was started."""
+        if self.preempted:
+            raise GoalCancelled(
+                f"goal {self.target_id} was preempted by a newer goal",
+                target_id=self.target_id,
+                preempted=True,
+                status=status,
+            )
+
+    def _feed(self, tracker: GoalTracker, status: GalileoStatus) -> bool:
+        """tracker.feed, where an end after Robot.cancel() is a cancel, not a planner abort."""
+        try:
+            return tracker.feed(status)
+        except GoalAborted:
+            if not self.cancelled:
+                raise
+            # The document's cancel leaves target_num_id alone (only real firmware sets -1,
+            # PROTOCOL.md §2.c): free far from the target is then our own cancel.
+            raise GoalCancelled(
+                f"goal {self.target_id} was cancelled", target_id=self.target_id, status=status
+            ) from None
 
 
 def _timeout(

@@ -1,17 +1,16 @@
-"""Building blocks of Robot operations: deadlines, preconditions, busy back-off, confirmation."""
+"""Operations.send, the one way a Robot sends a command, and what it builds on."""
 
 from __future__ import annotations
 
 import asyncio
-import enum
 import logging
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Final, TypeVar
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
 
 import anyio
-import anyio.lowlevel
 
-from ._checks import check_timeout
+from ._runtime import Deadline
 from .errors import (
     ConnectionLost,
     GalileoConnectionError,
@@ -22,6 +21,7 @@ from .errors import (
     OperationFailed,
     OperationTimeout,
     UnconfirmedOperation,
+    WrongEventLoop,
 )
 from .events import AbandonedGoalCancelled
 from .models import GalileoStatus
@@ -30,20 +30,20 @@ from .protocol import Cancel, Command, Goto
 if TYPE_CHECKING:
     from .link import BaseLink
     from .state import StatusStore
+    from .subscriptions import Watch
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
-    "CLEANUP_TIMEOUT",
     "DEFAULT_TIMEOUT",
-    "ROBOT_DEFAULT",
+    "GOAL_READY",
+    "NAVIGATING",
+    "NOT_NAVIGATING",
     "ROTATE_TIMEOUT",
-    "Deadline",
-    "DynamicTargets",
+    "Confirm",
+    "Follower",
     "Operations",
-    "RobotDefault",
-    "check_timeout",
-    "finish_shielded",
-    "or_default",
+    "Require",
+    "Sent",
 ]
 
 _log = logging.getLogger(__name__)
@@ -54,95 +54,233 @@ DEFAULT_TIMEOUT = 10.0
 ROTATE_TIMEOUT = 20.0
 #: Longest a shielded cancel (``i 2``) sent on the way out of an operation may take.
 CANCEL_SEND_TIMEOUT = 1.0
-#: Longest a caller waits for a cleanup (close) it cannot cancel; its steps bound themselves.
-CLEANUP_TIMEOUT = 8.0
 
 Predicate = Callable[[GalileoStatus], bool]
-_T = TypeVar("_T")
+_R = TypeVar("_R")
+_R_co = TypeVar("_R_co", covariant=True)
 
 
-class RobotDefault(enum.Enum):
-    """The type of ROBOT_DEFAULT: an argument left out, so the Robot's own setting applies."""
+@dataclass(frozen=True, slots=True)
+class Require:
+    """A precondition: what the latest status must show before a command goes out."""
 
-    ROBOT_DEFAULT = "ROBOT_DEFAULT"
-
-    def __repr__(self) -> str:
-        return self.value
-
-
-#: A timeout left out: the Robot's ``goal_timeout`` or ``wait_timeout`` applies (None: no limit).
-ROBOT_DEFAULT: Final = RobotDefault.ROBOT_DEFAULT
+    holds: Predicate
+    #: Said by NotReady after the operation's name: "navigation must be open".
+    reason: str
 
 
-def or_default(value: _T | RobotDefault, default: _T) -> _T:
-    """``default`` when ``value`` is ROBOT_DEFAULT, else ``value``."""
-    return default if isinstance(value, RobotDefault) else value
+NAVIGATING = Require(lambda s: s.navigating, "navigation must be open")
+NOT_NAVIGATING = Require(lambda s: not s.navigating, "navigation must be closed")
+GOAL_READY = Require(
+    lambda s: s.navigating and s.visual_initialised,
+    "navigation must be open and the visual system initialised",
+)
 
 
-async def finish_shielded(task: asyncio.Task[None], what: str) -> None:
-    """Wait for ``task`` (at most CLEANUP_TIMEOUT s) whatever cancels the caller, then re-raise.
+class Sent(NamedTuple):
+    """A command just written: the operation's name, its deadline, the latest status then."""
 
-    Neither asyncio's ``task.cancel()`` nor an anyio cancel scope interrupts the wait; the
-    cancellation that arrived meanwhile is raised once ``task`` is done, so cleanup such as
-    close() completes on every exit path and the caller still sees its cancellation.
+    what: str
+    deadline: Deadline
+    status: GalileoStatus | None
+
+
+class Follower(Protocol[_R_co]):
+    """What Operations.send does around the write of a command that has an effect."""
+
+    def sending(self, before: GalileoStatus | None) -> None:
+        """Called after every check, right before the write; may still refuse by raising."""
+
+    async def follow(self, watch: Watch, sent: Sent) -> _R_co:
+        """The command was written; ``watch`` holds every status since just before the write."""
+
+
+class Confirm:
+    """Follow a command until a later status shows ``done``; the Follower of most operations.
+
+    UnconfirmedOperation when the status layout lacks ``field`` or the deadline passes
+    (``hint`` says why the robot may not have shown it), OperationFailed once ``failed``
+    holds for a later status. Returns that status.
     """
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + CLEANUP_TIMEOUT
-    cancelled: asyncio.CancelledError | None = None
-    # The anyio shield stops an anyio scope from cancelling the wait again and again; the
-    # loop absorbs asyncio cancellations (task.cancel(), asyncio.timeout).
-    with anyio.CancelScope(shield=True):
-        while not task.done():
-            remaining = deadline - loop.time()
-            if remaining <= 0:
-                _log.warning("%s did not finish within %s s", what, CLEANUP_TIMEOUT)
-                break
+
+    __slots__ = ("done", "failed", "field", "hint")
+
+    def __init__(
+        self, done: Predicate, *, field: str, failed: Predicate | None = None, hint: str = ""
+    ) -> None:
+        self.done = done
+        self.field = field
+        self.failed = failed
+        self.hint = hint
+
+    def sending(self, before: GalileoStatus | None) -> None:
+        """Nothing to prepare: only statuses after the write count."""
+
+    async def follow(self, watch: Watch, sent: Sent) -> GalileoStatus:
+        """The first status from the write on where ``done`` holds."""
+        what, deadline, latest = sent
+        if latest is not None and getattr(latest, self.field) is None:
+            raise UnconfirmedOperation(
+                f"{what}: sent, but the {latest.layout} status layout has no {self.field} "
+                f"field, so the driver cannot confirm it{self.hint}",
+                latest,
+            )
+        while True:
             try:
-                await asyncio.wait((task,), timeout=remaining)
-            except asyncio.CancelledError as exc:
-                cancelled = exc
-    if task.done() and not task.cancelled() and task.exception() is not None:
-        if cancelled is None:
-            task.result()  # raises the cleanup's own error
-        _log.warning("%s failed: %r", what, task.exception())
-    if cancelled is not None:
-        raise cancelled
-    # An anyio scope cancelled meanwhile raises here, as its next checkpoint would.
-    await anyio.lowlevel.checkpoint_if_cancelled()
-
-
-class Deadline:
-    """An absolute point in loop time, or none (wait for ever)."""
-
-    __slots__ = ("at", "start", "timeout")
-
-    def __init__(self, timeout: float | None) -> None:
-        self.start = asyncio.get_running_loop().time()
-        self.timeout = timeout
-        self.at = None if timeout is None else self.start + timeout
-
-    def remaining(self) -> float | None:
-        """Seconds left (never negative), or None without a deadline."""
-        if self.at is None:
-            return None
-        return max(0.0, self.at - asyncio.get_running_loop().time())
-
-    def elapsed(self) -> float:
-        """Seconds since the deadline was set."""
-        return asyncio.get_running_loop().time() - self.start
+                status = await watch.next(deadline.remaining())
+            except GalileoTimeout as exc:
+                raise UnconfirmedOperation(
+                    f"{what}: sent, but {self.field} did not show it within {deadline.timeout} s"
+                    f"{self.hint}",
+                    exc.status,
+                ) from None
+            if self.failed is not None and self.failed(status):
+                raise OperationFailed(f"{what}: the robot reported a failure", status)
+            if self.done(status):
+                return status
 
 
 class Operations:
-    """Send commands on behalf of a Robot, after checks, and wait for their effect."""
+    """Send commands on behalf of one Robot, after checks, and follow their effect."""
 
     def __init__(self, link: BaseLink, store: StatusStore) -> None:
         self.link = link
         self.store = store
+        #: The event loop that connected the Robot: its link, timers and futures live there.
+        self.loop = asyncio.get_running_loop()
+        #: Set by Robot.close(): nothing is sent any more.
+        self.closed = False
         # Exit cancels still being written; held here so they finish and close() awaits them.
         self._cancels: set[asyncio.Future[None]] = set()
         #: Goals started through this object (goal_started); an abandoned goal's follow-up
         #: does nothing once a newer goal was started.
         self.goals_started = 0
+
+    @overload
+    async def send(
+        self, command: Command, *, what: str, deadline: Deadline | None = None,
+        require: Require | None = None, unless: Predicate | None = None, then: None = None,
+        even_stale: bool = False,
+    ) -> None: ...  # fmt: skip
+    @overload
+    async def send(
+        self, command: Command, *, what: str, deadline: Deadline,
+        require: Require | None = None, unless: None = None, then: Follower[_R],
+    ) -> _R: ...  # fmt: skip
+    @overload
+    async def send(
+        self, command: Command, *, what: str, deadline: Deadline,
+        require: Require | None = None, unless: Predicate, then: Follower[_R],
+    ) -> _R | None: ...  # fmt: skip
+
+    async def send(
+        self, command: Command, *, what: str, deadline: Deadline | None = None,
+        require: Require | None = None, unless: Predicate | None = None,
+        then: Follower[_R] | None = None, even_stale: bool = False,
+    ) -> _R | None:  # fmt: skip
+        """Send ``command`` once, the one way a Robot does; ``what`` names it in errors.
+
+        In order: the Robot is open and on its loop (WrongEventLoop); the link is up and
+        fresh (ConnectionLost, LinkStale: nothing was sent), unless ``even_stale`` (the
+        transmit side may work while the status is silent); with ``require`` or ``then``,
+        the robot's first real status, waited for within ``deadline``: before it the link
+        may carry only the serial node's placeholders (PROTOCOL.md §1); ``require`` holds
+        (NotReady); ``unless`` holds: done, nothing is sent (returns None); busy_status 0,
+        waited for within ``deadline`` (no deadline: sent at once), then ``require`` again;
+        ``then`` registered for every later status (before the write, so no status that
+        shows the effect can be missed); the write, through the link's one writer; then
+        ``then.follow``, whose result is returned.
+        """
+        self.ensure_open()
+        if not even_stale:
+            self.check_link(what)
+        status = self.store.status
+        if status is None and deadline is not None and (require is not None or then is not None):
+            status = await self._first_status(what, require, deadline)
+        if require is not None:
+            self._check(require, what)
+        if unless is not None and status is not None and unless(status):
+            return None
+        if deadline is not None and status is not None and status.is_busy:
+            await self._not_busy(what, deadline)
+            if require is not None:
+                self._check(require, what)
+        if not even_stale:
+            self.check_link(what)  # the link may have dropped while waiting above
+        if then is None:
+            await self.link.send(command)
+            return None
+        assert deadline is not None, "a command that is followed needs a deadline"
+        with self.store.watch() as watch:
+            then.sending(self.store.status)
+            await self.link.send(command)
+            return await then.follow(watch, Sent(what, deadline, self.store.status))
+
+    def ensure_open(self) -> None:
+        """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed."""
+        self.ensure_loop()
+        if self.closed:
+            raise GalileoConnectionError("this Robot is closed")
+
+    def ensure_loop(self) -> None:
+        """Raise WrongEventLoop unless called on the loop that connected the Robot."""
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            loop = None
+        if loop is not self.loop:
+            # Its transport, timers and futures live on that loop: from another one a call
+            # would hang until some unrelated timer fired, or corrupt the link's state.
+            raise WrongEventLoop(
+                "this Robot is bound to the event loop that connected it and was called "
+                + ("from another event loop" if loop is not None else "with no event loop")
+                + "; use asyncio.run_coroutine_threadsafe() to call it from another thread"
+            )
+
+    def check_link(self, what: str) -> None:
+        """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
+        error = self.store.link_error
+        if error is None:
+            return
+        message = f"{what}: nothing was sent: {error}"
+        if isinstance(error, LinkStale):
+            raise LinkStale(message, silent_for=error.silent_for)
+        raise ConnectionLost(message)
+
+    def _check(self, require: Require, what: str) -> None:
+        """Raise NotReady unless the latest status shows ``require``."""
+        status = self.store.status
+        if status is None:
+            raise NotReady(
+                f"{what}: {require.reason}: no status has been received from the robot yet", None
+            )
+        if not require.holds(status):
+            raise NotReady(f"{what}: {require.reason}", status)
+
+    async def _first_status(
+        self, what: str, require: Require | None, deadline: Deadline
+    ) -> GalileoStatus:
+        """The robot's first real status, within ``deadline``; else NotReady."""
+        try:
+            return await self.store.wait_until(lambda _status: True, deadline.remaining())
+        except GalileoTimeout:
+            needed = "" if require is None else f": {require.reason}"
+            raise NotReady(
+                f"{what}{needed}: the navigation system has not reported within "
+                f"{deadline.timeout} s"
+                + (" (only placeholder frames came)" if self.store.awaiting_robot else ""),
+                None,
+            ) from None
+
+    async def _not_busy(self, what: str, deadline: Deadline) -> None:
+        """Wait while busy_status is 1 (the robot would only queue the command), within deadline."""
+        try:
+            await self.store.wait_until(lambda s: not s.is_busy, deadline.remaining())
+        except GalileoTimeout as exc:
+            raise OperationTimeout(
+                f"{what}: the robot stayed busy (busy_status 1) for {deadline.elapsed():.1f} s",
+                exc.status,
+            ) from None
 
     def goal_started(self) -> None:
         """A goal of this Robot is about to be sent: it replaces every earlier one."""
@@ -172,106 +310,6 @@ class Operations:
             self.store.emit(AbandonedGoalCancelled(status=status, target_id=target_id))
 
         self.store.call_on_next_status(check)
-
-    def check_link(self, what: str) -> None:
-        """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
-        error = self.store.link_error
-        if error is None:
-            return
-        message = f"{what}: nothing was sent: {error}"
-        if isinstance(error, LinkStale):
-            raise LinkStale(message, silent_for=error.silent_for)
-        raise ConnectionLost(message)
-
-    async def transmit(self, command: Command, what: str) -> None:
-        """Send ``command`` once, unless the link is lost or stale (the robot unwatched)."""
-        self.check_link(what)
-        await self.link.send(command)
-
-    def require(self, ok: Predicate, message: str) -> GalileoStatus:
-        """Check the link, then return the latest status if ``ok`` holds; else raise NotReady."""
-        self.check_link(message.partition(":")[0])
-        status = self.store.status
-        if status is None:
-            raise NotReady(f"{message}: no status has been received from the robot yet", None)
-        if not ok(status):
-            raise NotReady(message, status)
-        return status
-
-    async def ready(self, ok: Predicate, message: str, deadline: Deadline) -> GalileoStatus:
-        """As require(), first waiting within ``deadline`` for the robot's first status.
-
-        Before it, the link may be up with only the serial node's placeholder frames
-        (PROTOCOL.md §1): after a node restart navigation is open, just not reported yet.
-        """
-        if self.store.status is None:
-            self.check_link(message.partition(":")[0])
-            try:
-                await self.store.wait_until(lambda _status: True, timeout=deadline.remaining())
-            except GalileoTimeout:
-                raise NotReady(
-                    f"{message}: the navigation system has not reported within "
-                    f"{deadline.timeout} s"
-                    + (" (only placeholder frames came)" if self.store.awaiting_robot else ""),
-                    None,
-                ) from None
-        return self.require(ok, message)
-
-    async def wait_not_busy(self, deadline: Deadline, what: str) -> None:
-        """Wait while busy_status is 1 (the robot would only queue the command), within deadline."""
-        status = self.store.status
-        if status is None or not status.is_busy:
-            return
-        try:
-            await self.store.wait_until(lambda s: not s.is_busy, timeout=deadline.remaining())
-        except GalileoTimeout as exc:
-            raise OperationTimeout(
-                f"{what}: the robot stayed busy (busy_status 1) for {deadline.elapsed():.1f} s",
-                exc.status,
-            ) from None
-
-    async def send(self, command: Command, deadline: Deadline, what: str) -> None:
-        """Wait out busy_status, then send ``command`` once."""
-        await self.wait_not_busy(deadline, what)
-        await self.transmit(command, what)
-
-    async def send_confirmed(
-        self,
-        command: Command,
-        done: Predicate,
-        *,
-        field: str,
-        deadline: Deadline,
-        what: str,
-        failed: Predicate | None = None,
-    ) -> GalileoStatus:
-        """Send ``command``, then return the first later status where ``done`` holds.
-
-        Raises UnconfirmedOperation when the status layout lacks ``field`` or the deadline
-        passes, OperationFailed when ``failed`` holds for a later status.
-        """
-        await self.wait_not_busy(deadline, what)
-        with self.store.watch() as watch:
-            await self.transmit(command, what)
-            latest = self.store.status
-            if latest is not None and getattr(latest, field) is None:
-                raise UnconfirmedOperation(
-                    f"{what}: sent, but the {latest.layout} status layout has no {field} "
-                    "field, so the driver cannot confirm it",
-                    latest,
-                )
-            while True:
-                try:
-                    status = await watch.next(deadline.remaining())
-                except (TimeoutError, asyncio.TimeoutError):
-                    raise UnconfirmedOperation(
-                        f"{what}: sent, but {field} did not show it within {deadline.timeout} s",
-                        self.store.status,
-                    ) from None
-                if failed is not None and failed(status):
-                    raise OperationFailed(f"{what}: the robot reported a failure", status)
-                if done(status):
-                    return status
 
     def queue_exit_cancel(self) -> asyncio.Future[bool] | None:
         """Queue Cancel (``i 2``) now, in call order; a goal (``g``) queued after it drops it.
@@ -316,47 +354,3 @@ class Operations:
 def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:
     if not written.cancelled() and written.exception() is not None:
         _log.warning("the cancel (i 2) could not be sent: %r", written.exception())
-
-
-class DynamicTargets:
-    """The driver's count of dynamic targets on the robot (no status field shows it)."""
-
-    def __init__(self, link: BaseLink) -> None:
-        self._link = link
-        self._count: int | None = None  # unknown until reset_targets in this session
-        self._reconnects = 0  # link.stats.reconnects when the count was last reset
-
-    def resetting(self) -> None:
-        """Forget the count until ``reset_done``: the reset may or may not reach the robot."""
-        self._count = None
-        self._reconnects = self._link.stats.reconnects
-
-    def reset_done(self) -> None:
-        """The reset was written: the robot now has no dynamic targets."""
-        self._count = 0
-
-    def forget(self) -> None:
-        """An add may or may not have reached the robot: the count is unknown."""
-        self._count = None
-
-    def reserve(self, map_targets: int, status: GalileoStatus | None, limit: int) -> int:
-        """Return the goal id of the next dynamic target and count it; NotReady if unknown."""
-        if self._count is not None and self._reconnects != self._link.stats.reconnects:
-            # A reconnect may mean a restarted robot, which keeps no dynamic targets.
-            self._count = None
-            raise NotReady(
-                "add_target: the link reconnected since reset_targets() (the robot may have "
-                "restarted and lost its dynamic targets); call reset_targets() again",
-                status,
-            )
-        if self._count is None:
-            raise NotReady(
-                "add_target: the number of dynamic targets on the robot is unknown; "
-                "call reset_targets() first (goto_point does)",
-                status,
-            )
-        target_id = map_targets + self._count
-        if target_id > limit:
-            raise NotReady(f"add_target: goal ids stop at {limit}; call reset_targets()", status)
-        self._count += 1  # reserved now: concurrent calls get distinct ids
-        return target_id

@@ -1,29 +1,27 @@
-"""Robot operations outside goals: teleoperation, patrol, mapping, charging, the host."""
+"""Robot operations besides goto and navigation: goal control, rotation, dynamic targets,
+teleoperation, patrol, mapping, charging, the host. Each validates, then Operations.send."""
 
 from __future__ import annotations
 
-import asyncio
-from collections.abc import Callable
-
-from ._checks import check_int, check_number
-from ._goal import GoalHandle
+from ._checks import check_int, check_number, check_timeout
+from ._goal import GoalRunner
 from ._operations import (
     DEFAULT_TIMEOUT,
+    NAVIGATING,
+    NOT_NAVIGATING,
     ROTATE_TIMEOUT,
-    Deadline,
-    DynamicTargets,
+    Confirm,
     Operations,
-    check_timeout,
+    Require,
 )
+from ._runtime import Deadline
+from ._targets import DynamicTargets
 from .errors import (
-    GalileoConnectionError,
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
-    NotReady,
     OperationFailed,
     UnconfirmedOperation,
-    WrongEventLoop,
 )
 from .models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
 from .protocol import (
@@ -33,7 +31,6 @@ from .protocol import (
     Command,
     Forward,
     Pause,
-    ResetTargets,
     Resume,
     RotateTo,
     SaveDock,
@@ -52,27 +49,35 @@ from .protocol import (
     UpdateMap,
 )
 
-__all__ = ["MAX_TARGET_ID", "RobotServices"]
+__all__ = ["RobotServices"]
 
-#: Highest goal id the ``g`` command can carry.
-MAX_TARGET_ID = 255
-
-
-def _navigating(status: GalileoStatus) -> bool:
-    return status.navigating
+_ROTATE_READY = Require(
+    lambda s: s.visual_initialised and not s.goal_active,
+    "the visual system must be initialised and no goal active",
+)
 
 
-class _Rotation:
-    """Tells from the statuses after ``a`` whether the rotation rotate_to sent is done."""
+class _Rotation(Confirm):
+    """Confirms ``a``: angle_goal_status 0 then 1, with no navigation goal meanwhile."""
 
     __slots__ = ("_goal_id", "_started", "_what")
 
-    def __init__(self, what: str, before: GalileoStatus) -> None:
+    def __init__(self, what: str) -> None:
+        super().__init__(
+            self._done, field="angle_goal_status",
+            failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
+            # No published firmware handles 'a' (PROTOCOL.md §2.g).
+            hint="; many firmware versions ignore the rotate command 'a' entirely",
+        )  # fmt: skip
         self._what = what
-        self._goal_id = before.target_num_id
+        self._goal_id: int | None = None
         self._started = False
 
-    def done(self, status: GalileoStatus) -> bool:
+    def sending(self, before: GalileoStatus | None) -> None:
+        """Remember the goal id the status shows as ``a`` is written."""
+        self._goal_id = None if before is None else before.target_num_id
+
+    def _done(self, status: GalileoStatus) -> bool:
         """True once the rotation is done; OperationFailed once a navigation goal ran."""
         if status.goal_active or status.target_num_id != self._goal_id:
             # A goal replaces a rotation, and real firmware derives angle_goal_status from
@@ -89,14 +94,12 @@ class _Rotation:
 
 
 class RobotServices:
-    """Operations every Robot has besides goals; each validates, checks, sends, confirms."""
+    """The Robot's methods besides goto and navigation, on the parts a Robot is made of."""
 
-    _ops: Operations
-    _closed: bool
-    _loop: asyncio.AbstractEventLoop
-    _goal: GoalHandle | None
-    _targets: DynamicTargets
-    map_targets: int | None
+    def __init__(self, ops: Operations, goals: GoalRunner, targets: DynamicTargets) -> None:
+        self._ops = ops
+        self._goals = goals
+        self._targets = targets
 
     # --- goal control ---------------------------------------------------------------
 
@@ -115,10 +118,9 @@ class RobotServices:
         is raised: the status cannot confirm it.
         """
         check_timeout("timeout", timeout)
-        self._ensure_open()
-        if self._goal is not None:
-            self._goal.cancelled = True  # its end is then reported as cancelled
-        await self._ops.link.send(Cancel())
+        self._ops.ensure_open()
+        self._goals.cancelling()
+        await self._ops.send(Cancel(), what="cancel", even_stale=True)
         stale = self._ops.store.link_error
         if isinstance(stale, LinkStale):
             raise LinkStale(
@@ -142,24 +144,10 @@ class RobotServices:
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         what = f"rotate_to({degrees})"
-        deadline = Deadline(timeout)
-        before = await self._require(
-            lambda s: s.visual_initialised and not s.goal_active,
-            "rotate_to: the visual system must be initialised and no goal active",
-            deadline,
-        )
-        rotation = _Rotation(what, before)
-        try:
-            await self._ops.send_confirmed(
-                command, rotation.done, field="angle_goal_status", deadline=deadline,
-                what=what, failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
-            )  # fmt: skip
-        except UnconfirmedOperation as exc:
-            # No published firmware handles 'a' (PROTOCOL.md §2.g).
-            raise UnconfirmedOperation(
-                f"{exc}; many firmware versions ignore the rotate command 'a' entirely",
-                exc.status,
-            ) from None
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout), require=_ROTATE_READY,
+            then=_Rotation(what),
+        )  # fmt: skip
 
     # --- dynamic targets -------------------------------------------------------------
 
@@ -169,36 +157,34 @@ class RobotServices:
         """Append a dynamic target at (x, y) metres in the map frame; return its goal id."""
         command = AddTarget(x, y)
         check_timeout("timeout", timeout)
-        return await self._add_target(command, Deadline(timeout))
+        return await self._targets.add(command, Deadline(timeout))
 
     async def reset_targets(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Drop every dynamic target (the map's own stay); not confirmable by status."""
         check_timeout("timeout", timeout)
-        await self._reset_targets(Deadline(timeout))
+        await self._targets.reset(Deadline(timeout))
 
     # --- teleoperation ---------------------------------------------------------------
 
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Drive forward at ``percent`` (0-100) of max speed until changed; not confirmed."""
-        await self._send(Forward(percent), timeout, "forward")
+        await self._written(Forward(percent), "forward", timeout)
 
     async def backward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Drive backward at ``percent`` (0-100) of max speed until changed; not confirmed."""
-        await self._send(Backward(percent), timeout, "backward")
+        await self._written(Backward(percent), "backward", timeout)
 
     async def turn_left(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Turn left at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
-        await self._send(TurnLeft(percent), timeout, "turn_left")
+        await self._written(TurnLeft(percent), "turn_left", timeout)
 
     async def turn_right(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Turn right at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
-        await self._send(TurnRight(percent), timeout, "turn_right")
+        await self._written(TurnRight(percent), "turn_right", timeout)
 
     async def stop(self, brake: int = 100) -> None:
         """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale."""
-        command = Stop(brake)
-        self._ensure_open()
-        await self._ops.link.send(command)
+        await self._ops.send(Stop(brake), what="stop", even_stale=True)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
 
@@ -210,23 +196,19 @@ class RobotServices:
             check_int("dwell", dwell, 0, 255)
         command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(_navigating, "start_patrol: navigation must be open", deadline)
-        await self._ops.send_confirmed(
-            command, lambda s: s.patrolling, field="loop_status", deadline=deadline,
-            what="start_patrol",
+        await self._ops.send(
+            command, what="start_patrol", deadline=Deadline(timeout), require=NAVIGATING,
+            then=Confirm(lambda s: s.patrolling, field="loop_status"),
         )  # fmt: skip
 
     async def stop_patrol(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop auto-patrol, keep navigation (``m 6``); return once loop_status is 0."""
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(lambda s: True, "stop_patrol", deadline)
         # The document's 'm' 4 would stop navigation; firmware stops patrol with 'm' 6
         # (PROTOCOL.md §2.g).
-        await self._ops.send_confirmed(
-            StopPatrol(), lambda s: not s.patrolling, field="loop_status",
-            deadline=deadline, what="stop_patrol",
+        await self._ops.send(
+            StopPatrol(), what="stop_patrol", deadline=Deadline(timeout),
+            then=Confirm(lambda s: not s.patrolling, field="loop_status"),
         )  # fmt: skip
 
     async def set_patrol_dwell(
@@ -234,10 +216,7 @@ class RobotServices:
     ) -> None:
         """Set the patrol wait at each target (0-255 s); the firmware also starts patrol."""
         command = SetPatrolDwell(seconds)
-        check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(_navigating, "set_patrol_dwell: navigation must be open", deadline)
-        await self._send(command, timeout, "set_patrol_dwell", deadline)
+        await self._written(command, "set_patrol_dwell", timeout, require=NAVIGATING)
 
     async def start_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Start building a map; return once map_status is 1. Navigation must be closed."""
@@ -249,21 +228,11 @@ class RobotServices:
 
     async def save_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Save the map; the status cannot confirm it and some firmware ignores it."""
-        check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(
-            lambda s: not s.navigating, "save_map: navigation must be closed", deadline
-        )
-        await self._send(SaveMap(), timeout, "save_map", deadline)
+        await self._written(SaveMap(), "save_map", timeout, require=NOT_NAVIGATING)
 
     async def update_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Update the map; the status cannot confirm it."""
-        check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(
-            lambda s: not s.navigating, "update_map: navigation must be closed", deadline
-        )
-        await self._send(UpdateMap(), timeout, "update_map", deadline)
+        await self._written(UpdateMap(), "update_map", timeout, require=NOT_NAVIGATING)
 
     async def start_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> ChargeStatus:
         """Dock and charge (``j 0``); return the charge_status once it leaves FREE.
@@ -272,12 +241,12 @@ class RobotServices:
         already be near the dock with navigation open; drive it there first (``goto_point``).
         """
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(lambda s: True, "start_charging", deadline)
-        status = await self._ops.send_confirmed(
-            StartCharging(), lambda s: s.charge_status not in (None, ChargeStatus.FREE),
-            field="charge_status", deadline=deadline, what="start_charging",
-            failed=lambda s: s.charge_status == ChargeStatus.ERROR,
+        status = await self._ops.send(
+            StartCharging(), what="start_charging", deadline=Deadline(timeout),
+            then=Confirm(
+                lambda s: s.charge_status not in (None, ChargeStatus.FREE), field="charge_status",
+                failed=lambda s: s.charge_status == ChargeStatus.ERROR,
+            ),
         )  # fmt: skip
         assert status.charge_status is not None
         return status.charge_status
@@ -285,16 +254,14 @@ class RobotServices:
     async def stop_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop charging; return once charge_status is FREE."""
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(lambda s: True, "stop_charging", deadline)
-        await self._ops.send_confirmed(
-            StopCharging(), lambda s: s.charge_status == ChargeStatus.FREE,
-            field="charge_status", deadline=deadline, what="stop_charging",
+        await self._ops.send(
+            StopCharging(), what="stop_charging", deadline=Deadline(timeout),
+            then=Confirm(lambda s: s.charge_status == ChargeStatus.FREE, field="charge_status"),
         )  # fmt: skip
 
     async def save_dock(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Save the current pose as the dock position; the status cannot confirm it."""
-        await self._send(SaveDock(), timeout, "save_dock")
+        await self._written(SaveDock(), "save_dock", timeout)
 
     async def shutdown_host(self, *, confirm: bool = False) -> None:
         """Power the navigation computer off; refuses unless ``confirm=True``."""
@@ -302,88 +269,24 @@ class RobotServices:
             raise InvalidArgument(
                 "shutdown_host powers the robot's computer off: pass confirm=True"
             )
-        self._ensure_open()
-        await self._ops.transmit(ShutdownHost(), "shutdown_host")
+        await self._ops.send(ShutdownHost(), what="shutdown_host")
 
     # --- helpers -----------------------------------------------------------------------
 
-    async def _add_target(self, command: AddTarget, deadline: Deadline) -> int:
-        map_targets = self._require_map_targets("add_target")
-        await self._require(_navigating, "add_target: navigation must be open", deadline)
-        await self._ops.wait_not_busy(deadline, "add_target")
-        self._ops.check_link("add_target")
-        target_id = self._targets.reserve(map_targets, self._ops.store.status, MAX_TARGET_ID)
-        try:
-            await self._ops.link.send(command)
-        except BaseException:
-            self._targets.forget()  # it may or may not have reached the robot
-            raise
-        return target_id
-
-    async def _reset_targets(self, deadline: Deadline) -> None:
-        await self._require(_navigating, "reset_targets: navigation must be open", deadline)
-        await self._ops.wait_not_busy(deadline, "reset_targets")
-        self._ops.check_link("reset_targets")
-        self._targets.resetting()
-        await self._ops.link.send(ResetTargets())
-        self._targets.reset_done()
-
-    def _require_map_targets(self, what: str) -> int:
-        self._ensure_open()
-        if self.map_targets is None:
-            raise NotReady(
-                f"{what}: the number of targets in the robot's map is unknown (a serial "
-                "link cannot read it; ros:// reads /galileo/goal_num, which the robot has "
-                "not set); pass map_targets=N to connect() "
-                "(galileo CLI: --map-targets N or GALILEO_MAP_TARGETS)",
-                self._ops.store.status,
-            )
-        return self.map_targets
-
-    def _ensure_open(self) -> None:
-        self._ensure_loop()
-        if self._closed:
-            raise GalileoConnectionError("this Robot is closed")
-
-    def _ensure_loop(self) -> None:
-        """Raise WrongEventLoop unless called on the loop that connected this Robot."""
-        try:
-            loop = asyncio.get_running_loop()
-        except RuntimeError:
-            loop = None
-        if loop is not self._loop:
-            # Its transport, timers and futures live on that loop: from another one a call
-            # would hang until some unrelated timer fired, or corrupt the link's state.
-            raise WrongEventLoop(
-                "this Robot is bound to the event loop that connected it and was called "
-                + ("from another event loop" if loop is not None else "with no event loop")
-                + "; use asyncio.run_coroutine_threadsafe() to call it from another thread"
-            )
-
-    async def _require(
-        self, ok: Callable[[GalileoStatus], bool], message: str, deadline: Deadline
-    ) -> GalileoStatus:
-        self._ensure_open()
-        return await self._ops.ready(ok, message, deadline)
-
-    async def _send(
-        self, command: Command, timeout: float | None, what: str, deadline: Deadline | None = None
+    async def _written(
+        self, command: Command, what: str, timeout: float | None, require: Require | None = None
     ) -> None:
+        """Send ``command`` (busy back-off within ``timeout``); nothing confirms it."""
         check_timeout("timeout", timeout)
-        self._ensure_open()
-        await self._ops.send(command, deadline or Deadline(timeout), what)
+        await self._ops.send(command, what=what, deadline=Deadline(timeout), require=require)
 
     async def _mapping_command(
         self, command: Command, mapping: bool, timeout: float | None, what: str
     ) -> None:
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(
-            lambda s: not s.navigating, f"{what}: navigation must be closed", deadline
-        )
-        await self._ops.send_confirmed(
-            command, lambda s: s.mapping == mapping, field="map_status",
-            deadline=deadline, what=what,
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout), require=NOT_NAVIGATING,
+            then=Confirm(lambda s: s.mapping == mapping, field="map_status"),
         )  # fmt: skip
 
     async def _goal_command(
@@ -391,13 +294,10 @@ class RobotServices:
     ) -> None:
         what = type(command).__name__.lower()
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        await self._require(
-            lambda s: s.target_status == needed,
-            f"{what}: the goal must be {needed.name.lower()}",
-            deadline,
-        )
-        await self._ops.send_confirmed(
-            command, lambda s: s.target_status == result, field="target_status",
-            deadline=deadline, what=what,
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout),
+            require=Require(
+                lambda s: s.target_status == needed, f"the goal must be {needed.name.lower()}"
+            ),
+            then=Confirm(lambda s: s.target_status == result, field="target_status"),
         )  # fmt: skip

@@ -18,7 +18,7 @@ from ._fleet_streams import (
     FleetHub,
     FleetStatusStream,
 )
-from ._operations import finish_shielded
+from ._runtime import finish_shielded
 from .errors import (
     ConnectionLost,
     GalileoConnectionError,

@@ -8,23 +8,29 @@ from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any
 
-from ._checks import check_bool
+from ._checks import check_bool, check_timeout
 from ._connect_options import ROBOT_OPTIONS, check_connect_options, check_robot_options
-from ._goal import GoalHandle, GoalResult, run_goal
+from ._goal import GoalResult, GoalRunner
 from ._operations import (
     DEFAULT_TIMEOUT,
-    ROBOT_DEFAULT,
+    GOAL_READY,
+    NAVIGATING,
+    NOT_NAVIGATING,
     ROTATE_TIMEOUT,
-    Deadline,
-    DynamicTargets,
+    Confirm,
     Operations,
+    Require,
+)
+from ._runtime import (
+    ROBOT_DEFAULT,
+    Deadline,
     RobotDefault,
-    check_timeout,
     finish_shielded,
     or_default,
+    running_loop,
 )
-from ._runtime import running_loop
 from ._services import RobotServices
+from ._targets import DynamicTargets
 from .errors import (
     GalileoConnectionError,
     GalileoTimeout,
@@ -34,13 +40,7 @@ from .errors import (
 from .events import DEFAULT_ARRIVE_TOLERANCE, Event
 from .link import BaseLink, LinkStats, open_link
 from .models import GalileoStatus
-from .protocol import (
-    AddTarget,
-    Command,
-    Goto,
-    StartNavigation,
-    StopNavigation,
-)
+from .protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
 from .state import StatusStore, StatusStream
 
 __all__ = [
@@ -74,19 +74,15 @@ NAVIGATION_TIMEOUT = 60.0
 FIRST_STATUS_TIMEOUT = 3.0
 
 
-def _navigating(status: GalileoStatus) -> bool:
-    return status.navigating
-
-
-_GOAL_READY = "navigation must be open and the visual system initialised"
-
-
-def _goal_ready(status: GalileoStatus) -> bool:
-    return status.navigating and status.visual_initialised
+_NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
 class Robot(RobotServices):
-    """A connected Galileo robot; every method validates, checks, sends, then confirms."""
+    """A connected Galileo robot; every method validates, then sends through Operations.send.
+
+    Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;
+    RobotServices holds the methods besides goto and navigation.
+    """
 
     def __init__(
         self,
@@ -108,20 +104,16 @@ class Robot(RobotServices):
                 "wait_timeout": wait_timeout,
             }
         )
+        ops = Operations(link, store)
+        super().__init__(ops, GoalRunner(ops), DynamicTargets(ops, map_targets))
         self._link = link
         self._store = store
-        self._ops = Operations(link, store)
-        self.map_targets = map_targets
         self.accept_timeout = float(accept_timeout)
         self.arrive_tolerance = float(arrive_tolerance)
         #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
         self.goal_timeout = goal_timeout
         self.wait_timeout = wait_timeout
-        self._targets = DynamicTargets(link)
-        self._goal: GoalHandle | None = None
-        self._closed = False
         self._close_task: asyncio.Task[None] | None = None
-        self._loop = asyncio.get_running_loop()
 
     # --- state -----------------------------------------------------------------------
 
@@ -147,7 +139,16 @@ class Robot(RobotServices):
     @property
     def closed(self) -> bool:
         """True once close() was called."""
-        return self._closed
+        return self._ops.closed
+
+    @property
+    def map_targets(self) -> int | None:
+        """How many targets the robot's map has (goto_point and add_target need it)."""
+        return self._targets.map_targets
+
+    @map_targets.setter
+    def map_targets(self, value: int | None) -> None:
+        self._targets.map_targets = value
 
     async def wait_until(
         self,
@@ -162,24 +163,24 @@ class Robot(RobotServices):
             raise InvalidArgument(f"predicate must be a function of a status, got {predicate!r}")
         seconds = or_default(timeout, self.wait_timeout)
         check_timeout("timeout", seconds)
-        self._ensure_loop()
+        self._ops.ensure_loop()
         return await self._store.wait_until(predicate, seconds)
 
     def statuses(self) -> StatusStream:
         """Iterate over statuses, newest only: a slow consumer skips to the latest."""
-        self._ensure_loop()
+        self._ops.ensure_loop()
         return self._store.statuses()
 
     def events(self) -> AsyncIterator[Event]:
         """Iterate over typed transition events (goal reached, visual lost, link stale …)."""
-        self._ensure_loop()
+        self._ops.ensure_loop()
         return self._store.events()
 
     async def send(self, command: Command, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
-        await self._send(command, timeout, f"send({command!r})")
+        await self._written(command, f"send({command!r})", timeout)
 
     # --- navigation --------------------------------------------------------------------
 
@@ -188,17 +189,16 @@ class Robot(RobotServices):
         check_timeout("timeout", timeout)
         what = "start_navigation"
         deadline = Deadline(timeout)
-        status = await self._require(
-            lambda s: not s.mapping, f"{what}: the robot is building a map", deadline
-        )
-        if not status.navigating:
-            # The firmware ignores a start within 5-30 s of the previous one (PROTOCOL.md §2.a).
-            await self._ops.send_confirmed(
-                StartNavigation(), _navigating, field="nav_status", deadline=deadline,
-                what=f"{what} (the firmware ignores a start soon after the previous one)",
-            )  # fmt: skip
+        await self._ops.send(
+            StartNavigation(), what=what, deadline=deadline, require=_NOT_MAPPING,
+            unless=NAVIGATING.holds,
+            then=Confirm(
+                NAVIGATING.holds, field="nav_status",
+                hint="; the firmware ignores a start within 5-30 s of the previous one",
+            ),
+        )  # fmt: skip
         try:
-            await self._store.wait_until(_goal_ready, timeout=deadline.remaining())
+            await self._store.wait_until(GOAL_READY.holds, timeout=deadline.remaining())
         except GalileoTimeout as exc:
             raise UnconfirmedOperation(
                 f"{what}: navigation is open but the visual system did not initialise "
@@ -209,13 +209,10 @@ class Robot(RobotServices):
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop navigation (also patrol and the goal); return once it is closed."""
         check_timeout("timeout", timeout)
-        deadline = Deadline(timeout)
-        status = await self._require(lambda s: True, "stop_navigation", deadline)
-        if status.navigating:
-            await self._ops.send_confirmed(
-                StopNavigation(), lambda s: not s.navigating, field="nav_status",
-                deadline=deadline, what="stop_navigation",
-            )  # fmt: skip
+        await self._ops.send(
+            StopNavigation(), what="stop_navigation", deadline=Deadline(timeout),
+            unless=NOT_NAVIGATING.holds, then=Confirm(NOT_NAVIGATING.holds, field="nav_status"),
+        )  # fmt: skip
 
     async def goto(
         self,
@@ -236,13 +233,16 @@ class Robot(RobotServices):
         once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
         at the target already: a GoalResult with ``already_there`` True.
         """
-        Goto(target_id)  # validate before anything is sent
+        command = Goto(target_id)  # validates before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
         check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
-        return await self._goto(target_id, Deadline(seconds), accept, cancel_on_exit)
+        return await self._goals.run(
+            command, deadline=Deadline(seconds), accept_timeout=accept,
+            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+        )  # fmt: skip
 
     async def goto_point(
         self,
@@ -257,12 +257,14 @@ class Robot(RobotServices):
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_bool("cancel_on_exit", cancel_on_exit)
-        self._require_map_targets("goto_point")
+        self._targets.map_target_count("goto_point")
         deadline = Deadline(seconds)
-        await self._require(_goal_ready, "goto_point: " + _GOAL_READY, deadline)
-        await self._reset_targets(deadline)
-        target_id = await self._add_target(command, deadline)
-        return await self._goto(target_id, deadline, self.accept_timeout, cancel_on_exit)
+        await self._targets.reset(deadline, what="goto_point", require=GOAL_READY)
+        target_id = await self._targets.add(command, deadline)
+        return await self._goals.run(
+            Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
+            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+        )  # fmt: skip
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -272,10 +274,10 @@ class Robot(RobotServices):
         Cancelling the caller does not interrupt it: the link is closed (within a few
         seconds at most), then the cancellation is raised.
         """
-        self._ensure_loop()
+        self._ops.ensure_loop()
         task = self._close_task
         if task is None:
-            self._closed = True
+            self._ops.closed = True
             task = self._close_task = asyncio.get_running_loop().create_task(
                 self._shutdown(), name=f"close {self._link!r}"
             )
@@ -298,28 +300,6 @@ class Robot(RobotServices):
         tb: TracebackType | None,
     ) -> None:
         await self.close()
-
-    # --- helpers -----------------------------------------------------------------------
-
-    async def _goto(
-        self, target_id: int, deadline: Deadline, accept_timeout: float, cancel_on_exit: bool
-    ) -> GoalResult:
-        what = f"goto({target_id})"
-        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
-        await self._ops.wait_not_busy(deadline, what)
-        await self._require(_goal_ready, f"{what}: {_GOAL_READY}", deadline)
-        if self._goal is not None:
-            self._goal.preempted = True
-        handle = GoalHandle(target_id)
-        self._goal = handle
-        try:
-            return await run_goal(
-                self._ops, handle, deadline=deadline, accept_timeout=accept_timeout,
-                arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
-            )  # fmt: skip
-        finally:
-            if self._goal is handle:
-                self._goal = None
 
 
 class Connection:

@@ -1,0 +1,126 @@
+"""Dynamic targets: the driver's count of them on the robot, and the commands that change it."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ._operations import NAVIGATING, Operations, Require, Sent
+from ._runtime import Deadline
+from .errors import NotReady
+from .models import GalileoStatus
+from .protocol import AddTarget, ResetTargets
+
+if TYPE_CHECKING:
+    from .subscriptions import Watch
+
+__all__ = ["MAX_TARGET_ID", "DynamicTargets"]
+
+#: Highest goal id the ``g`` command can carry.
+MAX_TARGET_ID = 255
+
+
+class DynamicTargets:
+    """The targets a Robot adds after the map's own (no status field shows them)."""
+
+    def __init__(self, ops: Operations, map_targets: int | None) -> None:
+        self._ops = ops
+        #: How many targets the robot's map has: the first dynamic target's goal id.
+        self.map_targets = map_targets
+        self._count: int | None = None  # unknown until reset() in this session
+        self._reconnects = 0  # link.stats.reconnects when the count was last reset
+
+    def map_target_count(self, what: str) -> int:
+        """``map_targets``, checking that the Robot is open; NotReady while it is unknown."""
+        self._ops.ensure_open()
+        if self.map_targets is None:
+            raise NotReady(
+                f"{what}: the number of targets in the robot's map is unknown (a serial "
+                "link cannot read it; ros:// reads /galileo/goal_num, which the robot has "
+                "not set); pass map_targets=N to connect() "
+                "(galileo CLI: --map-targets N or GALILEO_MAP_TARGETS)",
+                self._ops.store.status,
+            )
+        return self.map_targets
+
+    async def reset(
+        self, deadline: Deadline, *, what: str = "reset_targets", require: Require = NAVIGATING
+    ) -> None:
+        """Send ``g r 0``: the robot then has no dynamic targets."""
+        await self._ops.send(
+            ResetTargets(), what=what, deadline=deadline, require=require, then=_Reset(self)
+        )
+
+    async def add(self, command: AddTarget, deadline: Deadline) -> int:
+        """Send ``command`` (``g i x y``); the new target's goal id."""
+        adding = _Add(self, self.map_target_count("add_target"))
+        try:
+            return await self._ops.send(
+                command, what="add_target", deadline=deadline, require=NAVIGATING, then=adding
+            )
+        except BaseException:
+            if adding.target_id is not None:
+                self._count = None  # it may or may not have reached the robot
+            raise
+
+    def _reserve(self, map_targets: int, status: GalileoStatus | None) -> int:
+        """The goal id of the next dynamic target, counted now; NotReady if unknown."""
+        if self._count is not None and self._reconnects != self._ops.link.stats.reconnects:
+            # A reconnect may mean a restarted robot, which keeps no dynamic targets.
+            self._count = None
+            raise NotReady(
+                "add_target: the link reconnected since reset_targets() (the robot may have "
+                "restarted and lost its dynamic targets); call reset_targets() again",
+                status,
+            )
+        if self._count is None:
+            raise NotReady(
+                "add_target: the number of dynamic targets on the robot is unknown; "
+                "call reset_targets() first (goto_point does)",
+                status,
+            )
+        target_id = map_targets + self._count
+        if target_id > MAX_TARGET_ID:
+            raise NotReady(
+                f"add_target: goal ids stop at {MAX_TARGET_ID}; call reset_targets()", status
+            )
+        self._count += 1  # reserved now: concurrent calls get distinct ids
+        return target_id
+
+
+class _Reset:
+    """Follower of ``g r 0``: the count is unknown from the write on, 0 once it is written."""
+
+    __slots__ = ("_targets",)
+
+    def __init__(self, targets: DynamicTargets) -> None:
+        self._targets = targets
+
+    def sending(self, before: GalileoStatus | None) -> None:
+        """The reset may or may not reach the robot: forget the count until it is written."""
+        targets = self._targets
+        targets._count = None
+        targets._reconnects = targets._ops.link.stats.reconnects
+
+    async def follow(self, watch: Watch, sent: Sent) -> None:
+        """Written: the robot now has no dynamic targets."""
+        self._targets._count = 0
+
+
+class _Add:
+    """Follower of ``g i x y``: reserves the new target's goal id right before the write."""
+
+    __slots__ = ("_map_targets", "_targets", "target_id")
+
+    def __init__(self, targets: DynamicTargets, map_targets: int) -> None:
+        self._targets = targets
+        self._map_targets = map_targets
+        self.target_id: int | None = None
+
+    def sending(self, before: GalileoStatus | None) -> None:
+        """Reserve the goal id (NotReady, nothing sent, when the count is unknown)."""
+        self.target_id = self._targets._reserve(self._map_targets, before)
+
+    async def follow(self, watch: Watch, sent: Sent) -> int:
+        """Written: the reserved goal id."""
+        assert self.target_id is not None
+        return self.target_id
