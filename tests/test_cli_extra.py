@@ -12,8 +12,7 @@ import sys
 
 import pytest
 
-from galileo_async.cli import ExitCode
-INSTALL_HINT="pip install 'galileo-async[cli]'"; MISSING_EXIT_CODE=1
+from galileo_async.cli import INSTALL_HINT, MISSING_EXIT_CODE, ExitCode
 
 #: Runs the ``galileo`` console script as pyproject.toml declares it.
 CONSOLE_SCRIPT = (
