@@ -7,12 +7,19 @@ it is not installed).
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from galileo_async.cli import INSTALL_HINT, MISSING_EXIT_CODE, ExitCode
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:
+    import tomli as tomllib
 
 #: Runs the ``galileo`` console script as pyproject.toml declares it.
 CONSOLE_SCRIPT = (
@@ -73,3 +80,23 @@ def test_another_missing_module_is_not_mistaken_for_the_extra() -> None:
     assert result.returncode != 0
     assert "Traceback" in result.stderr
     assert INSTALL_HINT not in result.stderr
+
+
+def requirement_names(requirements: list[str]) -> set[str]:
+    """The distribution names of ``requirements`` (``"anyio>=4"`` → ``"anyio"``)."""
+    return {re.split(r"[^A-Za-z0-9_.-]", r, maxsplit=1)[0].lower() for r in requirements}
+
+
+def test_the_core_needs_no_extra_and_dev_installs_every_extra() -> None:
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    project = pyproject["project"]
+    assert requirement_names(project["dependencies"]) == {
+        "pyserial-asyncio-fast", "pyserial-asyncio", "anyio", "pydantic", "tomli",
+    }  # fmt: skip
+    extras = project["optional-dependencies"]
+    assert requirement_names(extras["cli"]) == {"typer", "rich"}
+    assert extras["ros"] == []
+    # `make demo` and `make test` install [dev]: the command line and every extra's tests.
+    for extra in ("cli", "vda5050"):
+        assert set(extras[extra]) <= set(extras["dev"]), extra
+    assert project["scripts"] == {"galileo": "galileo_async.cli:main"}
