@@ -268,3 +268,34 @@ def test_link_layer_checks_cover_the_link_package() -> None:
     names = {p.relative_to(LINK_DIR).as_posix() for p in LINK_SOURCES}
     assert names >= {"__init__.py", "base.py", "stream.py", "connectors.py", "ros/link.py"}
     assert set(LINK_PENDING) <= names
+
+
+# --- optional parts (DESIGN.md: cli behind the extra [cli]; the core needs neither) --------
+
+#: What the extra ``[cli]`` brings (typer needs click): only ``cli/`` may import them.
+CLI_ONLY = ("typer", "rich", "click")
+CLI_DIR = PACKAGE_DIR / "cli"
+CORE_SOURCES = sorted(p for p in PACKAGE_DIR.rglob("*.py") if CLI_DIR not in p.parents)
+
+
+def test_no_core_module_imports_the_command_line_libraries() -> None:
+    assert {module_name(p) for p in CORE_SOURCES} >= {
+        "galileo_async", "galileo_async.robot", "galileo_async.fleet", "galileo_async.link.ros",
+        "galileo_async.vda5050",
+    }  # fmt: skip
+    for path in CORE_SOURCES:
+        found = imported_modules(path.read_text(encoding="utf-8")) & set(CLI_ONLY)
+        assert not found, f"{module_name(path)} imports {found}"
+
+
+def test_every_core_module_imports_without_the_command_line_libraries() -> None:
+    # At run time too: nothing below cli/ reaches typer or rich through another module.
+    blocked = "".join(f"sys.modules[{name!r}] = None\n" for name in CLI_ONLY)
+    imports = "".join(f"import {module_name(p)}\n" for p in CORE_SOURCES)
+    code = f"import json, sys\n{blocked}{imports}print(json.dumps(sorted(sys.modules)))"
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    loaded = set(json.loads(result.stdout))
+    assert {module_name(p) for p in CORE_SOURCES} <= loaded

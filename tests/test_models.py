@@ -27,6 +27,7 @@ from galileo_async.models import (
     VisualStatus,
 )
 from galileo_async.protocol import HEADER, StatusDecoder, encode_status
+from galileo_async.protocol._build import status_builder, trusted_status
 
 ENUMS = [NavStatus, VisualStatus, MapStatus, ChargeStatus, TargetStatus, AngleGoalStatus]
 
@@ -93,14 +94,14 @@ def test_status_is_frozen() -> None:
 
 def test_trusted_equals_validated() -> None:
     values = v.V2_ACTIVE_STATUS.model_dump()
-    assert GalileoStatus.trusted(values) == GalileoStatus(**values)
+    assert trusted_status(values) == GalileoStatus(**values)
 
 
 def test_builder_equals_validated_and_behaves_like_any_status() -> None:
     expected = v.V2_ACTIVE_STATUS
     names = list(STATUS_FIELDS)
     maps = {"nav_status": {1: NavStatus.OPEN}, "target_status": {1: TargetStatus.WORKING}}
-    build = GalileoStatus.builder(StatusLayout.V2, names, maps)
+    build = status_builder(StatusLayout.V2, names, maps)
     raw = tuple(int(getattr(expected, name)) if name in maps else getattr(expected, name)
                 for name in names)  # fmt: skip
     built = build(raw)
@@ -124,7 +125,7 @@ def test_builder_falls_back_to_the_maps_for_values_they_only_make_on_demand() ->
         def __missing__(self, raw: int) -> Any:
             return NavStatus(raw)
 
-    build = GalileoStatus.builder(
+    build = status_builder(
         StatusLayout.V1, ["nav_status", "power"], {"nav_status": OnDemand({1: NavStatus.OPEN})}
     )
     assert build((1, 12.5)).nav_status is NavStatus.OPEN
@@ -135,7 +136,7 @@ def test_builder_falls_back_to_the_maps_for_values_they_only_make_on_demand() ->
 
 
 def test_builder_for_a_layout_with_fewer_fields() -> None:
-    build = GalileoStatus.builder(StatusLayout.V1, ["nav_status", "power"], {})
+    build = status_builder(StatusLayout.V1, ["nav_status", "power"], {})
     built = build((1, 12.5))
     assert built == GalileoStatus(layout=StatusLayout.V1, nav_status=1, power=12.5)
     assert built.model_fields_set == {"layout", "nav_status", "power"}
@@ -145,7 +146,7 @@ def test_builder_for_a_layout_with_fewer_fields() -> None:
 @pytest.mark.parametrize("fields", [["layout"], ["power", "power"], ["no_such_field"]])
 def test_builder_refuses_fields_that_are_not_distinct_status_fields(fields: list[str]) -> None:
     with pytest.raises(ValueError, match="not distinct status fields"):
-        GalileoStatus.builder(StatusLayout.V2, fields, {})
+        status_builder(StatusLayout.V2, fields, {})
 
 
 def status(**fields: Any) -> GalileoStatus:

@@ -31,6 +31,7 @@ from galileo_async.errors import ConnectionLost, GalileoError
 from galileo_async.link import socket_connector
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import HEADER, LAYOUTS, MAX_BUFFER, StatusDecoder, encode_status
+from galileo_async.protocol._build import trusted_status
 from galileo_async.sim import Simulator
 
 #: A small square map: goals of about a metre, so fifty of them fit in seconds.
@@ -46,7 +47,7 @@ SOAK_SECONDS = float(os.environ.get("GALILEO_SOAK_SECONDS", "60"))
 
 def test_trusted_status_behaves_like_a_validated_one() -> None:
     validated = v.V2_ACTIVE_STATUS
-    trusted = GalileoStatus.trusted(validated.model_dump())
+    trusted = trusted_status(validated.model_dump())
     assert trusted == validated
     assert hash(trusted) == hash(validated)
     assert trusted.model_dump() == validated.model_dump()
@@ -58,7 +59,7 @@ def test_trusted_status_behaves_like_a_validated_one() -> None:
     with pytest.raises(pydantic.ValidationError):
         trusted.busy_status = 0  # type: ignore[misc]
     # A layout's subset: the rest take their defaults (None), as with validation.
-    partial = GalileoStatus.trusted({"layout": StatusLayout.V1, "nav_status": 1})
+    partial = trusted_status({"layout": StatusLayout.V1, "nav_status": 1})
     assert partial == GalileoStatus(layout=StatusLayout.V1, nav_status=1)
     assert partial.model_fields_set == {"layout", "nav_status"}
     assert partial.power is None

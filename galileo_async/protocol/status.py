@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..models import GalileoStatus, StatusLayout
+from ._build import status_builder
 from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, Layout
 
 __all__ = [
@@ -74,7 +75,7 @@ class _Converter:
         self.unpack_from = layout.struct.unpack_from
         self.stamp_index = fields.index("time_stamp") if "time_stamp" in fields else None
         maps = {field: _EnumMap(ENUM_FIELDS[field]) for field in fields if field in ENUM_FIELDS}
-        self.build: Callable[[Values], GalileoStatus] = GalileoStatus.builder(
+        self.build: Callable[[Values], GalileoStatus] = status_builder(
             layout.name, fields, maps
         )
 

@@ -7,6 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ...models import STATUS_FIELDS, GalileoStatus, StatusLayout
+from ...protocol._build import trusted_status
 from ...protocol.commands import Command
 from ...protocol.layouts import ENUM_FIELDS
 from .msgdef import (
@@ -191,4 +192,4 @@ class StatusMessageDecoder:
             values[ours] = member if member is not None else enum_type(value)
         if self._has_header and isinstance(raw["header"], dict):
             values["time_stamp"] = raw["header"].get("seq")
-        return GalileoStatus.trusted(values)
+        return trusted_status(values)
