@@ -75,9 +75,7 @@ class _Converter:
         self.unpack_from = layout.struct.unpack_from
         self.stamp_index = fields.index("time_stamp") if "time_stamp" in fields else None
         maps = {field: _EnumMap(ENUM_FIELDS[field]) for field in fields if field in ENUM_FIELDS}
-        self.build: Callable[[Values], GalileoStatus] = status_builder(
-            layout.name, fields, maps
-        )
+        self.build: Callable[[Values], GalileoStatus] = status_builder(layout.name, fields, maps)
 
 
 _CONVERTERS = {name: _Converter(layout) for name, layout in LAYOUTS.items()}
