@@ -25,8 +25,7 @@ from galileo_async.errors import (
 )
 from galileo_async.link import BaseLink, LinkStats, StreamLink, open_link
 from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
-from galileo_async.link.sockets import SocketTransport
-from galileo_async.link.stream import READ_SIZE, _read_buffer, _StreamProtocol
+from galileo_async.link.stream import READ_SIZE, _read_buffer
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
@@ -499,15 +498,12 @@ async def test_socket_links_turn_tcp_keepalive_on(
 
 
 async def test_socket_links_read_into_their_loops_read_buffer(
-    device: FakeDevice, links: list[BaseLink], monkeypatch: pytest.MonkeyPatch
+    device: FakeDevice, links: list[BaseLink]
 ) -> None:
-    # The protocol reads the socket itself (SocketTransport's reader hook): nothing asks
-    # it for a buffer, as asyncio's transport would per read.
-    monkeypatch.setattr(_StreamProtocol, "get_buffer", _no_buffer_asked)
     link, store = await connect(device, links)
     assert isinstance(link, StreamLink)
     assert isinstance(link._protocol, asyncio.BufferedProtocol)
-    assert isinstance(link._transport, SocketTransport)
+    assert link._protocol.get_buffer(-1) is _read_buffer(asyncio.get_running_loop())[1]
     # A burst over three read buffers, split mid-frame, then a single frame.
     burst = b"".join(status_frame(stamp) for stamp in range(1, 201))
     assert len(burst) > 2 * READ_SIZE
@@ -521,10 +517,6 @@ async def test_socket_links_read_into_their_loops_read_buffer(
     assert (await asyncio.wait_for(anext(stream), STEP)).time_stamp == 201
     assert (link.stats.frames, link.stats.lost_frames, link.stats.resyncs) == (201, 0, 0)
     assert link.stats.bytes_received == len(burst) + len(status_frame(201))
-
-
-def _no_buffer_asked(self: _StreamProtocol, sizehint: int) -> memoryview:
-    raise AssertionError("a socket:// link's protocol reads the socket itself")
 
 
 async def test_links_of_one_loop_share_a_read_buffer_and_keep_their_own_partial_frames(

@@ -14,7 +14,6 @@ from ..protocol import Command
 from . import options as _options
 from .queue import CommandQueue, Pending
 from .stats import LinkStats, StatusSink
-from .watchdog import TICKS_PER_TIMEOUT, StaleClock, Ticket, stale_clock
 
 __all__ = [
     "BaseLink",
@@ -36,8 +35,8 @@ class BaseLink(CommandQueue, abc.ABC):
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_closed", "_closing", "_connected_at", "_last_write", "_opened",
-        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_stale_clock",
-        "_supersedable", "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
+        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_supersedable",
+        "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
         "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
         "stale_reconnect", "stale_timeout", "stats", "store",
     )  # fmt: skip
@@ -81,9 +80,8 @@ class BaseLink(CommandQueue, abc.ABC):
         self._queue_ready = asyncio.Event()
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
-        #: The ticket of the stale check armed on the loop's StaleClock, if any.
-        self._watchdog: Ticket | None = None
-        self._stale_clock: StaleClock | None = None  # the clock of its last check
+        #: The loop timer of the next stale check, if one is armed.
+        self._watchdog: asyncio.TimerHandle | None = None
         self._last_write: float | None = None
         self._connected_at = 0.0
         self._opened = False
@@ -188,7 +186,7 @@ class BaseLink(CommandQueue, abc.ABC):
         self.stats.stale = False
         _log.info("link fresh again")
         self.store.link_fresh()
-        self._arm_watchdog(self.stale_timeout)
+        self._arm_watchdog(self._stale_deadline(_monotonic()))
 
     def _on_lost(self, exc: BaseException | None) -> None:
         """The transport dropped (EOF, close or error): fail waiters, then reconnect."""
@@ -215,9 +213,9 @@ class BaseLink(CommandQueue, abc.ABC):
     def _on_connected(self) -> None:
         self.stats.connected = True
         self.stats.stale = False
-        self._connected_at = time.monotonic()
+        self._connected_at = _monotonic()
         self.store.connection_restored()
-        self._arm_watchdog(self.stale_timeout)
+        self._arm_watchdog(self._stale_deadline(self._connected_at))
         if self._queue:
             self._queue_ready.set()
 
@@ -313,28 +311,30 @@ class BaseLink(CommandQueue, abc.ABC):
             self.stats.commands_sent += 1
             future.set_result(True)
 
-    def _arm_watchdog(self, delay: float | None) -> None:
-        """Check for silence ``delay`` s from now (up to a sixteenth of stale_timeout later)."""
-        self._cancel_watchdog()
+    def _stale_deadline(self, alive_at: float) -> float | None:
+        """When a link last heard from at ``alive_at`` turns stale (None: never)."""
         timeout = self.stale_timeout
-        if delay is None or timeout is None or self._closing:
+        return None if timeout is None else alive_at + timeout
+
+    def _arm_watchdog(self, deadline: float | None) -> None:
+        """Check for silence at ``deadline`` (time.monotonic()) on one loop timer of this link.
+
+        Frames only set last_frame_at; the check re-arms itself from it when it runs, so a
+        link moves its timer once per stale_timeout, not per frame.
+        """
+        self._cancel_watchdog()
+        if deadline is None or self.stale_timeout is None or self._closing:
             return
-        # The clock of the last check, unless stale_timeout changed: a link runs on one loop.
-        resolution = timeout / TICKS_PER_TIMEOUT
-        clock = self._stale_clock
-        if clock is None or clock.resolution != resolution:
-            clock = self._stale_clock = stale_clock(resolution)
-        self._watchdog = clock.arm(self, _monotonic() + delay)
+        loop = asyncio.get_running_loop()
+        # loop.time() need not be time.monotonic() (uvloop's is not): convert once.
+        when = loop.time() + (deadline - _monotonic())
+        self._watchdog = loop.call_at(when, self._check_stale)
 
     def _cancel_watchdog(self) -> None:
-        ticket = self._watchdog
-        if ticket is not None:
+        timer = self._watchdog
+        if timer is not None:
             self._watchdog = None
-            ticket.cancel(self)
-
-    def _stale_due(self, ticket: Ticket) -> None:
-        if ticket is self._watchdog:
-            self._check_stale()
+            timer.cancel()
 
     def _check_stale(self) -> None:
         self._watchdog = None
@@ -345,8 +345,8 @@ class BaseLink(CommandQueue, abc.ABC):
         alive_since = self._connected_at if last is None else max(last, self._connected_at)
         silent = time.monotonic() - alive_since
         if not self.stats.stale:
-            if silent < timeout:
-                self._arm_watchdog(timeout - silent)
+            if silent < timeout:  # a frame came since (or the timer ran early): not yet
+                self._arm_watchdog(alive_since + timeout)
                 return
             self.stats.stale = True
             error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
@@ -357,7 +357,7 @@ class BaseLink(CommandQueue, abc.ABC):
             return
         limit = self.stale_reconnect * timeout
         if silent < limit:
-            self._arm_watchdog(limit - silent)  # a fresh frame re-arms it (last_frame_at)
+            self._arm_watchdog(alive_since + limit)  # a fresh frame re-arms it (last_frame_at)
             return
         reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
         _log.warning("%s", reason)

@@ -9,13 +9,12 @@ import logging
 import socket
 from collections.abc import Awaitable, Callable, Iterator
 from types import ModuleType
-from typing import Any, cast
+from typing import Any
 from urllib.parse import urlsplit
 
 from .._checks import check_seconds
 from ..errors import GalileoConnectionError, GalileoError, InvalidArgument
 from .options import check_values
-from .sockets import open_socket
 
 __all__ = [
     "DEFAULT_BAUDRATE",
@@ -123,14 +122,14 @@ def socket_connector(
         with translate_errors(what):
             try:
                 transport, protocol = await asyncio.wait_for(
-                    open_socket(loop, factory, host, port), connect_timeout
+                    loop.create_connection(factory, host, port), connect_timeout
                 )
             except asyncio.TimeoutError:
                 raise GalileoConnectionError(
                     f"{what}: no TCP connection within {connect_timeout} s (connect_timeout)"
                 ) from None
         set_keepalive(transport)
-        return transport, cast(asyncio.Protocol, protocol)
+        return transport, protocol
 
     return connect
 

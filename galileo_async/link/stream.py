@@ -16,7 +16,6 @@ from ..protocol import Command, StatusDecoder, encode
 from .base import BaseLink, StatusSink, frames_log
 from .connectors import Connector, translate_errors
 from .options import CLOSE_TIMEOUT
-from .sockets import SocketTransport
 
 __all__ = ["StreamLink"]
 
@@ -61,10 +60,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     connectors call data_received.
     """
 
-    __slots__ = (
-        "_buffer", "_decoder", "_link", "_recv_into", "_socket", "_stats", "_update", "_view",
-        "current", "lost",
-    )  # fmt: skip
+    __slots__ = ("_buffer", "_decoder", "_link", "_stats", "_update", "_view", "current", "lost")
 
     def __init__(self, link: StreamLink, loop: asyncio.AbstractEventLoop) -> None:
         self._link = link
@@ -78,28 +74,6 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self._view
-
-    def socket_reader(self, transport: SocketTransport) -> Callable[[], None]:
-        """The read callback of a socket:// link's transport: this protocol reads itself."""
-        self._socket = transport
-        self._recv_into = transport.recv_into
-        return self._read_socket
-
-    def _read_socket(self) -> None:
-        # The loop calls this for each read, with nothing in between: no transport object
-        # or call of its own to go through, memory a fleet's cache no longer holds by the
-        # robot's next frame (BENCHMARKS.md §4).
-        try:
-            nbytes = self._recv_into(self._view)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError as exc:
-            self._socket.read_failed(exc)
-            return
-        if nbytes:
-            self.buffer_updated(nbytes)
-        else:
-            self._socket.read_eof()
 
     # buffer_updated (sockets) and data_received (serial ports, pipes, custom connectors)
     # are the link's hot path, each written out in full rather than behind one more call:
