@@ -6,7 +6,10 @@ import asyncio
 from collections.abc import AsyncIterator
 
 import pytest
+from fake_device import FakeDevice
 from hypothesis import HealthCheck, settings
+
+from galileo_async.link import BaseLink
 
 settings.register_profile(
     "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -44,3 +47,25 @@ async def no_lingering_tasks() -> AsyncIterator[None]:
         for handle in timers:
             handle.cancel()
         pytest.fail(f"test left {len(timers)} timer(s) armed: {described}")
+
+
+#: Bound, in seconds, on closing a link a test opened.
+LINK_CLOSE_TIMEOUT = 2.0
+
+
+@pytest.fixture
+async def device() -> AsyncIterator[FakeDevice]:
+    """A started in-memory fake device (tests/fake_device.py), stopped afterwards."""
+    fake = FakeDevice()
+    await fake.start()
+    yield fake
+    await fake.stop()
+
+
+@pytest.fixture
+async def links() -> AsyncIterator[list[BaseLink]]:
+    """Links a test opened; all closed at teardown, whatever the test did."""
+    opened: list[BaseLink] = []
+    yield opened
+    for link in opened:
+        await asyncio.wait_for(link.close(), LINK_CLOSE_TIMEOUT)

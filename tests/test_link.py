@@ -10,7 +10,7 @@ import socket
 import sys
 import time
 import types
-from collections.abc import AsyncIterator, Callable
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -32,23 +32,6 @@ from galileo_async.state import StatusStore
 
 STEP = 2.0  # upper bound for anything that should happen promptly
 FAST = {"reconnect_initial": 0.01, "reconnect_max": 0.05, "stale_timeout": 5.0}
-
-
-@pytest.fixture
-async def device() -> AsyncIterator[FakeDevice]:
-    fake = FakeDevice()
-    await fake.start()
-    yield fake
-    await fake.stop()
-
-
-@pytest.fixture
-async def links() -> AsyncIterator[list[BaseLink]]:
-    """Links a test opened; all closed at teardown, whatever the test did."""
-    opened: list[BaseLink] = []
-    yield opened
-    for link in opened:
-        await asyncio.wait_for(link.close(), STEP)
 
 
 async def connect(

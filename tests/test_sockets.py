@@ -52,15 +52,6 @@ async def peer() -> AsyncIterator[tuple[Peer, str]]:
     await server.wait_closed()
 
 
-@pytest.fixture
-async def links() -> AsyncIterator[list[BaseLink]]:
-    """Links a test opened; all closed at teardown, whatever the test did."""
-    opened: list[BaseLink] = []
-    yield opened
-    for link in opened:
-        await asyncio.wait_for(link.close(), STEP)
-
-
 async def socket_link(
     links: list[BaseLink], url: str, **options: object
 ) -> tuple[StreamLink, StatusStore]:

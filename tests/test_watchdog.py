@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
@@ -27,23 +26,6 @@ def stale_timers(link: BaseLink) -> list[asyncio.TimerHandle]:
         if not handle.cancelled()
         and getattr(getattr(handle, "_callback", None), "__self__", None) is link
     ]
-
-
-@pytest.fixture
-async def device() -> AsyncIterator[FakeDevice]:
-    fake = FakeDevice()
-    await fake.start()
-    yield fake
-    await fake.stop()
-
-
-@pytest.fixture
-async def links() -> AsyncIterator[list[BaseLink]]:
-    """Links a test opened; all closed at teardown, whatever the test did."""
-    opened: list[BaseLink] = []
-    yield opened
-    for link in opened:
-        await asyncio.wait_for(link.close(), STEP)
 
 
 async def memory_link(links: list[BaseLink], **options: Any) -> tuple[MemoryConnector, StreamLink]:
