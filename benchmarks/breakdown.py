@@ -73,7 +73,7 @@ def _knock_out(stage: str) -> None:
 
 async def _feed(robots: int, frames: list[bytes], consumers: str) -> dict[str, float]:
     """CPU µs per frame for ``robots`` links fed ``frames`` each, and what got where."""
-    from galileo_async.link import StreamLink
+    from galileo_async.transports import StreamLink
     from galileo_async.state import StatusStore
 
     from .ingest import null_connector
@@ -97,7 +97,7 @@ async def _feed(robots: int, frames: list[bytes], consumers: str) -> dict[str, f
             received[0] += 1
 
     async def consume_fleet() -> None:
-        from galileo_async._fleet_streams import FleetHub
+        from galileo_async.fleet.streams import FleetHub
 
         hub = FleetHub()
         for index, store in enumerate(stores):

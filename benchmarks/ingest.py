@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from galileo_async.link import Connector, StreamLink
+from galileo_async.transports import Connector, StreamLink
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.protocol import HEADER, LAYOUTS, StatusDecoder, encode_status
 from galileo_async.protocol import commands as cmd

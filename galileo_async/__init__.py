@@ -21,9 +21,9 @@ from .models import (
 )
 
 if TYPE_CHECKING:
-    from .discovery import DiscoveredRobot, discover
     from .fleet import Fleet, FleetResult, RobotState, connect_fleet
     from .robot import Connection, GoalResult, Robot, connect
+    from .ros.discovery import DiscoveredRobot, discover
 
 __version__ = "0.1.0"
 
@@ -58,8 +58,8 @@ __all__ = [
 
 # The asyncio layers load on first use, so ``import galileo_async.protocol`` stays I/O-free.
 _LAZY: dict[str, str] = {
-    "DiscoveredRobot": "discovery",
-    "discover": "discovery",
+    "DiscoveredRobot": "ros.discovery",
+    "discover": "ros.discovery",
     "Fleet": "fleet",
     "FleetResult": "fleet",
     "RobotState": "fleet",

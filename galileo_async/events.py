@@ -1,4 +1,4 @@
-"""Typed transition events and the pure function that derives them from two statuses."""
+"""Typed transition events: what changed, as values (transitions.derive_events makes them)."""
 
 from __future__ import annotations
 
@@ -6,11 +6,9 @@ import warnings
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
-from .models import ChargeStatus, GalileoStatus, VisualStatus
-from .transitions import DEFAULT_ARRIVE_TOLERANCE, GoalChange, goal_transition
+from .models import ChargeStatus, GalileoStatus
 
 __all__ = [
-    "DEFAULT_ARRIVE_TOLERANCE",
     "AbandonedGoalCancelled",
     "BusyEnded",
     "BusyStarted",
@@ -37,10 +35,7 @@ __all__ = [
     "VisualInitialised",
     "VisualLost",
     "VisualRecovered",
-    "derive_events",
 ]
-
-_INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -202,96 +197,6 @@ class ConnectionLostEvent(Event):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ConnectionRestored(Event):
     """The transport is connected again after a drop."""
-
-
-def derive_events(
-    prev: GalileoStatus | None,
-    cur: GalileoStatus,
-    *,
-    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
-    last_distance: float | None = None,
-) -> list[Event]:
-    """Events for the transition prev → cur; a field unknown (None) on either side is no change.
-
-    The goal's events follow transitions.goal_transition (the goal rule); ``last_distance``
-    is the running goal's last valid distance seen before ``prev`` (running_distance), if known.
-    """
-    if prev is None:
-        return []
-    out: list[Event] = []
-    _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
-    _visual(out, prev.visual_status, cur.visual_status, cur)
-    _goal(out, prev, cur, arrive_tolerance, last_distance)
-    _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
-    old, new = prev.charge_status, cur.charge_status
-    if old is not None and new is not None and old != new:
-        out.append(ChargeStateChanged(status=cur, old=old, new=new))
-    _two_state(out, prev.loop_status, cur.loop_status, cur, PatrolStarted, PatrolStopped)
-    _two_state(out, prev.map_status, cur.map_status, cur, MappingStarted, MappingStopped)
-    return out
-
-
-def _two_state(
-    out: list[Event],
-    old: int | None,
-    new: int | None,
-    cur: GalileoStatus,
-    on: type[Event],
-    off: type[Event],
-) -> None:
-    if old is None or new is None or (old == 1) == (new == 1):
-        return
-    out.append(on(status=cur) if new == 1 else off(status=cur))
-
-
-def _visual(
-    out: list[Event], old: VisualStatus | None, new: VisualStatus | None, cur: GalileoStatus
-) -> None:
-    if old is None or new is None or old == new:
-        return
-    was, now = old in _INITIALISED, new in _INITIALISED
-    if now and not was:
-        out.append(VisualInitialised(status=cur))
-    elif new == VisualStatus.LOST or (was and not now and old != VisualStatus.LOST):
-        out.append(VisualLost(status=cur))
-    elif old == VisualStatus.LOST and new == VisualStatus.TRACKING:
-        out.append(VisualRecovered(status=cur))
-
-
-_SIMPLE_GOAL_EVENTS: dict[GoalChange, type[GoalEvent]] = {
-    GoalChange.ACCEPTED: GoalAccepted,
-    GoalChange.PAUSED: GoalPaused,
-    GoalChange.RESUMED: GoalResumed,
-    GoalChange.FAILED: GoalFailed,
-}
-
-
-def _goal(
-    out: list[Event],
-    prev: GalileoStatus,
-    cur: GalileoStatus,
-    tolerance: float,
-    last_distance: float | None,
-) -> None:
-    transition = goal_transition(prev, cur, arrive_tolerance=tolerance, last_distance=last_distance)
-    for change in transition.changes:
-        if change is GoalChange.REACHED:
-            out.append(
-                GoalReached(status=cur, target_id=cur.target_num_id, distance=transition.distance)
-            )
-        elif change is GoalChange.ABORTED:
-            out.append(
-                GoalAbortedEvent(
-                    status=cur, target_id=cur.target_num_id, distance=transition.distance
-                )
-            )
-        elif change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
-            preempted = change is GoalChange.PREEMPTED
-            out.append(
-                GoalCancelledEvent(status=cur, target_id=prev.target_num_id, preempted=preempted)
-            )
-        else:
-            out.append(_SIMPLE_GOAL_EVENTS[change](status=cur, target_id=cur.target_num_id))
 
 
 #: The events' former names, the same as errors' names (GoalAborted, …): importable from

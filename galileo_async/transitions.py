@@ -1,8 +1,8 @@
-"""The goal rule, written once: how a goal changed between two statuses (pure: no I/O).
+"""Transitions, pure (no I/O): two statuses in, events out; the goal rule, written once.
 
-events.derive_events (the events() stream) and the goal follower of goto/rotate_to both
-decide a goal's end here, so a goal that goto() reports reached is the goal that events()
-reports reached.
+derive_events (the events() stream) and the goal follower of goto/rotate_to both decide a
+goal's end with goal_transition, so a goal that goto() reports reached is the goal that
+events() reports reached.
 """
 
 from __future__ import annotations
@@ -10,7 +10,30 @@ from __future__ import annotations
 from enum import Enum
 from typing import NamedTuple
 
-from .models import GalileoStatus, TargetStatus
+from .events import (
+    BusyEnded,
+    BusyStarted,
+    ChargeStateChanged,
+    Event,
+    GoalAbortedEvent,
+    GoalAccepted,
+    GoalCancelledEvent,
+    GoalEvent,
+    GoalFailed,
+    GoalPaused,
+    GoalReached,
+    GoalResumed,
+    MappingStarted,
+    MappingStopped,
+    NavigationClosed,
+    NavigationOpened,
+    PatrolStarted,
+    PatrolStopped,
+    VisualInitialised,
+    VisualLost,
+    VisualRecovered,
+)
+from .models import GalileoStatus, TargetStatus, VisualStatus
 
 __all__ = [
     "ACTIVE",
@@ -19,6 +42,7 @@ __all__ = [
     "GoalChange",
     "GoalTransition",
     "arrived",
+    "derive_events",
     "end_distance",
     "goal_transition",
     "running_distance",
@@ -125,3 +149,96 @@ def running_distance(measured: GalileoStatus | None, prev: GalileoStatus) -> flo
     if measured.target_num_id != prev.target_num_id:
         return None
     return valid_distance(measured.target_distance)
+
+
+_INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
+
+
+def derive_events(
+    prev: GalileoStatus | None,
+    cur: GalileoStatus,
+    *,
+    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    last_distance: float | None = None,
+) -> list[Event]:
+    """Events for the transition prev → cur; a field unknown (None) on either side is no change.
+
+    The goal's events follow transitions.goal_transition (the goal rule); ``last_distance``
+    is the running goal's last valid distance seen before ``prev`` (running_distance), if known.
+    """
+    if prev is None:
+        return []
+    out: list[Event] = []
+    _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
+    _visual(out, prev.visual_status, cur.visual_status, cur)
+    _goal(out, prev, cur, arrive_tolerance, last_distance)
+    _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
+    old, new = prev.charge_status, cur.charge_status
+    if old is not None and new is not None and old != new:
+        out.append(ChargeStateChanged(status=cur, old=old, new=new))
+    _two_state(out, prev.loop_status, cur.loop_status, cur, PatrolStarted, PatrolStopped)
+    _two_state(out, prev.map_status, cur.map_status, cur, MappingStarted, MappingStopped)
+    return out
+
+
+def _two_state(
+    out: list[Event],
+    old: int | None,
+    new: int | None,
+    cur: GalileoStatus,
+    on: type[Event],
+    off: type[Event],
+) -> None:
+    if old is None or new is None or (old == 1) == (new == 1):
+        return
+    out.append(on(status=cur) if new == 1 else off(status=cur))
+
+
+def _visual(
+    out: list[Event], old: VisualStatus | None, new: VisualStatus | None, cur: GalileoStatus
+) -> None:
+    if old is None or new is None or old == new:
+        return
+    was, now = old in _INITIALISED, new in _INITIALISED
+    if now and not was:
+        out.append(VisualInitialised(status=cur))
+    elif new == VisualStatus.LOST or (was and not now and old != VisualStatus.LOST):
+        out.append(VisualLost(status=cur))
+    elif old == VisualStatus.LOST and new == VisualStatus.TRACKING:
+        out.append(VisualRecovered(status=cur))
+
+
+_SIMPLE_GOAL_EVENTS: dict[GoalChange, type[GoalEvent]] = {
+    GoalChange.ACCEPTED: GoalAccepted,
+    GoalChange.PAUSED: GoalPaused,
+    GoalChange.RESUMED: GoalResumed,
+    GoalChange.FAILED: GoalFailed,
+}
+
+
+def _goal(
+    out: list[Event],
+    prev: GalileoStatus,
+    cur: GalileoStatus,
+    tolerance: float,
+    last_distance: float | None,
+) -> None:
+    transition = goal_transition(prev, cur, arrive_tolerance=tolerance, last_distance=last_distance)
+    for change in transition.changes:
+        if change is GoalChange.REACHED:
+            out.append(
+                GoalReached(status=cur, target_id=cur.target_num_id, distance=transition.distance)
+            )
+        elif change is GoalChange.ABORTED:
+            out.append(
+                GoalAbortedEvent(
+                    status=cur, target_id=cur.target_num_id, distance=transition.distance
+                )
+            )
+        elif change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
+            preempted = change is GoalChange.PREEMPTED
+            out.append(
+                GoalCancelledEvent(status=cur, target_id=prev.target_num_id, preempted=preempted)
+            )
+        else:
+            out.append(_SIMPLE_GOAL_EVENTS[change](status=cur, target_id=cur.target_num_id))

@@ -9,7 +9,7 @@ import pytest
 from fake_device import FakeDevice
 from hypothesis import HealthCheck, settings
 
-from galileo_async.link import BaseLink
+from galileo_async.transports import BaseLink
 
 settings.register_profile(
     "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]

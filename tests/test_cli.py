@@ -251,7 +251,7 @@ def test_verbose_shows_the_traceback() -> None:
 def test_very_verbose_logs_raw_frames() -> None:
     result = invoke("-vv", "send", "Stop")
     assert result.exit_code == 0, result.output
-    assert "galileo_async.link.frames" in result.stderr
+    assert "galileo_async.transports.frames" in result.stderr
     assert "cd eb d7" in result.stderr
 
 

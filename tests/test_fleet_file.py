@@ -9,7 +9,7 @@ import pytest
 
 from galileo_async import RobotState
 from galileo_async.errors import InvalidArgument
-from galileo_async.fleet_file import FleetFileError, load_fleet_file
+from galileo_async.fleet.file import FleetFileError, load_fleet_file
 
 GOOD = """
 targets = "targets.csv"

@@ -16,7 +16,7 @@ import pytest
 from scripted_robot import ScriptedRobot, connected, drive, flush, ignore
 
 from galileo_async import AcceptTimeout, GoalResult, TargetStatus
-from galileo_async._goal import ALREADY_THERE_FRAMES
+from galileo_async.robot.goal import ALREADY_THERE_FRAMES
 from galileo_async.protocol import Cancel, Goto, Stop
 
 #: Standing on target 3, the previous goal to it finished: what the firmware then shows.

@@ -19,7 +19,7 @@ from sim_integration import SPEED, WAIT, record_commands, time_limit
 
 import galileo_async as galileo
 from galileo_async import TargetStatus
-from galileo_async.link import StreamLink
+from galileo_async.transports import StreamLink
 from galileo_async.protocol import Cancel, Command, Goto, Stop
 from galileo_async.sim import Simulator
 from galileo_async.state import StatusStore

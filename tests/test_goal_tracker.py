@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 
 from galileo_async import GalileoStatus, GoalAborted, GoalCancelled
-from galileo_async._goal import GoalTracker
+from galileo_async.robot.goal import GoalTracker
 
 
 def status(**fields: Any) -> GalileoStatus:

@@ -140,12 +140,12 @@ def test_the_package_has_no_import_circle() -> None:
 
 
 def test_the_graph_covers_the_package() -> None:
-    assert {"galileo_async.state", "galileo_async.subscriptions", "galileo_async.link"} <= set(
-        GRAPH
-    )
-    assert "galileo_async.subscriptions" in GRAPH["galileo_async.state"]
-    # Imports inside functions count: the link package loads the simulator for sim:// only.
-    assert {"galileo_async.sim", "galileo_async.link.ros"} <= GRAPH["galileo_async.link"]
+    assert {
+        "galileo_async.state.store", "galileo_async.state.streams", "galileo_async.transports.urls"
+    } <= set(GRAPH)  # fmt: skip
+    assert "galileo_async.state.streams" in GRAPH["galileo_async.state.store"]
+    # Imports inside functions count: the URL switch loads the simulator for sim:// only.
+    assert {"galileo_async.sim", "galileo_async.ros"} <= GRAPH["galileo_async.transports.urls"]
 
 
 def test_no_own_module_is_loaded_by_name() -> None:
@@ -220,9 +220,9 @@ def foreign_private_attributes(source: str) -> list[str]:
 
 def test_the_store_reaches_into_no_subscription() -> None:
     # The store feeds subscriptions through offer/fail/close (and, per frame, the batch
-    # offers of subscriptions.py); they read it as a StatusSource.
-    state = FILES["galileo_async.state"].read_text(encoding="utf-8")
+    # offers of state/streams.py); they read it as a StatusSource.
+    state = FILES["galileo_async.state.store"].read_text(encoding="utf-8")
     assert foreign_private_attributes(state) == []
-    assert "galileo_async.state" not in GRAPH["galileo_async.subscriptions"]
+    assert "galileo_async.state.store" not in GRAPH["galileo_async.state.streams"]
     sample = "self._ok = 1\nstream._wakeup = None\nwatch._push(x)\n"
     assert foreign_private_attributes(sample) == ["2: stream._wakeup", "3: watch._push"]

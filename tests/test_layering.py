@@ -7,7 +7,6 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import pytest
 
@@ -53,12 +52,15 @@ def test_transitions_and_its_imports_load_no_io_library() -> None:
     assert loaded_io_modules(BARE_PACKAGE, "galileo_async.transitions") == []
 
 
-def test_transitions_imports_only_the_models() -> None:
+def test_transitions_imports_only_the_models_and_the_event_types() -> None:
     names = imports_of(PACKAGE_DIR / "transitions.py")
     assert not imported_modules((PACKAGE_DIR / "transitions.py").read_text()) & set(FORBIDDEN)
     own = {n for n in names if n.startswith("galileo_async")}
-    assert own
-    assert within(own, "galileo_async.models") == own, own
+    assert within(own, "galileo_async.models")
+    assert within(own, "galileo_async.events")
+    assert within(own, "galileo_async.models", "galileo_async.events") == own, own
+    events = {n for n in imports_of(PACKAGE_DIR / "events.py") if n.startswith("galileo_async")}
+    assert within(events, "galileo_async.models") == events, events
 
 
 def test_the_subprocess_check_can_see_asyncio() -> None:
@@ -95,13 +97,43 @@ def test_import_scan_finds_imports() -> None:
     assert imported_modules(sample) >= {"asyncio", "anyio", "serial"}
 
 
-# --- layers above protocol (docs/architecture.md: a module never imports one above it) -----
+# --- layers above protocol (DESIGN.md: dependencies point one way, downwards) -------------
 
-ROBOT_LAYER = ("robot", "_services", "_operations", "_goal", "_targets")
-STATE_LAYER = ("state", "events", "transitions")
-#: Link modules that still import the state layer until their pending one-line change lands;
-#: each case XPASSes (strict: fails) once it does, so the entry must then be removed.
-LINK_PENDING: dict[str, str] = {}
+#: Each part of the package, by the dotted prefix of its modules (longest prefix wins).
+PARTS = {
+    "galileo_async.models": "base",
+    "galileo_async.errors": "base",
+    "galileo_async._checks": "base",
+    "galileo_async.protocol": "protocol",
+    "galileo_async.sim": "sim",
+    "galileo_async.events": "transitions",
+    "galileo_async.transitions": "transitions",
+    "galileo_async.transports": "transports",
+    "galileo_async.ros": "ros",
+    "galileo_async.state": "state",
+    "galileo_async.robot": "robot",
+    "galileo_async.fleet": "fleet",
+    "galileo_async.vda5050": "vda5050",
+    "galileo_async.cli": "cli",
+}
+#: What each part may import besides itself. transports and ros know nothing of goals or
+#: state; state knows no transport; sim speaks from the device side on protocol and models
+#: only, so a bug in robot cannot hide behind a matching bug in the simulator.
+MAY_IMPORT = {
+    "base": {"base"},
+    "protocol": {"base"},
+    "sim": {"base", "protocol"},
+    "transitions": {"base"},
+    "transports": {"base", "protocol"},
+    "ros": {"base", "protocol", "transports"},
+    "state": {"base", "transitions"},
+    "robot": {"base", "protocol", "transitions", "state", "transports"},
+    "fleet": {"base", "transitions", "state", "robot"},
+    "vda5050": {"base", "transitions", "robot"},
+}
+#: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
+#: the ROS link for ros:// inside the functions that need them (or for type checking).
+LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros"}}
 #: Modules that open or speak to a transport: state must do no I/O and know no transport.
 TRANSPORT_MODULES = (
     "socket",
@@ -140,21 +172,42 @@ TRANSPORT_ASYNCIO_NAMES = {
 
 
 def module_name(path: Path) -> str:
-    """Dotted name of a source file of the package (``galileo_async.link.base``)."""
+    """Dotted name of a source file of the package (``galileo_async.transports.base``)."""
     parts = path.relative_to(PACKAGE_DIR).with_suffix("").parts
     if parts[-1] == "__init__":
         parts = parts[:-1]
     return ".".join(("galileo_async", *parts))
 
 
-def full_imports(source: str, module: str = "", *, is_package: bool = False) -> set[str]:
+def _import_nodes(tree: ast.Module, *, eager_only: bool) -> list[ast.Import | ast.ImportFrom]:
+    """Import statements; ``eager_only``: those run at import time (not in functions or
+    ``if TYPE_CHECKING:``)."""
+    if not eager_only:
+        return [n for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    found: list[ast.Import | ast.ImportFrom] = []
+    todo: list[ast.stmt] = list(tree.body)
+    while todo:
+        node = todo.pop()
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            found.append(node)
+        elif isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            todo.extend(node.orelse)
+        elif isinstance(node, (ast.If, ast.Try, ast.With)):
+            todo.extend(ast.iter_child_nodes(node))  # type: ignore[arg-type]
+    return [n for n in found if isinstance(n, (ast.Import, ast.ImportFrom))]
+
+
+def full_imports(
+    source: str, module: str = "", *, is_package: bool = False, eager_only: bool = False
+) -> set[str]:
     """Every dotted name an import in ``source`` mentions, relative imports made absolute."""
     package = module if is_package else module.rpartition(".")[0]
     names: set[str] = set()
-    for node in ast.walk(ast.parse(source)):
+    tree = ast.parse(source)
+    for node in _import_nodes(tree, eager_only=eager_only):
         if isinstance(node, ast.Import):
             names |= {alias.name for alias in node.names}
-        elif isinstance(node, ast.ImportFrom):
+        else:
             base = ""
             if node.level:
                 parts = package.split(".")
@@ -162,7 +215,10 @@ def full_imports(source: str, module: str = "", *, is_package: bool = False) -> 
             target = ".".join(p for p in (base, node.module or "") if p)
             names.add(target)
             names |= {f"{target}.{alias.name}" for alias in node.names}  # `from . import state`
-        elif isinstance(node, ast.Call):
+    if eager_only:
+        return names
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
             func = node.func
             called = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
             if called in ("import_module", "__import__"):
@@ -174,15 +230,27 @@ def full_imports(source: str, module: str = "", *, is_package: bool = False) -> 
     return names
 
 
-def imports_of(path: Path) -> set[str]:
+def imports_of(path: Path, *, eager_only: bool = False) -> set[str]:
     return full_imports(
-        path.read_text(encoding="utf-8"), module_name(path), is_package=path.name == "__init__.py"
+        path.read_text(encoding="utf-8"),
+        module_name(path),
+        is_package=path.name == "__init__.py",
+        eager_only=eager_only,
     )
 
 
 def within(names: set[str], *modules: str) -> set[str]:
     """The names that are one of ``modules`` or inside one."""
     return {n for n in names for m in modules if n == m or n.startswith(m + ".")}
+
+
+def part_of(name: str) -> str | None:
+    """The part (PARTS) a dotted name of the package belongs to, if any."""
+    while name:
+        if name in PARTS:
+            return PARTS[name]
+        name = name.rpartition(".")[0]
+    return None
 
 
 def asyncio_names(source: str) -> set[str]:
@@ -200,6 +268,10 @@ def package_modules(*layer: str) -> list[str]:
     return [f"galileo_async.{name}" for name in layer]
 
 
+SOURCES = sorted(PACKAGE_DIR.rglob("*.py"))
+LAYERED = [p for p in SOURCES if part_of(module_name(p)) in MAY_IMPORT]
+
+
 def test_import_resolution_makes_relative_imports_absolute() -> None:
     sample = (
         "from ..state import StatusStore\n"
@@ -208,66 +280,125 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
         "import asyncio.streams\n"
         "import importlib\n"
         "importlib.import_module('galileo_async.cli')\n"
+        "def f():\n    from ..sim import Simulator\n"
     )
-    names = full_imports(sample, "galileo_async.link.stream")
-    assert within(names, *package_modules(*STATE_LAYER)) == {
+    names = full_imports(sample, "galileo_async.transports.stream")
+    assert within(names, "galileo_async.state") == {
         "galileo_async.state",
         "galileo_async.state.StatusStore",
     }
     assert within(names, "galileo_async.robot") == {"galileo_async.robot"}
-    assert "galileo_async.link.base" in names
+    assert "galileo_async.transports.base" in names
     assert "galileo_async.cli" in names
     assert within(names, *TRANSPORT_MODULES) == {"asyncio.streams"}
+    eager = full_imports(sample, "galileo_async.transports.stream", eager_only=True)
+    assert "galileo_async.sim.Simulator" in names
+    assert not within(eager, "galileo_async.sim")
+    assert "galileo_async.cli" not in eager
     sample_uses = "t: asyncio.Transport\nasyncio.get_running_loop()\n"
     assert asyncio_names(sample_uses) & TRANSPORT_ASYNCIO_NAMES == {"Transport"}
     package = full_imports(
-        "from .stream import StreamLink\n", "galileo_async.link", is_package=True
+        "from .stream import StreamLink\n", "galileo_async.transports", is_package=True
     )
-    assert "galileo_async.link.stream" in package
+    assert "galileo_async.transports.stream" in package
+    assert part_of("galileo_async.transports.stream.StreamLink") == "transports"
+    assert part_of("galileo_async.events.GoalReached") == "transitions"
+    assert part_of("galileo_async") is None
 
 
-def test_sim_imports_none_of_robot_state_link_or_cli() -> None:
+def test_every_module_has_a_part() -> None:
+    unplaced = {module_name(p) for p in SOURCES if part_of(module_name(p)) is None}
+    assert unplaced == {"galileo_async", "galileo_async.__main__"}  # the package front door
+    assert {part_of(module_name(p)) for p in SOURCES} >= set(MAY_IMPORT) | {"cli"}
+
+
+@pytest.mark.parametrize("path", LAYERED, ids=lambda p: p.relative_to(PACKAGE_DIR).as_posix())
+def test_each_module_imports_only_its_part_and_those_below(path: Path) -> None:
+    module = module_name(path)
+    part = part_of(module)
+    assert part is not None
+    eager = imports_of(path, eager_only=True)
+    every = imports_of(path)
+    lazy_allowed = LAZY_ONLY.get(module, set())
+    wrong = sorted(
+        name
+        for name in every
+        if (other := part_of(name)) is not None
+        and other != part
+        and other not in MAY_IMPORT[part]
+        and not (other in lazy_allowed and name not in eager)
+    )
+    assert not wrong, f"{module} ({part}) imports {wrong}"
+
+
+def test_the_url_switch_loads_sim_and_ros_lazily_only() -> None:
+    path = PACKAGE_DIR / "transports" / "urls.py"
+    eager = imports_of(path, eager_only=True)
+    assert {part_of(n) for n in imports_of(path)} >= {"sim", "ros"}
+    assert not {part_of(n) for n in eager} & {"sim", "ros"}
+
+
+def test_vda5050_uses_the_public_robot_api_only() -> None:
+    for path in sorted((PACKAGE_DIR / "vda5050").rglob("*.py")):
+        robot = within(imports_of(path), "galileo_async.robot")
+        assert robot <= {"galileo_async.robot", "galileo_async.robot.Robot"}, robot
+
+
+def test_sim_imports_none_of_robot_state_transports_or_cli() -> None:
     sources = sorted((PACKAGE_DIR / "sim").rglob("*.py"))
     assert {p.name for p in sources} >= {"__init__.py", "simulator.py", "device.py"}
-    upper = package_modules(*ROBOT_LAYER, *STATE_LAYER, "link", "cli", "discovery")
+    upper = package_modules("robot", "state", "transitions", "events", "transports", "ros", "cli")
     for path in sources:
         found = within(imports_of(path), *upper)
         assert not found, f"sim/{path.name} imports {found}"
 
 
-@pytest.mark.parametrize("name", ["state.py", "events.py", "transitions.py"])
-def test_state_knows_no_transport(name: str) -> None:
-    path = PACKAGE_DIR / name
+STATE_SOURCES = [
+    *sorted((PACKAGE_DIR / "state").rglob("*.py")),
+    PACKAGE_DIR / "events.py",
+    PACKAGE_DIR / "transitions.py",
+]
+
+
+@pytest.mark.parametrize("path", STATE_SOURCES, ids=lambda p: p.relative_to(PACKAGE_DIR).as_posix())
+def test_state_knows_no_transport(path: Path) -> None:
     names = imports_of(path)
-    found = within(names, *TRANSPORT_MODULES, *package_modules("link", "memory", "sim"))
-    assert not found, f"{name} imports {found}"
+    found = within(names, *TRANSPORT_MODULES, *package_modules("transports", "ros", "sim"))
+    assert not found, f"{path.name} imports {found}"
     uses = asyncio_names(path.read_text(encoding="utf-8")) & TRANSPORT_ASYNCIO_NAMES
-    assert not uses, f"{name} uses asyncio.{uses}"
+    assert not uses, f"{path.name} uses asyncio.{uses}"
 
 
-LINK_DIR = PACKAGE_DIR / "link"
-LINK_SOURCES = sorted(LINK_DIR.rglob("*.py"))
+LINK_SOURCES = sorted((PACKAGE_DIR / "transports").rglob("*.py")) + sorted(
+    (PACKAGE_DIR / "ros").rglob("*.py")
+)
 
 
-def link_case(path: Path) -> Any:
-    rel = path.relative_to(LINK_DIR).as_posix()
-    marks = []
-    if rel in LINK_PENDING:
-        reason = f"pending: {LINK_PENDING[rel]}"
-        marks.append(pytest.mark.xfail(strict=True, raises=AssertionError, reason=reason))
-    return pytest.param(path, id=rel, marks=marks)
-
-
-@pytest.mark.parametrize("path", [link_case(path) for path in LINK_SOURCES])
-def test_link_imports_nothing_from_robot_or_state(path: Path) -> None:
-    found = within(imports_of(path), *package_modules(*ROBOT_LAYER, *STATE_LAYER, "cli"))
+@pytest.mark.parametrize("path", LINK_SOURCES, ids=lambda p: p.relative_to(PACKAGE_DIR).as_posix())
+def test_transports_import_nothing_from_robot_or_state(path: Path) -> None:
+    upper = ("robot", "state", "events", "transitions", "fleet", "cli", "vda5050")
+    found = within(imports_of(path), *package_modules(*upper))
     assert not found, f"{module_name(path)} imports {found}"
 
 
-def test_link_layer_checks_cover_the_link_package() -> None:
-    names = {p.relative_to(LINK_DIR).as_posix() for p in LINK_SOURCES}
-    assert names >= {"__init__.py", "base.py", "stream.py", "connectors.py", "ros/link.py"}
-    assert set(LINK_PENDING) <= names
+def test_transport_checks_cover_the_transport_packages() -> None:
+    names = {p.relative_to(PACKAGE_DIR).as_posix() for p in LINK_SOURCES}
+    assert names >= {
+        "transports/__init__.py", "transports/base.py", "transports/stream.py",
+        "transports/connectors.py", "transports/urls.py", "ros/link.py",
+    }  # fmt: skip
+
+
+MAX_LINES = 400
+
+
+def test_no_module_is_over_400_lines() -> None:
+    long = {
+        module_name(p): n
+        for p in SOURCES
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    }
+    assert long == {}
 
 
 # --- optional parts (DESIGN.md: cli behind the extra [cli]; the core needs neither) --------
@@ -280,7 +411,7 @@ CORE_SOURCES = sorted(p for p in PACKAGE_DIR.rglob("*.py") if CLI_DIR not in p.p
 
 def test_no_core_module_imports_the_command_line_libraries() -> None:
     assert {module_name(p) for p in CORE_SOURCES} >= {
-        "galileo_async", "galileo_async.robot", "galileo_async.fleet", "galileo_async.link.ros",
+        "galileo_async", "galileo_async.robot", "galileo_async.fleet", "galileo_async.ros",
         "galileo_async.vda5050",
     }  # fmt: skip
     for path in CORE_SOURCES:

@@ -23,9 +23,9 @@ from galileo_async.errors import (
     InvalidArgument,
     LinkStale,
 )
-from galileo_async.link import BaseLink, LinkStats, StreamLink, open_link
-from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
-from galileo_async.link.stream import READ_SIZE, _read_buffer
+from galileo_async.transports import BaseLink, LinkStats, StreamLink, open_link
+from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
+from galileo_async.transports.stream import READ_SIZE, _read_buffer
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
@@ -378,12 +378,12 @@ async def test_raw_frames_are_logged_at_debug_only(
     with caplog.at_level(logging.INFO, logger="galileo_async"):
         device.push()
         await store.wait_until(lambda s: s.time_stamp == 1, timeout=STEP)
-    assert not [r for r in caplog.records if r.name == "galileo_async.link.frames"]
-    with caplog.at_level(logging.DEBUG, logger="galileo_async.link.frames"):
+    assert not [r for r in caplog.records if r.name == "galileo_async.transports.frames"]
+    with caplog.at_level(logging.DEBUG, logger="galileo_async.transports.frames"):
         device.push()
         await store.wait_until(lambda s: s.time_stamp == 2, timeout=STEP)
         await link.send(Goto(3))
-    frames = [r.getMessage() for r in caplog.records if r.name == "galileo_async.link.frames"]
+    frames = [r.getMessage() for r in caplog.records if r.name == "galileo_async.transports.frames"]
     assert any(m.startswith("rx cd eb d7 55") for m in frames)
     assert any(m.startswith("tx cd eb d7 02 67 03") for m in frames)
 
@@ -399,7 +399,7 @@ def test_open_link_url_forms(monkeypatch: pytest.MonkeyPatch) -> None:
         open_link("/dev/ttyUSB0", store, baudrate=0)
     with pytest.raises(InvalidArgument):
         open_link("socket://h:1", store, stale_timeout=0)
-    monkeypatch.setitem(sys.modules, "galileo_async.link.ros", None)
+    monkeypatch.setitem(sys.modules, "galileo_async.ros", None)
     with pytest.raises(GalileoConnectionError, match="ROS"):
         open_link("ros://127.0.0.1:11311", store)
 

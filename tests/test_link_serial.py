@@ -14,8 +14,8 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, GalileoConnectionError
-from galileo_async.link import StreamLink, open_link
-from galileo_async.link.connectors import serial_backend, translate_errors
+from galileo_async.transports import StreamLink, open_link
+from galileo_async.transports.connectors import serial_backend, translate_errors
 from galileo_async.protocol import CommandDecoder, Goto, StopPatrol, encode
 from galileo_async.state import StatusStore
 

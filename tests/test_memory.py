@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from galileo_async.memory import MemoryTransport, create_transport_pair
+from galileo_async.sim.memory import MemoryTransport, create_transport_pair
 
 
 class Recorder(asyncio.Protocol):

@@ -34,7 +34,7 @@ from galileo_async import (
     UnconfirmedOperation,
 )
 from galileo_async.events import Event, NavigationOpened
-from galileo_async.link import LinkStats
+from galileo_async.transports import LinkStats
 from galileo_async.protocol import (
     AddTarget,
     Backward,

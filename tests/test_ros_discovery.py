@@ -11,7 +11,7 @@ import pytest
 from cancel_ways import WAYS, stop_waiting
 from ros_support import free_port
 
-from galileo_async.discovery import DiscoveredRobot, discover, parse_announcement
+from galileo_async.ros.discovery import DiscoveredRobot, discover, parse_announcement
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
 
 pytestmark = pytest.mark.timeout(20)

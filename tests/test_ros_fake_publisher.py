@@ -11,16 +11,16 @@ import pytest
 from ros_support import RosMaster
 
 from galileo_async.errors import GalileoConnectionError
-from galileo_async.link.ros import (
+from galileo_async.ros import (
     CMDS_TOPIC,
     STATUS_MD5,
     STATUS_TOPIC,
     STATUS_TYPE,
     open_ros_link,
 )
-from galileo_async.link.ros.messages import CMDS_TYPE, STATUS_DEFINITION, full_definition
-from galileo_async.link.ros.tcpros import TcprosPublisher, subscribe
-from galileo_async.link.ros.xmlrpc import MasterClient, SlaveServer, request_topic
+from galileo_async.ros.messages import CMDS_TYPE, STATUS_DEFINITION, full_definition
+from galileo_async.ros.tcpros import TcprosPublisher, subscribe
+from galileo_async.ros.xmlrpc import MasterClient, SlaveServer, request_topic
 from galileo_async.models import NavStatus
 from galileo_async.protocol.commands import Goto
 from galileo_async.state import StatusStore

@@ -9,8 +9,8 @@ from typing import Any
 import pytest
 from ros_support import genpy_script
 
-from galileo_async.link.ros import messages as m
-from galileo_async.link.ros.msgdef import (
+from galileo_async.ros import messages as m
+from galileo_async.ros.msgdef import (
     MessageDefinitionError,
     compile_decoder,
     md5sum,

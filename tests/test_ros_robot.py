@@ -12,7 +12,7 @@ from ros_support import RobotNode, RosMaster
 
 import galileo_async as galileo
 from galileo_async.errors import GoalAborted, GoalCancelled, GoalRejected, NotReady
-from galileo_async.link.ros import RosLink
+from galileo_async.ros import RosLink
 from galileo_async.models import StatusLayout, TargetStatus
 from galileo_async.robot import Robot, connect
 

@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from ports import refused_port
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
-from galileo_async.link.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
-from galileo_async.link.ros import RosLink, open_ros_link, parse_ros_url
-from galileo_async.link.ros.tcpros import (
+from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
+from galileo_async.ros import RosLink, open_ros_link, parse_ros_url
+from galileo_async.ros.tcpros import (
     MAX_FRAME,
     Framer,
     TcprosError,
@@ -25,7 +25,7 @@ from galileo_async.link.ros.tcpros import (
     frame,
     subscribe,
 )
-from galileo_async.link.ros.xmlrpc import (
+from galileo_async.ros.xmlrpc import (
     MasterClient,
     RosApiError,
     SlaveServer,

@@ -676,7 +676,7 @@ def test_any_command_sequence_keeps_the_status_sane(
 
 
 def test_public_names_are_pinned() -> None:
-    import galileo_async.memory
+    import galileo_async.sim.memory
     import galileo_async.sim
 
     assert sorted(galileo_async.sim.__all__) == sorted(
@@ -686,4 +686,4 @@ def test_public_names_are_pinned() -> None:
             "parse_sim_url",
         ]
     )  # fmt: skip
-    assert galileo_async.memory.__all__ == ["MemoryTransport", "create_transport_pair"]
+    assert galileo_async.sim.memory.__all__ == ["MemoryTransport", "create_transport_pair"]

@@ -12,8 +12,8 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import GalileoConnectionError
-from galileo_async.link import BaseLink, StreamLink, open_link
-from galileo_async.link.connectors import socket_connector
+from galileo_async.transports import BaseLink, StreamLink, open_link
+from galileo_async.transports.connectors import socket_connector
 from galileo_async.protocol import CommandDecoder, Goto
 from galileo_async.state import StatusStore
 

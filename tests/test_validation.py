@@ -23,9 +23,9 @@ from scripted_robot import connected, nothing_was_sent_before_marker
 
 import galileo_async as galileo
 from galileo_async import AsyncioRequired, GalileoConnectionError, InvalidArgument, link
-from galileo_async._connect_options import CONNECT_OPTIONS
-from galileo_async._runtime import running_loop
-from galileo_async.link import ros
+from galileo_async.robot.options import CONNECT_OPTIONS
+from galileo_async.robot.runtime import running_loop
+from galileo_async import ros
 from galileo_async.protocol import Stop
 
 #: What a careless caller passes: not finite, beyond float range, negative, a str, a bool.

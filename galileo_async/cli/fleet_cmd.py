@@ -10,8 +10,8 @@ import typer
 from rich.live import Live
 
 from ..errors import InvalidArgument
-from ..fleet import RobotState
-from ..fleet_file import FleetSpec, load_fleet_file
+from ..fleet.file import FleetSpec, load_fleet_file
+from ..fleet.fleet import RobotState
 from .fleet_view import SORT_KEYS, FleetView
 from .goals import aclose
 from .map_render import save_svg
@@ -20,7 +20,7 @@ from .runner import ExitCode, fail, out_console, run, settings_of
 from .watch import SvgOption, TargetsOption, map_model
 
 if TYPE_CHECKING:
-    from ..fleet import Fleet
+    from ..fleet.fleet import Fleet
 
 __all__ = ["FLEET_REFRESH", "fleet_app"]
 

@@ -13,7 +13,7 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from ..fleet import Fleet, RobotState
+from ..fleet.fleet import Fleet, RobotState
 from ..models import GalileoStatus, TargetStatus
 from .map_model import MapModel
 from .map_render import map_panel

@@ -27,7 +27,7 @@ from ..errors import (
     InvalidArgument,
     NotReady,
 )
-from ..link import link_kind
+from ..transports import link_kind
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -276,10 +276,10 @@ _log_handler: logging.Handler | None = None
 
 
 def setup_logging(verbose: int) -> None:
-    """-v: driver debug logs on stderr; -vv: raw frames too (logger galileo_async.link.frames)."""
+    """-v: driver debug logs on stderr; -vv: raw frames too (logger …transports.frames)."""
     global _log_handler
     package = logging.getLogger("galileo_async")
-    frames = logging.getLogger("galileo_async.link.frames")
+    frames = logging.getLogger("galileo_async.transports.frames")
     if _log_handler is not None:  # an earlier invocation in this process (tests) set it up
         package.removeHandler(_log_handler)
         package.setLevel(logging.NOTSET)

@@ -113,7 +113,7 @@ def discover(
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:
     """List robots announcing themselves on the LAN, with the ros:// URL of their ROS master."""
-    from ..discovery import discover as listen
+    from ..ros.discovery import discover as listen
 
     settings = settings_of(ctx)
 

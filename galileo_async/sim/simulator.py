@@ -9,10 +9,10 @@ from types import TracebackType
 from typing import Any
 
 from ..errors import InvalidArgument
-from ..memory import create_transport_pair
 from ..models import GalileoStatus, Pose
 from .config import SimConfig, parse_sim_url
 from .device import DeviceConnection, DeviceStats, SimDevice, Ticker
+from .memory import create_transport_pair
 from .robot_model import RobotModel
 from .serve import PtyTransport
 

@@ -10,8 +10,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
 
 import anyio
 
-from ._runtime import Deadline
-from .errors import (
+from ..errors import (
     ConnectionLost,
     GalileoConnectionError,
     GalileoError,
@@ -23,14 +22,15 @@ from .errors import (
     UnconfirmedOperation,
     WrongEventLoop,
 )
-from .events import AbandonedGoalCancelled
-from .models import GalileoStatus
-from .protocol import Cancel, Command, Goto
+from ..events import AbandonedGoalCancelled
+from ..models import GalileoStatus
+from ..protocol import Cancel, Command, Goto
+from .runtime import Deadline
 
 if TYPE_CHECKING:
-    from .link import BaseLink
-    from .state import StatusStore
-    from .subscriptions import Watch
+    from ..state.store import StatusStore
+    from ..state.streams import Watch
+    from ..transports import BaseLink
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",

@@ -24,7 +24,7 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 #: Raw frames in hex, both directions, at DEBUG only.
-frames_log = logging.getLogger("galileo_async.link.frames")
+frames_log = logging.getLogger("galileo_async.transports.frames")
 _monotonic = time.monotonic
 
 

@@ -1,4 +1,4 @@
-"""Links: bytes or ROS messages to and from the robot, paced, supervised and counted."""
+"""The one URL switch: a serial path, socket://, sim:// or ros:// URL → its link or connector."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from urllib.parse import urlsplit
 
 from .._checks import check_names, naming
 from ..errors import GalileoConnectionError, InvalidArgument
-from .base import BaseLink, LinkStats, StatusSink
+from .base import BaseLink, StatusSink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -17,17 +17,8 @@ from .connectors import (
     parse_socket_url,
     serial_connector,
     socket_connector,
-    translate_errors,
 )
 from .options import (
-    CLOSE_TIMEOUT,
-    DEFAULT_DRAIN_TIMEOUT,
-    DEFAULT_MAX_QUEUED_COMMANDS,
-    DEFAULT_MIN_COMMAND_INTERVAL,
-    DEFAULT_RECONNECT_INITIAL,
-    DEFAULT_RECONNECT_MAX,
-    DEFAULT_STALE_RECONNECT,
-    DEFAULT_STALE_TIMEOUT,
     LINK_OPTIONS,
     STREAM_OPTIONS,
     check_values,
@@ -37,32 +28,7 @@ from .stream import StreamLink
 if TYPE_CHECKING:
     from ..sim import Simulator
 
-__all__ = [
-    "CLOSE_TIMEOUT",
-    "DEFAULT_BAUDRATE",
-    "DEFAULT_CONNECT_TIMEOUT",
-    "DEFAULT_DRAIN_TIMEOUT",
-    "DEFAULT_MAX_QUEUED_COMMANDS",
-    "DEFAULT_MIN_COMMAND_INTERVAL",
-    "DEFAULT_RECONNECT_INITIAL",
-    "DEFAULT_RECONNECT_MAX",
-    "DEFAULT_STALE_RECONNECT",
-    "DEFAULT_STALE_TIMEOUT",
-    "LINK_OPTIONS",
-    "STREAM_OPTIONS",
-    "BaseLink",
-    "Connector",
-    "LinkStats",
-    "StatusSink",
-    "StreamLink",
-    "byte_connector",
-    "check_link_options",
-    "link_kind",
-    "open_link",
-    "serial_connector",
-    "socket_connector",
-    "translate_errors",
-]
+__all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 
 
 def link_kind(url: str) -> str:
@@ -144,7 +110,7 @@ def _ros_module(url: str) -> ModuleType:
     try:
         # Optional, loaded only for ros:// URLs; spelled absolute so that the import asks
         # sys.modules (`from . import ros` would take a package attribute set earlier).
-        import galileo_async.link.ros as ros
+        import galileo_async.ros as ros
     except ImportError as exc:
         raise GalileoConnectionError(
             f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"

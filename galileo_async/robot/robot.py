@@ -4,14 +4,23 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator, Callable, Generator
+from collections.abc import AsyncIterator, Callable
 from types import TracebackType
-from typing import Any
 
-from ._checks import check_bool, check_timeout
-from ._connect_options import ROBOT_OPTIONS, check_connect_options, check_robot_options
-from ._goal import GoalResult, GoalRunner
-from ._operations import (
+from .._checks import check_bool, check_timeout
+from ..errors import (
+    GalileoTimeout,
+    InvalidArgument,
+    UnconfirmedOperation,
+)
+from ..events import Event
+from ..models import GalileoStatus
+from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
+from ..state.store import StatusStore, StatusStream
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE
+from ..transports import BaseLink, LinkStats
+from .goal import GoalResult, GoalRunner
+from .operations import (
     DEFAULT_TIMEOUT,
     GOAL_READY,
     NAVIGATING,
@@ -21,27 +30,16 @@ from ._operations import (
     Operations,
     Require,
 )
-from ._runtime import (
+from .options import check_robot_options
+from .runtime import (
     ROBOT_DEFAULT,
     Deadline,
     RobotDefault,
     finish_shielded,
     or_default,
-    running_loop,
 )
-from ._services import RobotServices
-from ._targets import DynamicTargets
-from .errors import (
-    GalileoConnectionError,
-    GalileoTimeout,
-    InvalidArgument,
-    UnconfirmedOperation,
-)
-from .events import DEFAULT_ARRIVE_TOLERANCE, Event
-from .link import BaseLink, LinkStats, open_link
-from .models import GalileoStatus
-from .protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
-from .state import StatusStore, StatusStream
+from .services import RobotServices
+from .targets import DynamicTargets
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -49,15 +47,12 @@ __all__ = [
     "DEFAULT_GOAL_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "DEFAULT_WAIT_TIMEOUT",
-    "FIRST_STATUS_TIMEOUT",
     "NAVIGATION_TIMEOUT",
     "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
-    "Connection",
     "GoalResult",
     "Robot",
     "RobotDefault",
-    "connect",
 ]
 
 _log = logging.getLogger(__name__)
@@ -70,8 +65,6 @@ DEFAULT_GOAL_TIMEOUT = 600.0
 DEFAULT_WAIT_TIMEOUT = 30.0
 #: Seconds for navigation to open and the visual system to initialise.
 NAVIGATION_TIMEOUT = 60.0
-#: Seconds ``connect`` waits for the first status frame.
-FIRST_STATUS_TIMEOUT = 3.0
 
 
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
@@ -300,84 +293,3 @@ class Robot(RobotServices):
         tb: TracebackType | None,
     ) -> None:
         await self.close()
-
-
-class Connection:
-    """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
-
-    def __init__(self, url: str, options: dict[str, Any]) -> None:
-        if not isinstance(url, str) or not url:
-            raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
-        check_connect_options(url, options)
-        self.url = url
-        self._options = options
-        self._robot: Robot | None = None
-
-    def __await__(self) -> Generator[Any, None, Robot]:
-        return self._open().__await__()
-
-    async def __aenter__(self) -> Robot:
-        self._robot = await self._open()
-        return self._robot
-
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if self._robot is not None:
-            await self._robot.close()
-
-    async def _open(self) -> Robot:
-        running_loop(f"connect({self.url!r})")
-        options = dict(self._options)
-        robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
-        first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
-        store = StatusStore(
-            arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
-        )
-        link = open_link(self.url, store, **options)
-        try:
-            robot = Robot(link, store, **robot_options)
-        except BaseException:
-            closing = asyncio.get_running_loop().create_task(link.close())
-            await finish_shielded(closing, "closing the link")
-            raise
-        try:
-            await link.open()
-            if "map_targets" not in robot_options:  # sim:// and ros:// can tell
-                robot.map_targets = link.map_target_count()
-            if first_status_timeout is not None:
-                await _first_status(store, first_status_timeout, self.url)
-        except BaseException:
-            await robot.close()
-            raise
-        _log.debug("connected to %s", self.url)
-        return robot
-
-
-async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
-    try:
-        await store.first_frame(timeout)
-    except GalileoTimeout:
-        raise GalileoConnectionError(
-            f"connected to {url}, but no valid status frame arrived within {timeout} s "
-            "(wrong port, baud rate or device?)"
-        ) from None
-
-
-def connect(url: str, **options: Any) -> Connection:
-    """Connect to the robot at ``url``: ``async with connect(url) as robot`` or ``await``.
-
-    ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
-    Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
-    ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
-    ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
-    Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
-    ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
-    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
-    their own. All are checked here, before anything opens (InvalidArgument naming one);
-    connecting needs a running asyncio loop (AsyncioRequired otherwise).
-    """
-    return Connection(url, options)

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._operations import NAVIGATING, Operations, Require, Sent
-from ._runtime import Deadline
-from .errors import NotReady
-from .models import GalileoStatus
-from .protocol import AddTarget, ResetTargets
+from ..errors import NotReady
+from ..models import GalileoStatus
+from ..protocol import AddTarget, ResetTargets
+from .operations import NAVIGATING, Operations, Require, Sent
+from .runtime import Deadline
 
 if TYPE_CHECKING:
-    from .subscriptions import Watch
+    from ..state.streams import Watch
 
 __all__ = ["MAX_TARGET_ID", "DynamicTargets"]
 

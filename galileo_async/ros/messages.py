@@ -6,10 +6,10 @@ import struct
 from collections.abc import Callable
 from typing import Any
 
-from ...models import STATUS_FIELDS, GalileoStatus, StatusLayout
-from ...protocol._build import trusted_status
-from ...protocol.commands import Command
-from ...protocol.layouts import ENUM_FIELDS
+from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
+from ..protocol._build import trusted_status
+from ..protocol.commands import Command
+from ..protocol.layouts import ENUM_FIELDS
 from .msgdef import (
     HEADER_DEFINITION,
     SEPARATOR,

@@ -7,9 +7,7 @@ import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NoReturn
 
-from ._operations import GOAL_READY, Operations, Sent
-from ._runtime import Deadline
-from .errors import (
+from ..errors import (
     AcceptTimeout,
     ConnectionLost,
     GalileoTimeout,
@@ -19,12 +17,14 @@ from .errors import (
     LinkStale,
     OperationTimeout,
 )
-from .models import GalileoStatus, TargetStatus
-from .protocol import Goto
-from .transitions import ACTIVE, arrived, end_distance, valid_distance
+from ..models import GalileoStatus, TargetStatus
+from ..protocol import Goto
+from ..transitions import ACTIVE, arrived, end_distance, valid_distance
+from .operations import GOAL_READY, Operations, Sent
+from .runtime import Deadline
 
 if TYPE_CHECKING:
-    from .subscriptions import Watch
+    from ..state.streams import Watch
 
 __all__ = [
     "ALREADY_THERE_FRAMES",

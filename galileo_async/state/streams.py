@@ -13,9 +13,9 @@ from collections.abc import Callable, Iterator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar
 
-from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout
-from .events import Event
-from .models import GalileoStatus
+from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout
+from ..events import Event
+from ..models import GalileoStatus
 
 __all__ = [
     "EventStream",

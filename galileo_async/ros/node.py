@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlsplit
 
-from ...errors import ConnectionLost, GalileoConnectionError
-from ...models import GalileoStatus
-from ...protocol.commands import Command
+from ..errors import ConnectionLost, GalileoConnectionError
+from ..models import GalileoStatus
+from ..protocol.commands import Command
 from .hosts import PeerAddresses
 from .messages import (
     CMDS_DEFINITION,

@@ -12,21 +12,21 @@ from typing import Any, Generic, TypeVar
 
 import anyio
 
-from ._fleet_streams import (
-    DEFAULT_FLEET_EVENT_QUEUE,
-    FleetEventStream,
-    FleetHub,
-    FleetStatusStream,
-)
-from ._runtime import finish_shielded
-from .errors import (
+from ..errors import (
     ConnectionLost,
     GalileoConnectionError,
     InvalidArgument,
     LinkStale,
     NotReady,
 )
-from .robot import Robot, connect
+from ..robot import Robot, connect
+from ..robot.runtime import finish_shielded
+from .streams import (
+    DEFAULT_FLEET_EVENT_QUEUE,
+    FleetEventStream,
+    FleetHub,
+    FleetStatusStream,
+)
 
 __all__ = [
     "DEFAULT_CONNECT_CONCURRENCY",

@@ -6,9 +6,9 @@ import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from ._checks import check_int, check_number, check_timeout, naming
-from ._targets import MAX_TARGET_ID
-from .link import check_link_options
+from .._checks import check_int, check_number, check_timeout, naming
+from ..transports import check_link_options
+from .targets import MAX_TARGET_ID
 
 __all__ = ["CONNECT_OPTIONS", "ROBOT_OPTIONS", "check_connect_options", "check_robot_options"]
 

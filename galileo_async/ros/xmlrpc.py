@@ -9,7 +9,7 @@ from collections.abc import Callable
 from typing import Any
 from urllib.parse import urlsplit
 
-from ...errors import GalileoConnectionError
+from ..errors import GalileoConnectionError
 from ._server import close_server
 
 __all__ = [

@@ -11,7 +11,7 @@ from typing import Final, TypeVar
 import anyio
 import anyio.lowlevel
 
-from .errors import AsyncioRequired
+from ..errors import AsyncioRequired
 
 __all__ = [
     "CLEANUP_TIMEOUT",

@@ -10,11 +10,12 @@ from collections.abc import Callable
 from operator import attrgetter
 from typing import Any, TypeVar
 
-from . import events as ev
-from .errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
-from .events import DEFAULT_ARRIVE_TOLERANCE, Event, derive_events
-from .models import GalileoStatus
-from .subscriptions import (
+from .. import events as ev
+from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
+from ..events import Event
+from ..models import GalileoStatus
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, derive_events, running_distance
+from .streams import (
     EventStream,
     StatusStream,
     Subscribers,
@@ -24,7 +25,6 @@ from .subscriptions import (
     offer_to_waiting,
     offer_to_watches,
 )
-from .transitions import running_distance
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",

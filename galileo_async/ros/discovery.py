@@ -9,8 +9,8 @@ import socket
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import GalileoConnectionError, InvalidArgument
-from .link.ros.link import DEFAULT_MASTER_PORT
+from ..errors import GalileoConnectionError, InvalidArgument
+from .link import DEFAULT_MASTER_PORT
 
 __all__ = ["DISCOVERY_PORT", "MAX_DATAGRAM", "DiscoveredRobot", "discover", "parse_announcement"]
 

@@ -9,12 +9,12 @@ from collections.abc import Callable, Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from ..._checks import check_names, check_seconds
-from ...errors import ConnectionLost, GalileoConnectionError, InvalidArgument
-from ...models import GalileoStatus
-from ...protocol.commands import Command
-from ..base import BaseLink, StatusSink
-from ..options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
+from .._checks import check_names, check_seconds
+from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
+from ..models import GalileoStatus
+from ..protocol.commands import Command
+from ..transports.base import BaseLink, StatusSink
+from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
 from .hosts import parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,

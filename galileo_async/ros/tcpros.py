@@ -8,8 +8,8 @@ import socket
 import struct
 from collections.abc import Callable
 
-from ...errors import GalileoConnectionError
-from ..connectors import set_keepalive
+from ..errors import GalileoConnectionError
+from ..transports.connectors import set_keepalive
 from ._server import close_server
 
 __all__ = [

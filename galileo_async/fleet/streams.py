@@ -13,12 +13,12 @@ import weakref
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
-from .events import Event
-from .models import GalileoStatus
-from .subscriptions import Subscribers, _Queue
+from ..events import Event
+from ..models import GalileoStatus
+from ..state.streams import Subscribers, _Queue
 
 if TYPE_CHECKING:
-    from .state import StatusStore
+    from ..state.store import StatusStore
 
 __all__ = ["DEFAULT_FLEET_EVENT_QUEUE", "FleetEventStream", "FleetHub", "FleetStatusStream"]
 

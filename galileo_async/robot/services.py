@@ -3,28 +3,16 @@ teleoperation, patrol, mapping, charging, the host. Each validates, then Operati
 
 from __future__ import annotations
 
-from ._checks import check_int, check_number, check_timeout
-from ._goal import GoalRunner
-from ._operations import (
-    DEFAULT_TIMEOUT,
-    NAVIGATING,
-    NOT_NAVIGATING,
-    ROTATE_TIMEOUT,
-    Confirm,
-    Operations,
-    Require,
-)
-from ._runtime import Deadline
-from ._targets import DynamicTargets
-from .errors import (
+from .._checks import check_int, check_number, check_timeout
+from ..errors import (
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
     OperationFailed,
     UnconfirmedOperation,
 )
-from .models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
-from .protocol import (
+from ..models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
+from ..protocol import (
     AddTarget,
     Backward,
     Cancel,
@@ -48,6 +36,18 @@ from .protocol import (
     TurnRight,
     UpdateMap,
 )
+from .goal import GoalRunner
+from .operations import (
+    DEFAULT_TIMEOUT,
+    NAVIGATING,
+    NOT_NAVIGATING,
+    ROTATE_TIMEOUT,
+    Confirm,
+    Operations,
+    Require,
+)
+from .runtime import Deadline
+from .targets import DynamicTargets
 
 __all__ = ["RobotServices"]
 

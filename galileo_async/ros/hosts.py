@@ -10,7 +10,7 @@ import socket
 from collections.abc import Mapping
 from urllib.parse import urlsplit, urlunsplit
 
-from ...errors import InvalidArgument
+from ..errors import InvalidArgument
 
 __all__ = ["RESOLVE_TIMEOUT", "PeerAddresses", "parse_hosts"]
 

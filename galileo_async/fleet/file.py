@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import InvalidArgument
+from ..errors import InvalidArgument
 
 if sys.version_info >= (3, 11):
     import tomllib

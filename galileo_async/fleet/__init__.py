@@ -1,0 +1,34 @@
+"""Fleets: many robots in one process, one merged coalesced stream, fleet files (TOML)."""
+
+from __future__ import annotations
+
+from .file import FleetFileError, FleetSpec, load_fleet_file, parse_fleet
+from .fleet import (
+    DEFAULT_CONNECT_CONCURRENCY,
+    DEFAULT_RETRY_INITIAL,
+    DEFAULT_RETRY_MAX,
+    Fleet,
+    FleetConnection,
+    FleetEventStream,
+    FleetResult,
+    FleetStatusStream,
+    RobotState,
+    connect_fleet,
+)
+
+__all__ = [
+    "DEFAULT_CONNECT_CONCURRENCY",
+    "DEFAULT_RETRY_INITIAL",
+    "DEFAULT_RETRY_MAX",
+    "Fleet",
+    "FleetConnection",
+    "FleetEventStream",
+    "FleetFileError",
+    "FleetResult",
+    "FleetSpec",
+    "FleetStatusStream",
+    "RobotState",
+    "connect_fleet",
+    "load_fleet_file",
+    "parse_fleet",
+]

@@ -1,0 +1,105 @@
+"""connect(): URL → transport → status store → Robot, opened and waiting for the first status."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Generator
+from types import TracebackType
+from typing import Any
+
+from ..errors import GalileoConnectionError, GalileoTimeout, InvalidArgument
+from ..state.store import StatusStore
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE
+from ..transports import open_link
+from .options import ROBOT_OPTIONS, check_connect_options
+from .robot import Robot
+from .runtime import finish_shielded, running_loop
+
+__all__ = ["FIRST_STATUS_TIMEOUT", "Connection", "connect"]
+
+_log = logging.getLogger(__name__)
+
+#: Seconds ``connect`` waits for the first status frame.
+FIRST_STATUS_TIMEOUT = 3.0
+
+
+class Connection:
+    """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
+
+    def __init__(self, url: str, options: dict[str, Any]) -> None:
+        if not isinstance(url, str) or not url:
+            raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
+        check_connect_options(url, options)
+        self.url = url
+        self._options = options
+        self._robot: Robot | None = None
+
+    def __await__(self) -> Generator[Any, None, Robot]:
+        return self._open().__await__()
+
+    async def __aenter__(self) -> Robot:
+        self._robot = await self._open()
+        return self._robot
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._robot is not None:
+            await self._robot.close()
+
+    async def _open(self) -> Robot:
+        running_loop(f"connect({self.url!r})")
+        options = dict(self._options)
+        robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
+        first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
+        store = StatusStore(
+            arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
+        )
+        link = open_link(self.url, store, **options)
+        try:
+            robot = Robot(link, store, **robot_options)
+        except BaseException:
+            closing = asyncio.get_running_loop().create_task(link.close())
+            await finish_shielded(closing, "closing the link")
+            raise
+        try:
+            await link.open()
+            if "map_targets" not in robot_options:  # sim:// and ros:// can tell
+                robot.map_targets = link.map_target_count()
+            if first_status_timeout is not None:
+                await _first_status(store, first_status_timeout, self.url)
+        except BaseException:
+            await robot.close()
+            raise
+        _log.debug("connected to %s", self.url)
+        return robot
+
+
+async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
+    try:
+        await store.first_frame(timeout)
+    except GalileoTimeout:
+        raise GalileoConnectionError(
+            f"connected to {url}, but no valid status frame arrived within {timeout} s "
+            "(wrong port, baud rate or device?)"
+        ) from None
+
+
+def connect(url: str, **options: Any) -> Connection:
+    """Connect to the robot at ``url``: ``async with connect(url) as robot`` or ``await``.
+
+    ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
+    Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
+    ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
+    ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
+    Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
+    ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
+    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
+    their own. All are checked here, before anything opens (InvalidArgument naming one);
+    connecting needs a running asyncio loop (AsyncioRequired otherwise).
+    """
+    return Connection(url, options)

@@ -1,0 +1,61 @@
+"""Transports: bytes to and from the robot on asyncio's own transports, paced, supervised, counted.
+
+One asyncio.Protocol (StreamLink) over serial, ``socket://`` and ``sim://``; BaseLink holds
+what every link shares (the one writer, reconnect, the stale timer); ``urls`` is the one URL
+switch, also used by the CLI.
+"""
+
+from __future__ import annotations
+
+from .base import BaseLink, LinkStats, StatusSink
+from .connectors import (
+    DEFAULT_BAUDRATE,
+    DEFAULT_CONNECT_TIMEOUT,
+    Connector,
+    parse_socket_url,
+    serial_connector,
+    socket_connector,
+    translate_errors,
+)
+from .options import (
+    CLOSE_TIMEOUT,
+    DEFAULT_DRAIN_TIMEOUT,
+    DEFAULT_MAX_QUEUED_COMMANDS,
+    DEFAULT_MIN_COMMAND_INTERVAL,
+    DEFAULT_RECONNECT_INITIAL,
+    DEFAULT_RECONNECT_MAX,
+    DEFAULT_STALE_RECONNECT,
+    DEFAULT_STALE_TIMEOUT,
+    LINK_OPTIONS,
+    STREAM_OPTIONS,
+)
+from .stream import StreamLink
+from .urls import byte_connector, check_link_options, link_kind, open_link
+
+__all__ = [
+    "CLOSE_TIMEOUT",
+    "DEFAULT_BAUDRATE",
+    "DEFAULT_CONNECT_TIMEOUT",
+    "DEFAULT_DRAIN_TIMEOUT",
+    "DEFAULT_MAX_QUEUED_COMMANDS",
+    "DEFAULT_MIN_COMMAND_INTERVAL",
+    "DEFAULT_RECONNECT_INITIAL",
+    "DEFAULT_RECONNECT_MAX",
+    "DEFAULT_STALE_RECONNECT",
+    "DEFAULT_STALE_TIMEOUT",
+    "LINK_OPTIONS",
+    "STREAM_OPTIONS",
+    "BaseLink",
+    "Connector",
+    "LinkStats",
+    "StatusSink",
+    "StreamLink",
+    "byte_connector",
+    "check_link_options",
+    "link_kind",
+    "open_link",
+    "parse_socket_url",
+    "serial_connector",
+    "socket_connector",
+    "translate_errors",
+]
