@@ -38,9 +38,9 @@ from galileo_async.errors import (
     OperationTimeout,
 )
 from galileo_async.events import GoalReached, NavigationOpened
-from galileo_async.transports import LinkStats
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.protocol import AddTarget, Goto, Greeting, RawCommand, Stop, TurnLeft
+from galileo_async.transports import LinkStats
 
 
 @pytest.mark.parametrize(

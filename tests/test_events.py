@@ -7,9 +7,9 @@ from typing import Any
 import pytest
 
 from galileo_async import events as ev
-from galileo_async.events import derive_events
 from galileo_async.models import ChargeStatus, GalileoStatus, StatusLayout
 from galileo_async.protocol import V2_DEFAULTS
+from galileo_async.transitions import derive_events
 
 IDLE: dict[str, Any] = {**V2_DEFAULTS, "nav_status": 1, "visual_status": 1, "target_status": 0}
 

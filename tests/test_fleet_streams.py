@@ -10,8 +10,8 @@ from cancel_ways import WAYS, stop_waiting
 from fake_device import make_status
 
 from galileo_async import events as ev
-from galileo_async.fleet.streams import FleetHub, FleetStatusStream
 from galileo_async.errors import ConnectionLost, LinkStale
+from galileo_async.fleet.streams import FleetHub, FleetStatusStream
 from galileo_async.state import StatusStore
 
 WAIT = 5.0

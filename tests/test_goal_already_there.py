@@ -16,8 +16,8 @@ import pytest
 from scripted_robot import ScriptedRobot, connected, drive, flush, ignore
 
 from galileo_async import AcceptTimeout, GoalResult, TargetStatus
-from galileo_async.robot.goal import ALREADY_THERE_FRAMES
 from galileo_async.protocol import Cancel, Goto, Stop
+from galileo_async.robot.goal import ALREADY_THERE_FRAMES
 
 #: Standing on target 3, the previous goal to it finished: what the firmware then shows.
 AT_TARGET_3 = {"target_num_id": 3, "target_status": 0, "target_distance": 0.0}

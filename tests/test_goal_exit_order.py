@@ -19,10 +19,10 @@ from sim_integration import SPEED, WAIT, record_commands, time_limit
 
 import galileo_async as galileo
 from galileo_async import TargetStatus
-from galileo_async.transports import StreamLink
 from galileo_async.protocol import Cancel, Command, Goto, Stop
 from galileo_async.sim import Simulator
 from galileo_async.state import StatusStore
+from galileo_async.transports import StreamLink
 
 #: Goal 3 is far away (a long trip to interrupt); goal 0 is near.
 TARGETS: tuple[tuple[float, float], ...] = ((1.5, 0.0), (0.0, -2.0), (-2.0, 0.0), (30.0, 0.0))

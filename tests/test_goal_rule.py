@@ -11,11 +11,12 @@ from scripted_robot import REACTION_FRAMES, ScriptedRobot, connected
 import galileo_async
 from galileo_async import GalileoStatus, GoalAborted, GoalResult, TargetStatus
 from galileo_async import events as ev
-from galileo_async.events import Event, derive_events
+from galileo_async.events import Event
 from galileo_async.protocol import Goto
 from galileo_async.transitions import (
     GoalChange,
     arrived,
+    derive_events,
     end_distance,
     goal_transition,
     running_distance,

@@ -23,12 +23,12 @@ from galileo_async.errors import (
     InvalidArgument,
     LinkStale,
 )
-from galileo_async.transports import BaseLink, LinkStats, StreamLink, open_link
-from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
-from galileo_async.transports.stream import READ_SIZE, _read_buffer
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
+from galileo_async.transports import BaseLink, LinkStats, StreamLink, open_link
+from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
+from galileo_async.transports.stream import READ_SIZE, _read_buffer
 
 STEP = 2.0  # upper bound for anything that should happen promptly
 FAST = {"reconnect_initial": 0.01, "reconnect_max": 0.05, "stale_timeout": 5.0}

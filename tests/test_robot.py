@@ -34,7 +34,6 @@ from galileo_async import (
     UnconfirmedOperation,
 )
 from galileo_async.events import Event, NavigationOpened
-from galileo_async.transports import LinkStats
 from galileo_async.protocol import (
     AddTarget,
     Backward,
@@ -54,6 +53,7 @@ from galileo_async.protocol import (
     TurnRight,
     encode,
 )
+from galileo_async.transports import LinkStats
 
 CLOSED: dict[str, Any] = {"nav_status": 0, "visual_status": -1}
 

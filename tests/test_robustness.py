@@ -28,11 +28,11 @@ from sim_integration import time_limit
 import galileo_async as galileo
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, GalileoError
-from galileo_async.transports import socket_connector
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import HEADER, LAYOUTS, MAX_BUFFER, StatusDecoder, encode_status
 from galileo_async.protocol._build import trusted_status
 from galileo_async.sim import Simulator
+from galileo_async.transports import socket_connector
 
 #: A small square map: goals of about a metre, so fifty of them fit in seconds.
 SQUARE = ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.0, 0.0))
@@ -285,8 +285,8 @@ async def test_flood_of_garbage_then_frames_is_bounded_and_decoded() -> None:
         transport, _ = await plain(loop, lambda: Watching(inner))
         return transport, inner
 
-    from galileo_async.transports import StreamLink
     from galileo_async.state import StatusStore
+    from galileo_async.transports import StreamLink
 
     store = StatusStore()
     link = StreamLink(store, watching, stale_timeout=None)

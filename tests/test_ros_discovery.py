@@ -11,8 +11,8 @@ import pytest
 from cancel_ways import WAYS, stop_waiting
 from ros_support import free_port
 
-from galileo_async.ros.discovery import DiscoveredRobot, discover, parse_announcement
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
+from galileo_async.ros.discovery import DiscoveredRobot, discover, parse_announcement
 
 pytestmark = pytest.mark.timeout(20)
 

@@ -11,6 +11,8 @@ import pytest
 from ros_support import RosMaster
 
 from galileo_async.errors import GalileoConnectionError
+from galileo_async.models import NavStatus
+from galileo_async.protocol.commands import Goto
 from galileo_async.ros import (
     CMDS_TOPIC,
     STATUS_MD5,
@@ -21,8 +23,6 @@ from galileo_async.ros import (
 from galileo_async.ros.messages import CMDS_TYPE, STATUS_DEFINITION, full_definition
 from galileo_async.ros.tcpros import TcprosPublisher, subscribe
 from galileo_async.ros.xmlrpc import MasterClient, SlaveServer, request_topic
-from galileo_async.models import NavStatus
-from galileo_async.protocol.commands import Goto
 from galileo_async.state import StatusStore
 
 pytestmark = pytest.mark.timeout(30)

@@ -12,10 +12,10 @@ from cancel_ways import WAYS, stop_waiting
 from ros_support import RobotNode, RosMaster, eventually
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
+from galileo_async.robot import Robot, connect
 from galileo_async.ros import CMDS_TOPIC, parse_ros_url
 from galileo_async.ros.hosts import PeerAddresses, parse_hosts
 from galileo_async.ros.xmlrpc import xmlrpc_call
-from galileo_async.robot import Robot, connect
 
 pytestmark = pytest.mark.timeout(60)
 

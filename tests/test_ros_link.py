@@ -12,10 +12,10 @@ from ros_support import RobotNode, RosMaster, eventually
 
 import galileo_async as galileo
 from galileo_async.errors import ConnectionLost, GalileoConnectionError, LinkStale
-from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosLink, open_ros_link
-from galileo_async.ros.xmlrpc import xmlrpc_call
 from galileo_async.protocol.commands import Goto, StartNavigation
 from galileo_async.robot import Robot
+from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosLink, open_ros_link
+from galileo_async.ros.xmlrpc import xmlrpc_call
 from galileo_async.state import StatusStore
 
 pytestmark = pytest.mark.timeout(60)

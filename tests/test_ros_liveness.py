@@ -14,9 +14,9 @@ from ros_support import RobotNode, RosMaster, eventually, refuses_connections
 
 import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
+from galileo_async.robot import Robot
 from galileo_async.ros import RosLink, open_ros_link
 from galileo_async.ros.node import CLOSE_BOUND
-from galileo_async.robot import Robot
 from galileo_async.state import StatusStore
 
 pytestmark = pytest.mark.timeout(60)

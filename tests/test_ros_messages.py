@@ -9,14 +9,6 @@ from typing import Any
 import pytest
 from ros_support import genpy_script
 
-from galileo_async.ros import messages as m
-from galileo_async.ros.msgdef import (
-    MessageDefinitionError,
-    compile_decoder,
-    md5sum,
-    parse_full_definition,
-    parse_msg,
-)
 from galileo_async.models import (
     ChargeStatus,
     NavStatus,
@@ -32,6 +24,14 @@ from galileo_async.protocol.commands import (
     SetPatrolDwell,
     StartNavigation,
     StopPatrol,
+)
+from galileo_async.ros import messages as m
+from galileo_async.ros.msgdef import (
+    MessageDefinitionError,
+    compile_decoder,
+    md5sum,
+    parse_full_definition,
+    parse_msg,
 )
 
 POINT_TYPE = "galileo_test/Point"

@@ -12,9 +12,9 @@ from ros_support import RobotNode, RosMaster
 
 import galileo_async as galileo
 from galileo_async.errors import GoalAborted, GoalCancelled, GoalRejected, NotReady
-from galileo_async.ros import RosLink
 from galileo_async.models import StatusLayout, TargetStatus
 from galileo_async.robot import Robot, connect
+from galileo_async.ros import RosLink
 
 pytestmark = pytest.mark.timeout(60)
 

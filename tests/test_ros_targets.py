@@ -10,9 +10,9 @@ import pytest
 from ros_support import RobotNode, RosMaster
 
 from galileo_async.errors import GoalRejected, NotReady
+from galileo_async.robot import connect
 from galileo_async.ros import GOAL_NUM_PARAM
 from galileo_async.ros.xmlrpc import xmlrpc_call
-from galileo_async.robot import connect
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -13,7 +13,6 @@ from hypothesis import strategies as st
 from ports import refused_port
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
-from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 from galileo_async.ros import RosLink, open_ros_link, parse_ros_url
 from galileo_async.ros.tcpros import (
     MAX_FRAME,
@@ -33,6 +32,7 @@ from galileo_async.ros.xmlrpc import (
     xmlrpc_call,
 )
 from galileo_async.state import StatusStore
+from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 
 pytestmark = pytest.mark.timeout(30)
 TOPIC = "/galileo/cmds"

@@ -676,8 +676,8 @@ def test_any_command_sequence_keeps_the_status_sane(
 
 
 def test_public_names_are_pinned() -> None:
-    import galileo_async.sim.memory
     import galileo_async.sim
+    import galileo_async.sim.memory
 
     assert sorted(galileo_async.sim.__all__) == sorted(
         [

@@ -22,11 +22,10 @@ from ports import refused_port
 from scripted_robot import connected, nothing_was_sent_before_marker
 
 import galileo_async as galileo
-from galileo_async import AsyncioRequired, GalileoConnectionError, InvalidArgument, link
+from galileo_async import AsyncioRequired, GalileoConnectionError, InvalidArgument, ros, transports
+from galileo_async.protocol import Stop
 from galileo_async.robot.options import CONNECT_OPTIONS
 from galileo_async.robot.runtime import running_loop
-from galileo_async import ros
-from galileo_async.protocol import Stop
 
 #: What a careless caller passes: not finite, beyond float range, negative, a str, a bool.
 BAD_VALUES: tuple[Any, ...] = (math.nan, math.inf, -math.inf, 10**400, -1, 0, "1", True)
@@ -121,8 +120,8 @@ async def url_of(kind: str) -> AsyncIterator[tuple[str, Listener | None]]:
 
 def test_the_cases_cover_every_option_the_driver_takes() -> None:
     assert set(ROBOT_OPTIONS) == set(CONNECT_OPTIONS)
-    assert set(LINK_OPTIONS) == set(link.LINK_OPTIONS)
-    assert set(STREAM_OPTIONS) == set(link.STREAM_OPTIONS)
+    assert set(LINK_OPTIONS) == set(transports.LINK_OPTIONS)
+    assert set(STREAM_OPTIONS) == set(transports.STREAM_OPTIONS)
     assert set(ROS_OPTIONS) == set(ros.ROS_OPTIONS)
 
 

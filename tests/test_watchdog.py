@@ -10,8 +10,8 @@ import pytest
 from fake_device import FakeDevice, MemoryConnector, status_frame
 
 from galileo_async import events as ev
-from galileo_async.transports import BaseLink, StreamLink, open_link
 from galileo_async.state import StatusStore
+from galileo_async.transports import BaseLink, StreamLink, open_link
 
 STEP = 2.0  # upper bound for anything that should happen promptly
 
