@@ -73,8 +73,8 @@ def _knock_out(stage: str) -> None:
 
 async def _feed(robots: int, frames: list[bytes], consumers: str) -> dict[str, float]:
     """CPU µs per frame for ``robots`` links fed ``frames`` each, and what got where."""
-    from galileo_async.transports import StreamLink
     from galileo_async.state import StatusStore
+    from galileo_async.transports import StreamLink
 
     from .ingest import null_connector
 

@@ -15,12 +15,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from galileo_async.transports import Connector, StreamLink
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.protocol import HEADER, LAYOUTS, StatusDecoder, encode_status
 from galileo_async.protocol import commands as cmd
 from galileo_async.sim import RobotModel, SimConfig
 from galileo_async.state import StatusStore
+from galileo_async.transports import Connector, StreamLink
 
 from .common import Row
 
