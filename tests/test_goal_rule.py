@@ -13,6 +13,7 @@ from galileo_async import GalileoStatus, GoalAborted, GoalResult, TargetStatus
 from galileo_async import events as ev
 from galileo_async.events import Event
 from galileo_async.protocol import Goto
+from galileo_async.state import StatusStore
 from galileo_async.transitions import (
     GoalChange,
     arrived,
@@ -84,6 +85,44 @@ async def test_goto_and_events_report_the_same_end(case: str) -> None:
         finally:
             await events.aclose()
     assert by_goto == by_events == (reached, distance)
+
+
+async def test_a_goal_sent_again_forgets_the_distance_of_its_previous_run() -> None:
+    # Goal 3 runs twice: the first run ends at 0.25 m; the second never shows a valid
+    # distance and ends free far away. The second end must not borrow the first's 0.25 m.
+    runs = iter([[(WORKING, 0.25), (FREE, -1.0)], [(WORKING, -1.0), (FREE, -1.0)]])
+
+    async def script(fake: ScriptedRobot, command: Goto) -> None:
+        await scripted_goal(next(runs))(fake, command)
+
+    fake = ScriptedRobot()
+    fake.scripts[Goto] = script
+    async with connected(fake) as (robot, _):
+        events = robot.events()
+        try:
+            with anyio.fail_after(5):
+                first = (await goto_outcome(robot), await event_outcome(events))
+                second = (await goto_outcome(robot), await event_outcome(events))
+        finally:
+            await events.aclose()
+    assert first == ((True, 0.25), (True, 0.25))
+    assert second == ((False, None), (False, None))
+
+
+def test_the_store_forgets_a_finished_run_when_the_goal_starts_again() -> None:
+    store = StatusStore()
+    seen: list[Event] = []
+    store.listen_events(seen.append)
+    running = st(target_num_id=3, target_status=WORKING, target_distance=0.1)
+    blind = running.model_copy(update={"target_distance": -1.0})
+    free = running.model_copy(update={"target_status": FREE, "target_distance": -1.0})
+    for status in (free, running, blind, free, blind, blind, free):
+        store.update(status)
+    ends = [e for e in seen if isinstance(e, (ev.GoalReached, ev.GoalAbortedEvent))]
+    assert [(type(e), e.distance) for e in ends] == [
+        (ev.GoalReached, 0.1),
+        (ev.GoalAbortedEvent, None),
+    ]
 
 
 # --- the rule itself (pure) ------------------------------------------------------------

@@ -14,7 +14,7 @@ from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
 from ..models import GalileoStatus
-from ..transitions import DEFAULT_ARRIVE_TOLERANCE, derive_events, running_distance
+from ..transitions import ACTIVE, DEFAULT_ARRIVE_TOLERANCE, derive_events, running_distance
 from .streams import (
     EventStream,
     StatusStream,
@@ -147,6 +147,13 @@ class StatusStore:
                         last_distance=running_distance(self._measured, prev),
                     ):
                         self._emit(event)
+                    if status.target_status in ACTIVE and (
+                        prev.target_status not in ACTIVE
+                        or prev.target_num_id != status.target_num_id
+                    ):
+                        # A goal run starts: its end must not borrow a distance of an
+                        # earlier run of the same goal.
+                        self._measured = None
             distance = status.target_distance
             if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
                 self._measured = status
