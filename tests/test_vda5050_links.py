@@ -12,7 +12,8 @@ from pathlib import Path
 
 import anyio
 import pytest
-from ros_support import free_port, stop_process
+from ports import refused_port
+from ros_support import stop_process
 from test_vda5050_vehicle import FAST_SIM, action_status, driven_vehicle, vehicle_on
 from vda5050_support import (
     WAIT,
@@ -303,13 +304,14 @@ async def test_stopped_while_connecting_or_backing_off(broker: Broker) -> None:
             await task
         with anyio.move_on_after(0):
             await Vehicle(robot, config).run()
-        unreachable = VehicleConfig(
-            broker=f"mqtt://127.0.0.1:{free_port()}", manufacturer="acme", serial_number="r2",
-            reconnect_initial=0.01, reconnect_max=0.02,
-        )  # fmt: skip
-        vehicle = Vehicle(robot, unreachable)
-        with anyio.move_on_after(0.3):  # a few refused attempts and back-off sleeps
-            await vehicle.run()
+        with refused_port() as port:
+            unreachable = VehicleConfig(
+                broker=f"mqtt://127.0.0.1:{port}", manufacturer="acme", serial_number="r2",
+                reconnect_initial=0.01, reconnect_max=0.02,
+            )  # fmt: skip
+            vehicle = Vehicle(robot, unreachable)
+            with anyio.move_on_after(0.3):  # a few refused attempts and back-off sleeps
+                await vehicle.run()
         assert not vehicle.connected
     async with Master.connected(broker) as master:
         last = await master.wait_for("connection", lambda m: True)
