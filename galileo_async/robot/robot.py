@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import logging
 from collections.abc import AsyncIterator, Callable
 from types import TracebackType
 
@@ -54,8 +53,6 @@ __all__ = [
     "Robot",
     "RobotDefault",
 ]
-
-_log = logging.getLogger(__name__)
 
 #: Seconds for the robot to show a goal as working after ``g N``.
 DEFAULT_ACCEPT_TIMEOUT = 5.0
