@@ -39,7 +39,7 @@ from .runtime import (
     or_default,
 )
 from .services import RobotServices
-from .targets import DynamicTargets
+from .targets import DynamicTargets, landed_at
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -258,7 +258,10 @@ class Robot(RobotServices):
     ) -> GoalResult:
         """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there.
 
-        Raises as goto does.
+        Raises as goto does, and GoalAborted when the robot ends farther than
+        ``arrive_tolerance`` from (x, y) (the target numbering is wrong: ``map_targets``);
+        InvalidArgument, nothing sent, when ``map_targets`` contradicts the count the link
+        read at connect (sim://, ros://).
         """
         command = AddTarget(x, y)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
@@ -270,11 +273,12 @@ class Robot(RobotServices):
         deadline = Deadline(seconds)
         await self._targets.reset(deadline, what="goto_point", require=GOAL_READY)
         target_id = await self._targets.add(command, deadline)
-        return await self._goals.run(
+        result = await self._goals.run(
             Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
             arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
             cancel_on_exit=cancel_on_exit,
         )  # fmt: skip
+        return landed_at(result, x, y, self.arrive_tolerance)
 
     # --- lifecycle -----------------------------------------------------------------------
 
