@@ -229,7 +229,7 @@ class Robot(RobotServices):
         None: never), ConnectionLost or LinkStale (on a lost or stale link before the send:
         nothing is sent). When the call is cancelled, times out, stalls or the link goes
         stale, Cancel (``i 2``) is sent first unless ``cancel_on_exit`` is False (a stall
-        then emits GoalStalledEvent); a goal left on a lost or stale link that still runs
+        then also emits GoalStalledEvent); a goal left on a lost or stale link that still runs
         once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
         at the target already: a GoalResult with ``already_there`` True.
         """
