@@ -26,8 +26,8 @@ from galileo_async.sim import Simulator
 SPEED = 20.0
 #: Real seconds without progress before a stall (10 simulated seconds).
 PROGRESS = 0.5
-#: Target 0 is 8 m ahead (a long straight trip); target 1 half a metre ahead.
-TARGETS = ((8.0, 0.0), (0.5, 0.0))
+#: Target 0 is 8 m ahead (a long straight trip); target 1 one metre ahead.
+TARGETS = ((8.0, 0.0), (1.0, 0.0))
 FAR, NEAR = 0, 1
 
 
@@ -98,9 +98,9 @@ async def test_goto_point_stalls_too() -> None:
 
 
 async def test_a_slow_robot_that_keeps_moving_arrives() -> None:
-    # 0.02 m/s: 0.1 m takes 5 simulated s (0.25 s), the trip 25 s (1.25 s), over twice
+    # 0.04 m/s: 0.1 m takes 2.5 simulated s (0.125 s), the trip 25 s (1.25 s), over twice
     # progress_timeout: only progress in each window keeps the goal alive.
-    async with robot_and_log(max_speed=0.02) as (robot, log):
+    async with robot_and_log(max_speed=0.04) as (robot, log):
         with anyio.fail_after(WAIT):
             result = await robot.goto(NEAR)
         assert result.elapsed > 2 * PROGRESS
@@ -119,7 +119,7 @@ async def test_paused_time_does_not_count() -> None:
                 tasks.start_soon(go)
                 await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING)
                 await robot.pause()
-                await anyio.sleep(3 * PROGRESS)
+                await anyio.sleep(2 * PROGRESS)
                 await robot.resume()
         assert [result.target_id for result in results] == [FAR]
         assert Cancel() not in await wire(robot, log, 1)
