@@ -18,6 +18,7 @@ __all__ = [
     "GoalCancelled",
     "GoalError",
     "GoalRejected",
+    "GoalStalled",
     "InvalidArgument",
     "LinkStale",
     "NotReady",
@@ -154,3 +155,18 @@ class GoalCancelled(GoalError):
     ) -> None:
         super().__init__(message, target_id=target_id, status=status)
         self.preempted = preempted
+
+
+class GoalStalled(GoalError):
+    """The goal made no progress for ``stalled_for`` s of unpaused time (progress_timeout)."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        target_id: int,
+        stalled_for: float,
+        status: GalileoStatus | None = None,
+    ) -> None:
+        super().__init__(message, target_id=target_id, status=status)
+        self.stalled_for = stalled_for

@@ -24,6 +24,7 @@ __all__ = [
     "GoalPaused",
     "GoalReached",
     "GoalResumed",
+    "GoalStalledEvent",
     "LinkRestored",
     "LinkStaleEvent",
     "MappingStarted",
@@ -135,6 +136,13 @@ class GoalPaused(GoalEvent):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class GoalResumed(GoalEvent):
     """The paused goal is working again."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GoalStalledEvent(GoalEvent):
+    """A goto made no progress for ``stalled_for`` s (progress_timeout): it was cancelled."""
+
+    stalled_for: float
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -108,6 +108,8 @@ class ScriptedRobot:
         self.period = period
         self.map_targets = map_targets
         self.dynamic_targets = 0
+        #: Where the dynamic targets are, by id - map_targets: arriving there moves the pose.
+        self.dynamic_points: list[tuple[float, float]] = []
         self.start_distance = start_distance
         self.step = step
         self.status = GalileoStatus(**(READY | fields))
@@ -254,6 +256,10 @@ async def drive(fake: ScriptedRobot, target_id: int) -> None:
         distance = max(0.0, distance - fake.step)
         if distance <= 0.0:
             fake.set(target_status=TargetStatus.FREE, target_distance=0.0, angle_goal_status=1)
+            dynamic = target_id - fake.map_targets
+            if 0 <= dynamic < len(fake.dynamic_points):
+                x, y = fake.dynamic_points[dynamic]
+                fake.set(current_pose_x=x, current_pose_y=y)
             return
         fake.set(target_distance=distance)
 
@@ -299,10 +305,12 @@ def _setter(**fields: Any) -> Script:
 
 async def _reset_targets(fake: ScriptedRobot, command: Any) -> None:
     fake.dynamic_targets = 0
+    fake.dynamic_points.clear()
 
 
-async def _add_target(fake: ScriptedRobot, command: Any) -> None:
+async def _add_target(fake: ScriptedRobot, command: AddTarget) -> None:
     fake.dynamic_targets += 1
+    fake.dynamic_points.append((command.x, command.y))
 
 
 FIRMWARE_SCRIPTS: dict[type[Command], Script] = {

@@ -32,6 +32,7 @@ from galileo_async.errors import (
     GoalAborted,
     GoalCancelled,
     GoalRejected,
+    GoalStalled,
     InvalidArgument,
     LinkStale,
     NotReady,
@@ -141,6 +142,7 @@ def test_record_header_layout_is_documented() -> None:
     [
         (GoalRejected("x", target_id=1), ExitCode.REJECTED),
         (GoalAborted("x", target_id=1, distance=2.0), ExitCode.ABORTED),
+        (GoalStalled("x", target_id=1, stalled_for=60.0), ExitCode.ABORTED),
         (GoalCancelled("x", target_id=1, preempted=True), ExitCode.CANCELLED),
         (AcceptTimeout("x", target_id=1), ExitCode.TIMEOUT),
         (OperationTimeout("x"), ExitCode.TIMEOUT),

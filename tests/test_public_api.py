@@ -15,6 +15,7 @@ PUBLIC = {
     "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
+    "GoalStalled",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from ros_support import RobotNode, RosMaster
 
-from galileo_async.errors import GoalRejected, NotReady
+from galileo_async.errors import GoalAborted, GoalRejected, InvalidArgument, NotReady
 from galileo_async.robot import connect
 from galileo_async.ros import GOAL_NUM_PARAM
 from galileo_async.ros.xmlrpc import xmlrpc_call
@@ -83,5 +83,37 @@ async def test_dynamic_targets_present_at_connect_make_goto_point_fail_safely(
             assert robot.map_targets == 6
             with pytest.raises(GoalRejected):
                 await robot.goto_point(0.5, 0.5, timeout=10)
+        # A map_targets that contradicts goal_num is refused, even the right one: the driver
+        # cannot tell a left dynamic target from a wrong count. Reset, then reconnect.
         async with connect(master.url, map_targets=5) as robot:
+            with pytest.raises(InvalidArgument, match="reset_targets"):
+                await robot.goto_point(0.5, 0.5, timeout=10)
+            await robot.reset_targets()
+        async with connect(master.url) as robot:
+            assert robot.map_targets == 5
             assert (await robot.goto_point(0.5, 0.5, timeout=10)).target_id == 5
+
+
+async def test_a_map_targets_that_contradicts_goal_num_is_refused_before_anything_is_sent(
+    master: RosMaster,
+) -> None:
+    node = RobotNode.running(master, "--targets", TARGETS, "--goal-num")
+    async with node, connect(master.url, map_targets=3) as robot:
+        await robot.start_navigation(timeout=10)
+        sent = robot.link.commands_sent
+        with pytest.raises(InvalidArgument, match="map_targets=3 contradicts the 5 targets"):
+            await robot.goto_point(1.5, -0.5, timeout=10)
+        assert robot.link.commands_sent == sent
+
+
+async def test_without_goal_num_a_too_small_map_targets_fails_at_the_end_pose(
+    master: RosMaster,
+) -> None:
+    # No goal_num: the link cannot tell. Goal 3 is the map's (0, -1), not (1.5, -0.5).
+    node = RobotNode.running(master, "--targets", TARGETS)
+    async with node, connect(master.url, map_targets=3) as robot:
+        await robot.start_navigation(timeout=10)
+        with pytest.raises(GoalAborted, match="map_targets") as caught:
+            await robot.goto_point(1.5, -0.5, timeout=10)
+        assert caught.value.target_id == 3
+        assert caught.value.distance == pytest.approx(1.58, abs=0.01)

@@ -687,3 +687,49 @@ def test_public_names_are_pinned() -> None:
         ]
     )  # fmt: skip
     assert galileo_async.sim.memory.__all__ == ["MemoryTransport", "create_transport_pair"]
+
+
+# --- goal faults: a dead navigation stack, a blocked robot (Faults.freeze_after, block_after)
+
+
+def test_freeze_after_resends_the_status_of_that_moment_with_a_live_counter() -> None:
+    model = navigating(freeze_after=1.0)
+    model.submit(c.Goto(1))
+    run(model, 1.5)
+    frozen = model.status()
+    assert frozen.target_status == 1
+    assert frozen.target_distance > 0.5
+    model.submit(c.Cancel())  # the dead stack executes nothing
+    run(model, 10)
+    later = model.status()
+    assert later.time_stamp == frozen.time_stamp + 10 * FRAME_RATE
+    assert later.model_copy(update={"time_stamp": frozen.time_stamp}) == frozen
+
+
+def test_block_after_keeps_the_goal_working_with_the_robot_standing() -> None:
+    model = navigating(block_after=1.0)
+    model.submit(c.Goto(1))
+    run(model, 1.5)
+    blocked = model.status()
+    run(model, 10)
+    assert model.status().target_status == 1
+    assert (model.x, model.y, model.target_distance) == (
+        blocked.current_pose_x,
+        blocked.current_pose_y,
+        blocked.target_distance,
+    )
+    assert model.current_v == 0.0
+    model.submit(c.Cancel())
+    run(model, 0.1)
+    assert model.status().target_status == 0
+
+
+def test_goal_faults_come_from_the_url() -> None:
+    faults = parse_sim_url("sim://?freeze_after=1&block_after=2.5").faults
+    assert (faults.freeze_after, faults.block_after) == (1.0, 2.5)
+
+
+@pytest.mark.parametrize("name", ["freeze_after", "block_after"])
+def test_goal_faults_are_checked(name: str) -> None:
+    with pytest.raises(InvalidArgument, match=name):
+        parse_sim_url(f"sim://?{name}=-1")

@@ -32,7 +32,7 @@ BAD_VALUES: tuple[Any, ...] = (math.nan, math.inf, -math.inf, 10**400, -1, 0, "1
 
 ROBOT_OPTIONS = (
     "map_targets", "accept_timeout", "arrive_tolerance", "goal_timeout", "wait_timeout",
-    "first_status_timeout",
+    "first_status_timeout", "progress_timeout",
 )  # fmt: skip
 LINK_OPTIONS = (
     "reconnect", "reconnect_initial", "reconnect_max", "stale_timeout", "stale_reconnect",
@@ -235,10 +235,20 @@ ARGUMENTS: dict[str, tuple[str, Call, tuple[Any, ...]]] = {
     "goto-target_id": ("target_id", lambda r, v: r.goto(v), (0,)),
     "goto-timeout": ("timeout", lambda r, v: r.goto(3, timeout=v), ()),
     "goto-accept_timeout": ("accept_timeout", lambda r, v: r.goto(3, accept_timeout=v), ()),
+    "goto-progress_timeout": (
+        "progress_timeout",
+        lambda r, v: r.goto(3, progress_timeout=v),
+        (),
+    ),
     "goto-cancel_on_exit": ("cancel_on_exit", lambda r, v: r.goto(3, cancel_on_exit=v), (True,)),
     "goto_point-x": ("x", lambda r, v: r.goto_point(v, 1.0), (-1, 0)),
     "goto_point-y": ("y", lambda r, v: r.goto_point(1.0, v), (-1, 0)),
     "goto_point-timeout": ("timeout", lambda r, v: r.goto_point(1.0, 1.0, timeout=v), ()),
+    "goto_point-progress_timeout": (
+        "progress_timeout",
+        lambda r, v: r.goto_point(1.0, 1.0, progress_timeout=v),
+        (),
+    ),
     "goto_point-cancel_on_exit": (
         "cancel_on_exit",
         lambda r, v: r.goto_point(1.0, 1.0, cancel_on_exit=v),

@@ -24,6 +24,7 @@ from ..errors import (
     GoalAborted,
     GoalCancelled,
     GoalRejected,
+    GoalStalled,
     InvalidArgument,
     NotReady,
 )
@@ -63,7 +64,7 @@ class ExitCode(enum.IntEnum):
     ERROR = 1  # any other error (I/O, a command the robot never confirmed, …)
     USAGE = 2  # bad command line or argument out of range; nothing was sent
     REJECTED = 3  # the robot reported an error for the goal (invalid id)
-    ABORTED = 4  # the goal ended free far from the target (planner gave up)
+    ABORTED = 4  # the goal ended far from the target (planner gave up), or made no progress
     CANCELLED = 5  # the goal was cancelled or preempted by another goal
     TIMEOUT = 6  # an operation ran past its timeout
     CONNECTION = 7  # the link could not be opened, dropped or went stale
@@ -147,6 +148,7 @@ _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     (GalileoTimeout, ExitCode.TIMEOUT),
     (GoalRejected, ExitCode.REJECTED),
     (GoalAborted, ExitCode.ABORTED),
+    (GoalStalled, ExitCode.ABORTED),
     (GoalCancelled, ExitCode.CANCELLED),
     (GalileoConnectionError, ExitCode.CONNECTION),
     (NotReady, ExitCode.NOT_READY),

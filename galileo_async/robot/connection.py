@@ -68,8 +68,10 @@ class Connection:
             raise
         try:
             await link.open()
-            if "map_targets" not in robot_options:  # sim:// and ros:// can tell
-                robot.map_targets = link.map_target_count()
+            count = link.map_target_count()  # sim:// and ros:// can tell
+            robot._targets.link_count = count
+            if "map_targets" not in robot_options:
+                robot.map_targets = count
             if first_status_timeout is not None:
                 await _first_status(store, first_status_timeout, self.url)
         except BaseException:

@@ -19,6 +19,7 @@ ROBOT_OPTIONS = (
     "arrive_tolerance",
     "goal_timeout",
     "wait_timeout",
+    "progress_timeout",
 )
 #: Options connect() takes itself; the rest go to the link.
 CONNECT_OPTIONS = (*ROBOT_OPTIONS, "first_status_timeout")
@@ -39,6 +40,7 @@ _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "arrive_tolerance": _check_metres,
     "goal_timeout": check_timeout,
     "wait_timeout": check_timeout,
+    "progress_timeout": check_timeout,
     "first_status_timeout": check_timeout,
 }
 

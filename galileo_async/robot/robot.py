@@ -30,6 +30,7 @@ from .operations import (
     Require,
 )
 from .options import check_robot_options
+from .progress import DEFAULT_PROGRESS_TIMEOUT
 from .runtime import (
     ROBOT_DEFAULT,
     Deadline,
@@ -38,12 +39,13 @@ from .runtime import (
     or_default,
 )
 from .services import RobotServices
-from .targets import DynamicTargets
+from .targets import DynamicTargets, landed_at
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
     "DEFAULT_ARRIVE_TOLERANCE",
     "DEFAULT_GOAL_TIMEOUT",
+    "DEFAULT_PROGRESS_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "DEFAULT_WAIT_TIMEOUT",
     "NAVIGATION_TIMEOUT",
@@ -84,6 +86,7 @@ class Robot(RobotServices):
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
+        progress_timeout: float | None = DEFAULT_PROGRESS_TIMEOUT,
     ) -> None:
         check_robot_options(
             {
@@ -92,6 +95,7 @@ class Robot(RobotServices):
                 "arrive_tolerance": arrive_tolerance,
                 "goal_timeout": goal_timeout,
                 "wait_timeout": wait_timeout,
+                "progress_timeout": progress_timeout,
             }
         )
         ops = Operations(link, store)
@@ -103,6 +107,8 @@ class Robot(RobotServices):
         #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
         self.goal_timeout = goal_timeout
         self.wait_timeout = wait_timeout
+        #: Default ``progress_timeout`` of goto/goto_point (None: never stalled).
+        self.progress_timeout = progress_timeout
         self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------
@@ -210,16 +216,20 @@ class Robot(RobotServices):
         *,
         timeout: float | RobotDefault | None = ROBOT_DEFAULT,
         accept_timeout: float | None = None,
+        progress_timeout: float | RobotDefault | None = ROBOT_DEFAULT,
         cancel_on_exit: bool = True,
     ) -> GoalResult:
         """Go to map target ``target_id``; return a GoalResult on arrival, else raise.
 
         GoalRejected, GoalAborted (stopped short), GoalCancelled (cancelled or preempted),
         AcceptTimeout, OperationTimeout (after ``timeout`` s: left out, the Robot's
-        ``goal_timeout``, 600 s unless set; None: no limit), ConnectionLost or LinkStale
-        (on a lost or stale link before the send: nothing is sent). When the call is
-        cancelled, times out or the link goes stale, Cancel (``i 2``) is sent first unless
-        ``cancel_on_exit`` is False; a goal left on a lost or stale link that still runs
+        ``goal_timeout``, 600 s unless set; None: no limit), GoalStalled (running and not
+        paused, neither the pose moved nor target_distance fell 0.1 m for
+        ``progress_timeout`` s: left out, the Robot's ``progress_timeout``, 60 s unless set;
+        None: never), ConnectionLost or LinkStale (on a lost or stale link before the send:
+        nothing is sent). When the call is cancelled, times out, stalls or the link goes
+        stale, Cancel (``i 2``) is sent first unless ``cancel_on_exit`` is False (a stall
+        then also emits GoalStalledEvent); a goal left on a lost or stale link that still runs
         once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
         at the target already: a GoalResult with ``already_there`` True.
         """
@@ -227,11 +237,14 @@ class Robot(RobotServices):
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
+        progress = or_default(progress_timeout, self.progress_timeout)
+        check_timeout("progress_timeout", progress)
         check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
         return await self._goals.run(
             command, deadline=Deadline(seconds), accept_timeout=accept,
-            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+            arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
+            cancel_on_exit=cancel_on_exit,
         )  # fmt: skip
 
     async def goto_point(
@@ -240,21 +253,32 @@ class Robot(RobotServices):
         y: float,
         *,
         timeout: float | RobotDefault | None = ROBOT_DEFAULT,
+        progress_timeout: float | RobotDefault | None = ROBOT_DEFAULT,
         cancel_on_exit: bool = True,
     ) -> GoalResult:
-        """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there."""
+        """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there.
+
+        Raises as goto does, and GoalAborted when the robot ends farther than
+        ``arrive_tolerance`` from (x, y) (the target numbering is wrong: ``map_targets``);
+        InvalidArgument, nothing sent, when ``map_targets`` contradicts the count the link
+        read at connect (sim://, ros://).
+        """
         command = AddTarget(x, y)  # validate before anything is sent
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
+        progress = or_default(progress_timeout, self.progress_timeout)
+        check_timeout("progress_timeout", progress)
         check_bool("cancel_on_exit", cancel_on_exit)
         self._targets.map_target_count("goto_point")
         deadline = Deadline(seconds)
         await self._targets.reset(deadline, what="goto_point", require=GOAL_READY)
         target_id = await self._targets.add(command, deadline)
-        return await self._goals.run(
+        result = await self._goals.run(
             Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
-            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+            arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
+            cancel_on_exit=cancel_on_exit,
         )  # fmt: skip
+        return landed_at(result, x, y, self.arrive_tolerance)
 
     # --- lifecycle -----------------------------------------------------------------------
 

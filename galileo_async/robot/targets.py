@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
-from ..errors import NotReady
+from ..errors import GoalAborted, InvalidArgument, NotReady
 from ..models import GalileoStatus
 from ..protocol import AddTarget, ResetTargets
+from ..transitions import arrived
 from .operations import NAVIGATING, Operations, Require, Sent
 from .runtime import Deadline
 
 if TYPE_CHECKING:
     from ..state.streams import Watch
+    from .goal import GoalResult
 
-__all__ = ["MAX_TARGET_ID", "DynamicTargets"]
+__all__ = ["MAX_TARGET_ID", "DynamicTargets", "landed_at"]
 
 #: Highest goal id the ``g`` command can carry.
 MAX_TARGET_ID = 255
@@ -26,12 +29,28 @@ class DynamicTargets:
         self._ops = ops
         #: How many targets the robot's map has: the first dynamic target's goal id.
         self.map_targets = map_targets
+        #: The number of targets the link reported at connect (sim:// the map's; ros://
+        #: /galileo/goal_num, dynamic targets included), None when it cannot tell.
+        self.link_count: int | None = None
         self._count: int | None = None  # unknown until reset() in this session
         self._reconnects = 0  # link.stats.reconnects when the count was last reset
 
     def map_target_count(self, what: str) -> int:
-        """``map_targets``, checking that the Robot is open; NotReady while it is unknown."""
+        """``map_targets``, checking that the Robot is open; NotReady while it is unknown.
+
+        InvalidArgument when it differs from ``link_count``: the first dynamic target's id
+        would be a map target's (or past the last target).
+        """
         self._ops.ensure_open()
+        count = self.link_count
+        if self.map_targets is not None and count is not None and self.map_targets != count:
+            raise InvalidArgument(
+                f"{what}: map_targets={self.map_targets} contradicts the {count} targets the "
+                "link reported at connect, so dynamic target ids would be wrong (a too small "
+                "map_targets makes the robot drive to a map target instead); nothing was "
+                "sent. Connect without map_targets to use the link's count (ros:// counts "
+                "dynamic targets left on the robot too: call reset_targets() and reconnect)"
+            )
         if self.map_targets is None:
             raise NotReady(
                 f"{what}: the number of targets in the robot's map is unknown (a serial "
@@ -124,3 +143,27 @@ class _Add:
         """Written: the reserved goal id."""
         assert self.target_id is not None
         return self.target_id
+
+
+def landed_at(result: GoalResult, x: float, y: float, tolerance: float) -> GoalResult:
+    """``result`` when its final pose is within ``tolerance`` of (x, y) or unknown; else raise.
+
+    GoalAborted when the robot ended elsewhere: the dynamic target's id was another
+    target's (``map_targets`` smaller than the robot's number of targets).
+    """
+    pose = result.status.pose
+    if pose is None:  # v1 layouts and a lost visual system do not show it: nothing to judge
+        return result
+    distance = math.hypot(pose.x - x, pose.y - y)
+    if arrived(distance, tolerance):
+        return result
+    raise GoalAborted(
+        f"goto_point({x:g}, {y:g}): goal {result.target_id} ended at ({pose.x:.2f}, "
+        f"{pose.y:.2f}), {distance:.2f} m from the requested point (arrive_tolerance "
+        f"{tolerance} m): the target numbering looks wrong: map_targets is probably smaller "
+        f"than the number of targets in the robot's map, so goal {result.target_id} was a "
+        "map target",
+        target_id=result.target_id,
+        distance=distance,
+        status=result.status,
+    )

@@ -53,12 +53,19 @@ class Faults:
     #: Probability per goal that the planner gives up half way (free, far from the target);
     #: "next" aborts the next goal only.
     planner_abort: float | Literal["next"] = 0.0
+    #: The navigation stack dies this many simulated seconds after a goal starts: the serial
+    #: node re-sends its last status with a live time_stamp, and no command has an effect.
+    freeze_after: float | None = None
+    #: The robot is blocked this many simulated seconds after a goal starts: the goal stays
+    #: working, the robot does not move (an obstacle the planner waits behind).
+    block_after: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("garbage", "drop", "bitflip"):
             _check_fraction(name, getattr(self, name))
-        if self.disconnect_after is not None:
-            _check_non_negative("disconnect_after", self.disconnect_after)
+        for name in ("disconnect_after", "freeze_after", "block_after"):
+            if getattr(self, name) is not None:
+                _check_non_negative(name, getattr(self, name))
         if self.planner_abort != "next":
             if isinstance(self.planner_abort, str):
                 raise InvalidArgument(
@@ -182,7 +189,7 @@ _FLOAT_OPTIONS = frozenset(
         "busy_on_save", "busy_max_wait", "patrol_dwell", "max_speed", "max_turn_rate",
         "acceleration", "angular_acceleration", "arrival_distance", "docking_time", "power",
         "power_drain", "power_full", "charge_rate", "garbage", "drop", "bitflip",
-        "disconnect_after",
+        "disconnect_after", "freeze_after", "block_after",
     }
 )  # fmt: skip
 _BOOL_OPTIONS = frozenset({"ignore_save_map", "concat_loss"})

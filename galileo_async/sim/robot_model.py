@@ -75,6 +75,9 @@ class RobotModel(ServiceCommands, Body):
         self._abort_within: float | None = None
         self._abort_next = config.faults.planner_abort == "next"
         self._goal_issued = False
+        self._goal_started_at: float | None = None
+        # Faults.freeze_after: the status the dead navigation stack left behind.
+        self._frozen: WireValues | None = None
         # A goal or rotation accepted since the last frame: it shows as running in at
         # least one frame (the planner needs a cycle), so a host can see it start.
         self._fresh = False
@@ -138,6 +141,8 @@ class RobotModel(ServiceCommands, Body):
 
     def wire_values(self) -> WireValues:
         """The status as sent now: the 20 v2 fields in struct order, time_stamp left out."""
+        if self._frozen is not None:
+            return self._frozen
         pose = (self.x, self.y, self.theta) if self.visual_initialised else _UNKNOWN_POSE
         return (
             self.nav_status, self.visual_status, self.map_status, 0, 0, self.charge_status,
@@ -155,7 +160,7 @@ class RobotModel(ServiceCommands, Body):
     # ------------------------------------------------------------------ input
     def submit(self, command: cmd.Command) -> None:
         """Hand a parsed command to the robot: handled now, or queued while busy."""
-        if self.shutdown:
+        if self.shutdown or self._frozen is not None:
             return
         if self.busy or self._pending:
             self._pending.append((self.time, command))
@@ -188,6 +193,8 @@ class RobotModel(ServiceCommands, Body):
         if self.shutdown:
             return
         self.time += dt
+        if self._frozen is not None:
+            return  # the navigation stack is dead: nothing moves or changes
         if self._visual_ready_at is not None and self.time + EPSILON >= self._visual_ready_at:
             self._visual_ready_at = None
             self.visual_status = 1
@@ -196,6 +203,8 @@ class RobotModel(ServiceCommands, Body):
         self._step_patrol()
         self._step_motion(dt)
         self._step_power(dt)
+        if self._goal_fault_due(self.config.faults.freeze_after):
+            self._frozen = self.wire_values()
 
     def _drain_pending(self) -> None:
         while self._pending and not self.busy and not self.shutdown:
@@ -228,9 +237,19 @@ class RobotModel(ServiceCommands, Body):
             self.charge_status = CHARGING
         self.integrate(dt)
 
+    def _goal_fault_due(self, after: float | None) -> bool:
+        """A fault set to strike ``after`` s into the running goal is due."""
+        started = self._goal_started_at
+        if after is None or started is None or self.target_status not in ACTIVE:
+            return False
+        return self.time + EPSILON >= started + after
+
     def _drive_goal(self, dt: float) -> None:
         assert self._goal is not None
         fresh, self._fresh = self._fresh, False
+        if self._goal_fault_due(self.config.faults.block_after):
+            self.halt()  # blocked: the goal stays working
+            return
         if self.drive_to(self._goal, dt, land=self._abort_within is None):
             if fresh:  # even a goal the robot stands on shows as working once
                 self.target_distance = 0.0
@@ -321,6 +340,7 @@ class RobotModel(ServiceCommands, Body):
             self.charge_status = CHARGE_FREE
         goal = self.targets[target_id]
         self.target_num_id, self.target_status, self._goal = target_id, WORKING, goal
+        self._goal_started_at = self.time
         self.target_distance = self.distance_to(goal)
         self._abort_within = None
         self._fresh = True
