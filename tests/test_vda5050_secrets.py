@@ -23,7 +23,7 @@ from vda5050_support import WAIT, Broker, Master, MutualTls, make_mutual_tls
 import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
 from galileo_async.vda5050 import Vehicle, VehicleConfig, parse_broker_url, redact_url
-from galileo_async.vda5050.session import tls_context
+from galileo_async.vda5050.session import MQTT_LOGGER, tls_context
 
 SECRET = "hunter2-Galileo"
 #: The broker's users: the master control logs in first, the vehicle second.
@@ -176,6 +176,7 @@ async def test_the_password_reaches_the_broker_and_no_log_line(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, given: str
 ) -> None:
     caplog.set_level(logging.DEBUG, logger="galileo_async.vda5050")
+    caplog.set_level(logging.DEBUG, logger=MQTT_LOGGER)  # every packet the client sends
     login = f"vehicle:{SECRET}" if given == "url" else "vehicle"
     password = {"str": SECRET, "SecretStr": SecretStr(SECRET), "url": None}[given]
     async with (
@@ -201,6 +202,7 @@ async def test_the_password_reaches_the_broker_and_no_log_line(
     logged = "\n".join(record.getMessage() for record in caplog.records)
     assert "Not authorized" in logged
     assert "check the user name and the password" in logged
+    assert "Sending CONNECT" in logged
     assert SECRET not in logged
 
 

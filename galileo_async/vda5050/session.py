@@ -22,6 +22,8 @@ __all__ = ["CONNECT_TIMEOUT", "MQTT_LOGGER", "OFFLINE_TIMEOUT", "Session", "tls_
 _log = logging.getLogger(__name__)
 #: The MQTT client's own log lines (socket and TLS errors) go here.
 MQTT_LOGGER = f"{__package__}.mqtt"
+# The client logs every packet at DEBUG: only on request (setLevel on this logger).
+logging.getLogger(MQTT_LOGGER).setLevel(logging.INFO)
 
 #: Seconds a clean stop may spend saying OFFLINE and disconnecting.
 OFFLINE_TIMEOUT = 3.0
@@ -64,7 +66,7 @@ class _Recorder(logging.Logger):
     """The MQTT client's logger: forwards to MQTT_LOGGER and keeps the last error line."""
 
     def __init__(self) -> None:
-        super().__init__(MQTT_LOGGER, logging.INFO)  # the client logs every packet at DEBUG
+        super().__init__(MQTT_LOGGER)  # level NOTSET: MQTT_LOGGER's level applies
         self.parent = logging.getLogger(MQTT_LOGGER)
         self.last_error: str | None = None
 
