@@ -71,6 +71,13 @@ def test_broker_url_errors_hide_the_password(url: str) -> None:
         assert "u:***@" in str(caught.value)
 
 
+def test_a_config_of_the_wrong_type_is_not_echoed() -> None:
+    with pytest.raises(InvalidArgument) as caught:
+        Vehicle(None, {"broker": f"mqtt://u:{SECRET}@h"})  # type: ignore[arg-type]
+    assert SECRET not in str(caught.value)
+    assert "got a dict" in str(caught.value)
+
+
 def test_redact_url() -> None:
     assert redact_url("mqtts://me:p%40ss@broker:8883") == "mqtts://me:***@broker:8883"
     assert redact_url("mqtt://me:a@b@host") == "mqtt://me:***@host"  # a raw "@" in it
