@@ -32,7 +32,7 @@ def _password(password_file: Path | None) -> str | None:
             text = password_file.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             fail(f"cannot read --password-file {password_file}: {exc}", ExitCode.USAGE)
-        password = text.rstrip("\r\n")  # the newline an editor or `echo` adds
+        password = text.rstrip("\r\n")  # the newlines an editor or `echo` adds
         if not password:
             fail(f"--password-file {password_file} is empty", ExitCode.USAGE)
         return password
