@@ -158,7 +158,7 @@ def test_status_watch_json_reports_link_events_as_lines() -> None:
     assert lost
     assert isinstance(lost[0]["reason"], str)
     assert lost[0]["reason"]
-    assert {"event": "ConnectionRestored"} in lines
+    assert {"port": DROPPING, "event": "ConnectionRestored"} in lines
 
 
 def test_status_watch_without_reconnect_exits_on_link_loss() -> None:

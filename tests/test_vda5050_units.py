@@ -37,9 +37,8 @@ def order(order_id: str, nodes: list[dict[str, Any]], update: int = 0, seq: int 
 )
 def test_broker_urls(url: str, expected: tuple[object, ...]) -> None:
     address = parse_broker_url(url)
-    assert (address.host, address.port, address.tls, address.username, address.password) == (
-        expected
-    )
+    password = None if address.password is None else address.password.get_secret_value()
+    assert (address.host, address.port, address.tls, address.username, password) == expected
 
 
 @pytest.mark.parametrize(

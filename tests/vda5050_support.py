@@ -9,8 +9,10 @@ import itertools
 import json
 import os
 import shutil
+import ssl
 import subprocess
 from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -65,15 +67,80 @@ def make_certificate(directory: Path) -> tuple[Path, Path]:
     return cert, key
 
 
-class Broker:
-    """A real Mosquitto on 127.0.0.1 (optionally TLS); stop() and start() keep the port."""
+def _openssl(*args: str) -> None:
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        missing_peer("openssl")
+    assert openssl is not None
+    subprocess.run([openssl, *args], check=True, capture_output=True, timeout=60)
 
-    def __init__(self, directory: Path, *, tls: bool = False) -> None:
+
+@dataclass(frozen=True)
+class MutualTls:
+    """A test CA and what it signed: the broker's certificate (127.0.0.1) and a client's."""
+
+    ca: Path
+    server_cert: Path
+    server_key: Path
+    client_cert: Path
+    client_key: Path
+
+    def client_context(self) -> ssl.SSLContext:
+        """A TLS context that trusts the CA and presents the client certificate."""
+        context = ssl.create_default_context(cafile=str(self.ca))
+        context.load_cert_chain(str(self.client_cert), str(self.client_key))
+        return context
+
+
+def make_mutual_tls(directory: Path) -> MutualTls:
+    """A CA, a broker certificate for 127.0.0.1 and a client certificate it signed (openssl)."""
+    ca, ca_key = directory / "ca.crt", directory / "ca.key"
+    _openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-keyout",
+             str(ca_key), "-out", str(ca), "-subj", "/CN=galileo-test-ca")  # fmt: skip
+    extensions = directory / "server.ext"
+    extensions.write_text("subjectAltName=IP:127.0.0.1\n")
+    signed = {}
+    for name, subject in (("server", "/CN=127.0.0.1"), ("client", "/CN=acme-r1")):
+        key, request, cert = (directory / f"{name}.{ext}" for ext in ("key", "csr", "crt"))
+        _openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+                 str(request), "-subj", subject)  # fmt: skip
+        extra = ["-extfile", str(extensions)] if name == "server" else []
+        _openssl("x509", "-req", "-in", str(request), "-CA", str(ca), "-CAkey", str(ca_key),
+                 "-CAcreateserial", "-days", "1", "-out", str(cert), *extra)  # fmt: skip
+        signed[name] = (cert, key)
+    return MutualTls(ca, *signed["server"], *signed["client"])
+
+
+def password_file(directory: Path, logins: dict[str, str]) -> Path:
+    """A Mosquitto password file for ``logins`` (user: password), hashed by mosquitto_passwd."""
+    tool = shutil.which("mosquitto_passwd")
+    if tool is None:
+        missing_peer("mosquitto_passwd")
+    assert tool is not None
+    path = directory / "mosquitto.passwd"
+    path.write_text("".join(f"{user}:{password}\n" for user, password in logins.items()))
+    subprocess.run([tool, "-U", str(path)], check=True, capture_output=True, timeout=60)
+    return path
+
+
+class Broker:
+    """A real Mosquitto on 127.0.0.1 (optionally TLS); stop() and start() keep the port.
+
+    ``mutual``: TLS that requires a client certificate signed by its CA. ``logins``: only
+    these users (user: password) may connect; the master logs in as the first one.
+    """
+
+    def __init__(
+        self, directory: Path, *, tls: bool = False, mutual: MutualTls | None = None,
+        logins: dict[str, str] | None = None,
+    ) -> None:  # fmt: skip
         self.executable = require_mosquitto()
         self.directory = directory
         self.port = free_port()
-        self.tls = tls
-        self.cert: Path | None = None
+        self.tls = tls or mutual is not None
+        self.mutual = mutual
+        self.logins = logins
+        self.cert: Path | None = None if mutual is None else mutual.ca
         self.proc: asyncio.subprocess.Process | None = None
 
     @property
@@ -83,11 +150,18 @@ class Broker:
 
     def _config(self) -> Path:
         lines = [
-            f"listener {self.port} 127.0.0.1", "allow_anonymous true", "persistence false",
+            f"listener {self.port} 127.0.0.1", "persistence false",
+            f"allow_anonymous {'false' if self.logins else 'true'}",
             # As root, Mosquitto drops to its own user, which cannot read files under tmp_path.
             f"user {getpass.getuser()}",
         ]  # fmt: skip
-        if self.tls:
+        if self.logins:
+            lines.append(f"password_file {password_file(self.directory, self.logins)}")
+        if self.mutual is not None:
+            mutual = self.mutual
+            lines += [f"cafile {mutual.ca}", f"certfile {mutual.server_cert}",
+                      f"keyfile {mutual.server_key}", "require_certificate true"]  # fmt: skip
+        elif self.tls:
             self.cert, key = make_certificate(self.directory)
             lines += [f"certfile {self.cert}", f"keyfile {key}"]
         path = self.directory / f"mosquitto-{self.port}.conf"
@@ -115,9 +189,12 @@ class Broker:
 
     @classmethod
     @contextlib.asynccontextmanager
-    async def running(cls, directory: Path, *, tls: bool = False) -> AsyncIterator[Broker]:
+    async def running(
+        cls, directory: Path, *, tls: bool = False, mutual: MutualTls | None = None,
+        logins: dict[str, str] | None = None,
+    ) -> AsyncIterator[Broker]:  # fmt: skip
         """A started broker, stopped on exit whatever happens."""
-        broker = cls(directory, tls=tls)
+        broker = cls(directory, tls=tls, mutual=mutual, logins=logins)
         try:
             await broker.start()
             yield broker
@@ -149,13 +226,15 @@ class Master:
     ) -> AsyncIterator[Master]:
         """A master subscribed to the vehicle's topics."""
         tls = None
-        if broker.tls:
-            import ssl
-
+        if broker.mutual is not None:
+            tls = broker.mutual.client_context()
+        elif broker.tls:
             tls = ssl.create_default_context(cafile=str(broker.cert))
+        user, password = next(iter(broker.logins.items())) if broker.logins else (None, None)
         async with aiomqtt.Client(
-            "127.0.0.1", broker.port, identifier=f"master-{serial}", tls_context=tls
-        ) as client:
+            "127.0.0.1", broker.port, identifier=f"master-{serial}", tls_context=tls,
+            username=user, password=password,
+        ) as client:  # fmt: skip
             master = cls(client, f"uagv/v2/{manufacturer}/{serial}")
             await client.subscribe(f"{master.prefix}/+", qos=1)
             async with anyio.create_task_group() as group:
@@ -275,10 +354,13 @@ __all__ = [
     "WAIT",
     "Broker",
     "Master",
+    "MutualTls",
     "broker_fixture",
     "error_types",
     "make_certificate",
+    "make_mutual_tls",
     "make_order",
     "node",
+    "password_file",
     "require_mosquitto",
 ]

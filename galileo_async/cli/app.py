@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Annotated
 
@@ -10,7 +9,7 @@ import typer
 
 from .. import __version__
 from . import capture, demo, fleet_cmd, ops, serve, teleop, vda5050, watch
-from .runner import DEFAULT_PORT, Settings, setup_logging
+from .runner import DEFAULT_PORT, PORT_ENV, Settings, resolve_port, setup_logging
 
 __all__ = ["app", "main"]
 
@@ -41,18 +40,19 @@ def _version(value: bool) -> None:
 def options(
     ctx: typer.Context,
     port: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--port",
             "-p",
-            envvar="GALILEO_PORT",
+            envvar=PORT_ENV,
             show_envvar=True,
             help=(
                 "Serial device (/dev/ttyUSB0), socket://host:port, ros://host:11311 (ROS "
-                "master), or sim://?speed=…&layout=… (simulator)."
+                f"master), or sim://?speed=…&layout=… (simulator). Default: {DEFAULT_PORT}, "
+                "the built-in simulator (robot commands say so on stderr)."
             ),
         ),
-    ] = DEFAULT_PORT,
+    ] = None,
     layout: Annotated[
         str | None,
         typer.Option(help="Pin the status layout: v2, v2_truncated, v1, v1_charge (default auto)."),
@@ -91,8 +91,12 @@ def options(
     if layout is not None and layout not in _LAYOUTS:
         message = f"{layout!r} is not one of {', '.join(_LAYOUTS)}"
         raise typer.BadParameter(message, param_hint="--layout")
+    source_name = getattr(ctx.get_parameter_source("port"), "name", None)
+    from_environment = source_name == "ENVIRONMENT"
+    port, source = resolve_port(port, from_environment=from_environment)
     ctx.obj = Settings(
-        port=port or os.environ.get("GALILEO_PORT") or DEFAULT_PORT,
+        port=port,
+        port_source=source,
         layout=layout,
         verbose=verbose,
         json=json_output,

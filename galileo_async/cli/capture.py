@@ -25,7 +25,16 @@ import typer
 from ..protocol import StatusDecoder
 from . import connectors
 from .render import status_dict
-from .runner import ExitCode, err_console, fail, out_console, print_error, run, settings_of
+from .runner import (
+    ExitCode,
+    err_console,
+    fail,
+    out_console,
+    print_error,
+    robot_url,
+    run,
+    settings_of,
+)
 
 __all__ = ["MAGIC", "RECORD", "decode", "iter_capture", "record", "stop_requested"]
 
@@ -139,13 +148,14 @@ def record(
 ) -> None:
     """Capture the raw byte stream from --port into a file (a recording, or --raw bytes)."""
     settings = settings_of(ctx)
+    url = robot_url(settings)
 
     async def main() -> int:
         chunks = connectors.ChunkQueue(connectors.RECORD_QUEUE_CHUNKS)
         written = count = 0
         closed = False
         async with (
-            connectors.open_raw(settings.url, chunks) as started,
+            connectors.open_raw(url, chunks) as started,
             await anyio.open_file(path, "wb") as file,
         ):
             if not raw:

@@ -23,6 +23,7 @@ from .map_render import map_panel
 from .render import status_line
 from .runner import (
     ExitCode,
+    checked_port,
     err_console,
     fail,
     is_sim,
@@ -222,7 +223,7 @@ def demo(
 ) -> None:
     """A scripted tour against the embedded simulator, with a summary table at the end."""
     settings = settings_of(ctx)
-    if not is_sim(settings.port):
+    if not is_sim(checked_port(settings)):
         fail("the demo drives the robot around, so it only runs on sim:// URLs", ExitCode.USAGE)
     url = with_query(settings.url, speed=f"{speed:g}")
 

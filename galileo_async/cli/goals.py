@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -14,7 +13,15 @@ from rich.text import Text
 from ..errors import GalileoTimeout, GoalError
 from ..models import GalileoStatus
 from .render import goal_line, status_line
-from .runner import ExitCode, Settings, err_console, exit_code_for, out_console, report
+from .runner import (
+    ExitCode,
+    Settings,
+    err_console,
+    exit_code_for,
+    out_console,
+    print_json,
+    report,
+)
 
 if TYPE_CHECKING:
     from ..robot import GoalResult, Robot
@@ -91,7 +98,7 @@ async def follow_goal(
                 "distance": getattr(exc, "distance", None),
                 "error": str(exc),
             }
-            out_console().print(json.dumps(payload), markup=False)
+            print_json(settings, payload)
         else:
             report(exc, settings.verbose)
         return int(code)
@@ -103,7 +110,7 @@ async def follow_goal(
             "elapsed": round(result.elapsed, 3),
             "already_there": result.already_there,
         }
-        out_console().print(json.dumps(payload), markup=False)
+        print_json(settings, payload)
     else:
         there = " (it was already there)" if result.already_there else ""
         out_console().print(

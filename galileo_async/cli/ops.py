@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -12,7 +11,15 @@ import typer
 from ..errors import InvalidArgument
 from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
 from .goals import follow_goal, with_progress
-from .runner import ExitCode, err_console, fail, out_console, run_robot, settings_of
+from .runner import (
+    ExitCode,
+    err_console,
+    fail,
+    out_console,
+    print_json,
+    run_robot,
+    settings_of,
+)
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -66,7 +73,7 @@ def _simple(
     async def body(robot: Robot) -> int:
         await with_progress(robot, label, call(robot), show=not settings.json)
         if settings.json:
-            out_console().print(json.dumps({"result": "ok", "done": done}), markup=False)
+            print_json(settings, {"result": "ok", "done": done})
         else:
             out_console().print(done)
         return 0
@@ -277,8 +284,7 @@ def send(
         await robot.send(to_send)
         wire = encode(to_send).hex(" ")
         if settings.json:
-            line = json.dumps({"sent": to_send.name, "bytes": wire})
-            out_console().print(line, markup=False)
+            print_json(settings, {"sent": to_send.name, "bytes": wire})
         else:
             out_console().print(f"sent {to_send!r}: {wire}", markup=False)
         return 0

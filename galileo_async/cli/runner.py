@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import asyncio
 import enum
+import json
 import logging
 import os
 import sys
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, Literal, NoReturn
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import typer
@@ -35,8 +36,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_PORT",
+    "PORT_ENV",
+    "SIMULATOR_NOTICE",
     "ExitCode",
+    "PortSource",
     "Settings",
+    "checked_port",
     "ensure_navigation",
     "err_console",
     "error_text",
@@ -45,7 +50,10 @@ __all__ = [
     "is_sim",
     "out_console",
     "print_error",
+    "print_json",
     "report",
+    "resolve_port",
+    "robot_url",
     "run",
     "run_robot",
     "settings_of",
@@ -55,6 +63,14 @@ __all__ = [
 
 #: The URL used when neither --port nor GALILEO_PORT is given: an in-process simulator.
 DEFAULT_PORT = "sim://"
+#: The environment variable that names the port when --port is not given.
+PORT_ENV = "GALILEO_PORT"
+#: Where the port of an invocation came from.
+PortSource = Literal["--port", "GALILEO_PORT", "default"]
+#: The stderr line of every robot command that runs on the simulator by default.
+SIMULATOR_NOTICE = (
+    f"galileo: no --port or {PORT_ENV} given: running on the built-in simulator ({DEFAULT_PORT})"
+)
 
 
 class ExitCode(enum.IntEnum):
@@ -77,6 +93,8 @@ class Settings:
     """Global options of one ``galileo`` invocation."""
 
     port: str = DEFAULT_PORT
+    #: "default" when neither --port nor GALILEO_PORT named the port (the simulator stands in).
+    port_source: PortSource = "--port"
     layout: str | None = None
     verbose: int = 0
     json: bool = False
@@ -125,12 +143,47 @@ def is_sim(url: str) -> bool:
     return link_kind(url) == "sim"
 
 
+def resolve_port(option: str | None, *, from_environment: bool = False) -> tuple[str, PortSource]:
+    """(port, source): --port, else GALILEO_PORT (kept even when empty), else the simulator."""
+    if option is not None:
+        return option, "GALILEO_PORT" if from_environment else "--port"
+    environment = os.environ.get(PORT_ENV)
+    if environment is not None:  # set but empty: a usage error later, never the simulator
+        return environment, "GALILEO_PORT"
+    return DEFAULT_PORT, "default"
+
+
 def settings_of(ctx: typer.Context) -> Settings:
     """The Settings stored by the global callback (defaults when run without it)."""
     root = ctx.find_root()
     if not isinstance(root.obj, Settings):
-        root.obj = Settings(port=os.environ.get("GALILEO_PORT") or DEFAULT_PORT)
+        port, source = resolve_port(None)
+        root.obj = Settings(port=port, port_source=source)
     return root.obj
+
+
+def checked_port(settings: Settings) -> str:
+    """The port of ``settings``; an empty --port or GALILEO_PORT exits with ExitCode.USAGE."""
+    if not settings.port.strip():
+        fail(
+            f"{settings.port_source} is empty: name the robot's port (a serial device, "
+            f"socket://host:port, ros://host:11311) or {DEFAULT_PORT} for the simulator",
+            ExitCode.USAGE,
+        )
+    return settings.port
+
+
+def robot_url(settings: Settings) -> str:
+    """The URL a robot command opens (checked_port); says so on stderr when it is the default."""
+    checked_port(settings)
+    if settings.port_source == "default":
+        err_console().print(SIMULATOR_NOTICE, markup=False, style="yellow")
+    return settings.url
+
+
+def print_json(settings: Settings, data: dict[str, Any]) -> None:
+    """Print one JSON object on stdout, naming the port it came from first (``"port"``)."""
+    out_console().print(json.dumps({"port": settings.port} | data), markup=False)
 
 
 def out_console() -> Console:
@@ -251,11 +304,13 @@ def run_robot(
     ``long_running`` commands (watchers) reconnect after a drop; one-shot commands do not.
     """
 
+    url = robot_url(settings)
+
     async def main() -> int | None:
         from ..robot import connect
 
         options = settings.connect_options(long_running=long_running)
-        async with connect(settings.url, **options) as robot:
+        async with connect(url, **options) as robot:
             start = is_sim(settings.port) if navigation is None else navigation
             if start:
                 await ensure_navigation(robot, settings)

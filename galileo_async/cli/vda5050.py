@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import anyio
@@ -13,14 +19,59 @@ from .runner import ExitCode, err_console, fail, run_robot, settings_of
 if TYPE_CHECKING:
     from ..robot import Robot
 
-__all__ = ["vda5050"]
+__all__ = ["PASSWORD_ENV", "vda5050"]
+
+#: The environment variable that holds the broker password (kept out of the process list).
+PASSWORD_ENV = "GALILEO_MQTT_PASSWORD"
+
+
+def _password(password_file: Path | None) -> str | None:
+    """The broker password: --password-file, else GALILEO_MQTT_PASSWORD; empty is refused."""
+    if password_file is not None:
+        try:
+            text = password_file.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            fail(f"cannot read --password-file {password_file}: {exc}", ExitCode.USAGE)
+        password = text.rstrip("\r\n")  # the newlines an editor or `echo` adds
+        if not password:
+            fail(f"--password-file {password_file} is empty", ExitCode.USAGE)
+        return password
+    from_environment = os.environ.get(PASSWORD_ENV)
+    if from_environment == "":
+        fail(f"{PASSWORD_ENV} is set but empty", ExitCode.USAGE)
+    return from_environment
+
+
+@contextlib.contextmanager
+def _warnings_on_stderr(verbose: int) -> Iterator[None]:
+    """Show the vehicle's warnings (broker refused, unreachable) on stderr even without -v."""
+    if verbose:  # -v already shows every log line
+        yield
+        return
+    from ..vda5050.session import MQTT_LOGGER
+
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(logging.WARNING)
+    # The MQTT client repeats its socket errors on every retry; the session's warning
+    # carries the reason once (and -v shows them all).
+    handler.addFilter(lambda record: not record.name.startswith(MQTT_LOGGER))
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    logger = logging.getLogger("galileo_async.vda5050")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
 
 
 def vda5050(
     ctx: typer.Context,
     broker: Annotated[
         str,
-        typer.Option(help="MQTT broker: mqtt://[user:password@]host[:port] or mqtts://… (TLS)."),
+        typer.Option(
+            help="MQTT broker: mqtt://[user@]host[:port] or mqtts://… (TLS). The password: "
+            f"{PASSWORD_ENV} or --password-file (in the URL, other users can read it)."
+        ),
     ],
     manufacturer: Annotated[str, typer.Option(help="The vehicle's manufacturer (topic level).")],
     serial_number: Annotated[
@@ -41,34 +92,61 @@ def vda5050(
     ca_file: Annotated[
         str | None, typer.Option("--ca-file", help="CA certificate for mqtts:// (PEM).")
     ] = None,
+    tls_cert: Annotated[
+        str | None,
+        typer.Option("--tls-cert", help="Client certificate for mqtts:// (PEM; mutual TLS)."),
+    ] = None,
+    tls_key: Annotated[
+        str | None,
+        typer.Option("--tls-key", help="The client certificate's key (PEM, unencrypted)."),
+    ] = None,
+    password_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--password-file", help=f"File holding the broker password (else {PASSWORD_ENV})."
+        ),
+    ] = None,
 ) -> None:
     """Be a VDA 5050 2.0 vehicle: orders and instant actions from a master control over MQTT."""
     settings = settings_of(ctx)
     try:
-        from ..vda5050 import Vehicle, VehicleConfig
+        from ..vda5050 import Vehicle, VehicleConfig, parse_broker_url, redact_url
+        from ..vda5050.session import tls_context
     except ImportError:  # pragma: no cover - depends on the installed extras
         fail("the vda5050 command needs the extra: pip install 'galileo-async[vda5050]'")
     from ..errors import InvalidArgument
 
     try:
+        in_url = parse_broker_url(broker).password is not None
+        password = _password(password_file)
         config = VehicleConfig(
             broker=broker, manufacturer=manufacturer, serial_number=serial_number,
             interface_name=interface_name, map_id=map_id, start_navigation=start_navigation,
-            visualization_rate=visualization_rate, tls_ca_file=ca_file,
+            visualization_rate=visualization_rate, tls_ca_file=ca_file, tls_cert_file=tls_cert,
+            tls_key_file=tls_key, password=password,
         )  # fmt: skip
+        tls_context(config)  # unreadable certificate files: a usage error before connecting
     except InvalidArgument as exc:
         fail(str(exc), ExitCode.USAGE)
+    if in_url:
+        err_console().print(
+            f"warning: the --broker URL holds the password, which other users of this machine "
+            f"can read (process list, shell history); use {PASSWORD_ENV} or --password-file",
+            markup=False, style="yellow",
+        )  # fmt: skip
+    shown = redact_url(broker)
 
     async def body(robot: Robot) -> int:
         vehicle = Vehicle(robot, config)
         err_console().print(
-            f"VDA 5050 vehicle {config.topic('')}… on {broker} · Ctrl-C stops", markup=False
+            f"VDA 5050 vehicle {config.topic('')}… on {shown} · Ctrl-C stops", markup=False
         )
-        async with anyio.create_task_group() as group:
-            group.start_soon(vehicle.run)
-            with stop_requested() as stop:
-                await stop.wait()
-            group.cancel_scope.cancel()
+        with _warnings_on_stderr(settings.verbose):
+            async with anyio.create_task_group() as group:
+                group.start_soon(vehicle.run)
+                with stop_requested() as stop:
+                    await stop.wait()
+                group.cancel_scope.cancel()
         return 0
 
     run_robot(settings, body, long_running=True, interrupted=ExitCode.OK)

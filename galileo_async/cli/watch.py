@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections import deque
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -28,7 +27,16 @@ from .render import (
     status_dict,
     status_line,
 )
-from .runner import ExitCode, err_console, fail, out_console, run_robot, settings_of
+from .runner import (
+    ExitCode,
+    Settings,
+    err_console,
+    fail,
+    out_console,
+    print_json,
+    run_robot,
+    settings_of,
+)
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -67,7 +75,7 @@ def status(
     stdout as JSON event lines with --json.
     """
     settings = settings_of(ctx)
-    as_json = settings.json or json_output
+    settings.json = settings.json or json_output
     console = out_console()
     if watch and not reconnect:
         settings.extra["reconnect"] = False
@@ -75,9 +83,8 @@ def status(
     async def body(robot: Robot) -> int:
         if not watch:
             latest = robot.status or await first_report(robot)
-            if as_json:
-                data = {"status": status_dict(latest), "link": link_dict(robot.link)}
-                console.print(json.dumps(data), markup=False)
+            if settings.json:
+                print_json(settings, {"status": status_dict(latest), "link": link_dict(robot.link)})
             else:
                 from .render import status_table
 
@@ -88,8 +95,8 @@ def status(
         stream = robot.statuses()
         try:
             async with anyio.create_task_group() as group:
-                group.start_soon(_report_link, events, as_json, reconnect, lost)
-                if await _print_statuses(stream, interval, count, as_json):
+                group.start_soon(_report_link, events, settings, reconnect, lost)
+                if await _print_statuses(stream, interval, count, settings):
                     group.cancel_scope.cancel()
                     return 0
                 # The status stream ended: the store closed, so the event stream ends too
@@ -116,7 +123,7 @@ async def first_report(robot: Robot) -> GalileoStatus:
 
 
 async def _print_statuses(
-    stream: AsyncIterator[GalileoStatus], interval: float, count: int | None, as_json: bool
+    stream: AsyncIterator[GalileoStatus], interval: float, count: int | None, settings: Settings
 ) -> bool:
     """Print a line per interval; True after ``count`` lines, False when the stream ended."""
     console = out_console()
@@ -127,8 +134,10 @@ async def _print_statuses(
         if now < next_at:
             continue
         next_at = now + interval
-        text = json.dumps(status_dict(current)) if as_json else status_line(current)
-        console.print(text, markup=False)
+        if settings.json:
+            print_json(settings, status_dict(current))
+        else:
+            console.print(status_line(current), markup=False)
         printed += 1
         if count is not None and printed >= count:
             return True
@@ -136,7 +145,7 @@ async def _print_statuses(
 
 
 async def _report_link(
-    events: AsyncIterator[Event], as_json: bool, reconnecting: bool, lost: list[str]
+    events: AsyncIterator[Event], settings: Settings, reconnecting: bool, lost: list[str]
 ) -> None:
     """Print link health events (stderr, or JSON lines on stdout); remember loss reasons."""
     async for event in events:
@@ -145,8 +154,8 @@ async def _report_link(
             continue
         if isinstance(event, ConnectionLostEvent):
             lost.append(event.reason)
-        if as_json:
-            out_console().print(json.dumps(event_dict(event)), markup=False)
+        if settings.json:
+            print_json(settings, event_dict(event))
         else:
             err_console().print(text, markup=False, style="yellow")
 
@@ -194,7 +203,7 @@ def monitor(
                 async for event in stream:
                     if settings.json:
                         line = {"t": round(anyio.current_time() - started, 3)}
-                        console.print(json.dumps(line | event_dict(event)), markup=False)
+                        print_json(settings, line | event_dict(event))
                     recent.append((anyio.current_time() - started, event_text(event)))
             finally:
                 await aclose(stream)
@@ -221,7 +230,7 @@ def monitor(
                     while await _tick(deadline, 1.0):
                         if latest[0] is not None:
                             data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
-                            console.print(json.dumps(data), markup=False)
+                            print_json(settings, data)
                 else:
                     with Live(
                         screen(), console=console, refresh_per_second=MONITOR_REFRESH

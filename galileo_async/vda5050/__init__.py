@@ -5,7 +5,13 @@ Needs the ``vda5050`` extra (aiomqtt). See docs/vda5050.md.
 
 from __future__ import annotations
 
-from .config import MAX_VISUALIZATION_RATE, BrokerAddress, VehicleConfig, parse_broker_url
+from .config import (
+    MAX_VISUALIZATION_RATE,
+    BrokerAddress,
+    VehicleConfig,
+    parse_broker_url,
+    redact_url,
+)
 from .order import OrderProgress, Rejection, check_order
 from .vehicle import Vehicle, run_vehicles
 
@@ -18,5 +24,6 @@ __all__ = [
     "VehicleConfig",
     "check_order",
     "parse_broker_url",
+    "redact_url",
     "run_vehicles",
 ]

@@ -3,55 +3,79 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from urllib.parse import unquote, urlsplit
+
+from pydantic import SecretStr
 
 from ..errors import InvalidArgument
 
 __all__ = [
     "MAX_VISUALIZATION_RATE",
+    "REDACTED",
     "BrokerAddress",
     "VehicleConfig",
     "parse_broker_url",
+    "redact_url",
 ]
 
 #: The robot reports 30 status frames per second (PROTOCOL.md §1): faster says nothing new.
 MAX_VISUALIZATION_RATE = 30.0
 _DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
+#: What a password is shown as in URLs, reprs, logs and error messages.
+REDACTED = "***"
 
 
 @dataclass(frozen=True)
 class BrokerAddress:
-    """Where the MQTT broker listens and how to log in."""
+    """Where the MQTT broker listens and how to log in (the password never shows in repr)."""
 
     host: str
     port: int
     tls: bool = False
     username: str | None = None
-    password: str | None = None
+    password: SecretStr | None = None
+
+
+def redact_url(url: str) -> str:
+    """``url`` with everything between the user name and the last ``@`` shown as ``***``."""
+    scheme, sep, rest = url.partition("://")
+    if not sep:
+        scheme, rest = "", url
+    # The last "@" and the first ":" before it: a password with a raw "@" or "/" is hidden too.
+    userinfo, at, host = rest.rpartition("@")
+    user, colon, _password = userinfo.partition(":")
+    if not at or not colon:
+        return url
+    return f"{scheme}{sep}{user}:{REDACTED}@{host}"
 
 
 def parse_broker_url(url: str) -> BrokerAddress:
-    """Parse ``mqtt://[user:password@]host[:port]`` or ``mqtts://…`` (TLS); InvalidArgument."""
+    """Parse ``mqtt://[user[:password]@]host[:port]`` or ``mqtts://…`` (TLS); InvalidArgument.
+
+    Error messages show the URL with its password as ``***``.
+    """
     if not isinstance(url, str) or not url:
         raise InvalidArgument(f"broker URL must be a non-empty string, got {url!r}")
-    parts = urlsplit(url)
-    if parts.scheme not in _DEFAULT_PORTS:
-        raise InvalidArgument(f"broker URL must start with mqtt:// or mqtts://, got {url!r}")
+    shown = redact_url(url)
     try:
-        port = parts.port or _DEFAULT_PORTS[parts.scheme]
+        parts = urlsplit(url)
+        port = parts.port
     except ValueError:
-        raise InvalidArgument(f"broker URL has a bad port: {url!r}") from None
+        raise InvalidArgument(f"broker URL is malformed or has a bad port: {shown!r}") from None
+    if parts.scheme not in _DEFAULT_PORTS:
+        raise InvalidArgument(f"broker URL must start with mqtt:// or mqtts://, got {shown!r}")
     if not parts.hostname:
-        raise InvalidArgument(f"broker URL names no host: {url!r}")
+        raise InvalidArgument(f"broker URL names no host: {shown!r}")
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise InvalidArgument(f"broker URL takes no path or query: {url!r}")
+        raise InvalidArgument(f"broker URL takes no path or query: {shown!r}")
+    password = unquote(parts.password) if parts.password is not None else None
     return BrokerAddress(
         host=parts.hostname,
-        port=port,
+        port=port or _DEFAULT_PORTS[parts.scheme],
         tls=parts.scheme == "mqtts",
         username=unquote(parts.username) if parts.username is not None else None,
-        password=unquote(parts.password) if parts.password is not None else None,
+        password=None if password is None else SecretStr(password),
     )
 
 
@@ -67,9 +91,17 @@ def _check_seconds(name: str, value: float, *, allow_zero: bool = False) -> None
         raise InvalidArgument(f"{name} must be a finite number of seconds > 0, got {value!r}")
 
 
-@dataclass(frozen=True)
+def _check_file(name: str, value: str | None) -> None:
+    if value is not None and (not isinstance(value, str) or not value):
+        raise InvalidArgument(f"{name} must be a file path (str) or None, got {value!r}")
+
+
+@dataclass(frozen=True, repr=False)
 class VehicleConfig:
-    """One VDA 5050 vehicle: broker, identity, rates and limits (validated on creation)."""
+    """One VDA 5050 vehicle: broker, identity, rates and limits (validated on creation).
+
+    The password (``password``, or in the broker URL) shows as ``***`` in repr and str.
+    """
 
     broker: str
     manufacturer: str
@@ -92,13 +124,20 @@ class VehicleConfig:
     keepalive: int = 10
     #: CA certificate file for mqtts:// (None: the system's trust store).
     tls_ca_file: str | None = None
+    #: Client certificate (PEM) for mqtts:// brokers that require one (mutual TLS).
+    tls_cert_file: str | None = None
+    #: The client certificate's private key (PEM, unencrypted); None: it is in tls_cert_file.
+    tls_key_file: str | None = None
+    #: The broker password, kept apart from the URL (a str is wrapped in a SecretStr).
+    password: SecretStr | str | None = None
     #: The robot's top speed in m/s for the factsheet (the serial link cannot read it).
     max_speed: float = 0.8
     #: Open navigation when the vehicle starts.
     start_navigation: bool = False
 
     def __post_init__(self) -> None:
-        parse_broker_url(self.broker)
+        url = parse_broker_url(self.broker)
+        self._check_credentials(url)
         _check_name("manufacturer", self.manufacturer)
         _check_name("serial_number", self.serial_number)
         _check_name("interface_name", self.interface_name)
@@ -122,10 +161,39 @@ class VehicleConfig:
         if self.keepalive < 1:
             raise InvalidArgument(f"keepalive must be >= 1 s, got {self.keepalive!r}")
 
+    def _check_credentials(self, url: BrokerAddress) -> None:
+        if isinstance(self.password, str):
+            object.__setattr__(self, "password", SecretStr(self.password))  # frozen
+        elif self.password is not None and not isinstance(self.password, SecretStr):
+            kind = type(self.password).__name__
+            raise InvalidArgument(f"password must be a str or a SecretStr, got a {kind}")
+        if self.password is not None and url.password is not None:
+            raise InvalidArgument("the broker URL has a password and password is given too")
+        if (self.password is not None or url.password is not None) and not url.username:
+            raise InvalidArgument(
+                "a broker password needs a user name in the URL: mqtt://user@host"
+            )
+        for name in ("tls_ca_file", "tls_cert_file", "tls_key_file"):
+            _check_file(name, getattr(self, name))
+        if self.tls_key_file is not None and self.tls_cert_file is None:
+            raise InvalidArgument("tls_key_file needs tls_cert_file (the client certificate)")
+        tls_files = (self.tls_ca_file, self.tls_cert_file, self.tls_key_file)
+        if not url.tls and any(path is not None for path in tls_files):
+            raise InvalidArgument("TLS files need an mqtts:// broker URL (mqtt:// is plain TCP)")
+
+    def __repr__(self) -> str:
+        values = {field.name: getattr(self, field.name) for field in fields(self)}
+        values["broker"] = redact_url(self.broker)
+        return f"VehicleConfig({', '.join(f'{k}={v!r}' for k, v in values.items())})"
+
     @property
     def address(self) -> BrokerAddress:
-        """The parsed broker URL."""
-        return parse_broker_url(self.broker)
+        """The broker to connect to: the URL's host and user, the password from either place."""
+        url = parse_broker_url(self.broker)
+        if self.password is None:
+            return url
+        password = self.password if isinstance(self.password, SecretStr) else None
+        return BrokerAddress(url.host, url.port, url.tls, url.username, password)
 
     def topic(self, name: str) -> str:
         """``{interfaceName}/v2/{manufacturer}/{serialNumber}/{name}`` (VDA 5050 §6.1)."""

@@ -13,12 +13,17 @@ import aiomqtt
 import anyio
 from pydantic import BaseModel
 
+from ..errors import InvalidArgument
 from .config import VehicleConfig
 from .models import Connection, ConnectionState
 
-__all__ = ["CONNECT_TIMEOUT", "OFFLINE_TIMEOUT", "Session"]
+__all__ = ["CONNECT_TIMEOUT", "MQTT_LOGGER", "OFFLINE_TIMEOUT", "Session", "tls_context"]
 
 _log = logging.getLogger(__name__)
+#: The MQTT client's own log lines (socket and TLS errors) go here.
+MQTT_LOGGER = f"{__package__}.mqtt"
+# The client logs every packet at DEBUG: only on request (setLevel on this logger).
+logging.getLogger(MQTT_LOGGER).setLevel(logging.INFO)
 
 #: Seconds a clean stop may spend saying OFFLINE and disconnecting.
 OFFLINE_TIMEOUT = 3.0
@@ -35,6 +40,51 @@ def _payload(message: aiomqtt.Message) -> bytes:
     return str(payload).encode()
 
 
+def _no_key_password() -> str:
+    # Without a callback OpenSSL would prompt on the terminal for an encrypted key's password.
+    raise InvalidArgument("the TLS key is encrypted; give an unencrypted key (PEM)")
+
+
+def tls_context(config: VehicleConfig) -> ssl.SSLContext | None:
+    """The TLS context of an mqtts:// broker (CA, client certificate); InvalidArgument."""
+    if not config.address.tls:
+        return None
+    try:
+        context = ssl.create_default_context(cafile=config.tls_ca_file)
+        if config.tls_cert_file is not None:
+            context.load_cert_chain(
+                config.tls_cert_file, config.tls_key_file, password=_no_key_password
+            )
+    except (OSError, ssl.SSLError) as exc:
+        files = [config.tls_ca_file, config.tls_cert_file, config.tls_key_file]
+        named = ", ".join(path for path in files if path is not None)
+        raise InvalidArgument(f"cannot load the TLS files ({named}): {exc}") from None
+    return context
+
+
+class _Recorder(logging.Logger):
+    """The MQTT client's logger: forwards to MQTT_LOGGER and keeps the last error line."""
+
+    def __init__(self) -> None:
+        super().__init__(MQTT_LOGGER)  # level NOTSET: MQTT_LOGGER's level applies
+        self.parent = logging.getLogger(MQTT_LOGGER)
+        self.last_error: str | None = None
+
+    def handle(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.ERROR:
+            self.last_error = record.getMessage()
+        super().handle(record)
+
+
+def _hint(reason: str) -> str:
+    text = reason.lower()
+    if "certificate required" in text or "certificate_required" in text:
+        return " (the broker requires a client certificate: tls_cert_file, --tls-cert)"
+    if "not authorized" in text or "bad user name or password" in text:
+        return " (check the user name and the password)"
+    return ""
+
+
 class Session:
     """Keeps a vehicle on the broker until cancelled: ONLINE on connect, OFFLINE on a stop."""
 
@@ -49,6 +99,9 @@ class Session:
         self._connection = connection
         self._on_connect = on_connect
         self._on_message = on_message
+        self._tls = tls_context(config)
+        #: Why the last connection attempt failed; None once connected.
+        self.last_error: str | None = None
         self._client: aiomqtt.Client | None = None
         self._online = anyio.Event()
         self._offline = anyio.Event()
@@ -88,41 +141,51 @@ class Session:
             return False
         return True
 
-    def _client_for(self) -> aiomqtt.Client:
+    def _client_for(self, log: logging.Logger) -> aiomqtt.Client:
         address = self.config.address
-        tls = ssl.create_default_context(cafile=self.config.tls_ca_file) if address.tls else None
+        password = None if address.password is None else address.password.get_secret_value()
         will = aiomqtt.Will(
             self.config.topic("connection"),
             self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
             qos=1, retain=True,
         )  # fmt: skip
         return aiomqtt.Client(
-            address.host, address.port, username=address.username, password=address.password,
+            address.host, address.port, username=address.username, password=password,
             identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
-            keepalive=self.config.keepalive, tls_context=tls, timeout=CONNECT_TIMEOUT,
+            keepalive=self.config.keepalive, tls_context=self._tls, timeout=CONNECT_TIMEOUT,
+            logger=log,
         )  # fmt: skip
 
     async def run(self) -> None:
         """Connect, serve, reconnect with exponential back-off; runs until cancelled."""
         delay = self.config.reconnect_initial
         while True:
-            client = self._client_for()
+            log = _Recorder()
+            client = self._client_for(log)
             # aiomqtt connects in a thread: a cancelled connect would leave a socket nobody
             # closes (and the broker would send the last will), so a stop waits for it.
             connecting = asyncio.ensure_future(client.__aenter__())
             try:
                 await asyncio.shield(connecting)
             except aiomqtt.MqttError as exc:
-                _log.info("%s: broker unreachable (%s); retry in %.1f s",
-                          self.config.serial_number, exc, delay)  # fmt: skip
+                self._failed(f"{exc} ({log.last_error})" if log.last_error else str(exc), delay)
             except asyncio.CancelledError:
                 await self._abandon(client, connecting)
                 raise
             else:
                 delay = self.config.reconnect_initial
+                self.last_error = None
                 await self._serve(client)
             await anyio.sleep(delay)
             delay = min(delay * 2, self.config.reconnect_max)
+
+    def _failed(self, reason: str, delay: float) -> None:
+        # A new reason is a warning (shown by `galileo vda5050`); the same one again is not.
+        level = logging.INFO if reason == self.last_error else logging.WARNING
+        self.last_error = reason
+        _log.log(level, "%s: cannot connect to the broker %s:%d: %s%s; retry in %.1f s",
+                 self.config.serial_number, self.config.address.host, self.config.address.port,
+                 reason, _hint(reason), delay)  # fmt: skip
 
     async def _abandon(self, client: aiomqtt.Client, connecting: asyncio.Future[Any]) -> None:
         """Stopped while connecting: let the connect end (bounded), then leave cleanly."""

@@ -44,7 +44,8 @@ class Vehicle:
 
     def __init__(self, robot: Robot, config: VehicleConfig) -> None:
         if not isinstance(config, VehicleConfig):
-            raise InvalidArgument(f"config must be a VehicleConfig, got {config!r}")
+            # Only its type: a mapping passed instead could hold the password.
+            raise InvalidArgument(f"config must be a VehicleConfig, got a {type(config).__name__}")
         self.robot = robot
         self.config = config
         self.progress = OrderProgress()
