@@ -238,14 +238,15 @@ class GoalRunner:
         accept_timeout: float,
         arrive_tolerance: float,
         cancel_on_exit: bool,
+        stops_at: int | None = None,
     ) -> GoalResult:
-        """Send ``command`` through Operations.send and follow its goal to the end; see goto."""
+        """Send ``command`` through Operations.send (supersedable) and follow its goal; see goto."""
         ops = self._ops
         goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance)
         try:
             return await ops.send(
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
-                then=goal,
+                then=goal, supersedable=True, stops_at=stops_at,
             )  # fmt: skip
         except (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost) as exc:
             # Leaving while the robot may still drive: stop it, unless a newer goal of this

@@ -8,6 +8,7 @@ from types import TracebackType
 
 from .._checks import check_bool, check_timeout
 from ..errors import (
+    CommandSuperseded,
     GalileoTimeout,
     InvalidArgument,
     UnconfirmedOperation,
@@ -38,6 +39,7 @@ from .runtime import (
     or_default,
 )
 from .services import RobotServices
+from .supersede import goal_superseded
 from .targets import DynamicTargets
 
 __all__ = [
@@ -197,7 +199,8 @@ class Robot(RobotServices):
             ) from None
 
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Stop navigation (also patrol and the goal); return once it is closed."""
+        """Stop navigation (also patrol and the goal); return once it is closed (a user stop)."""
+        self._ops.user_stopped("stop_navigation()")
         check_timeout("timeout", timeout)
         await self._ops.send(
             StopNavigation(), what="stop_navigation", deadline=Deadline(timeout),
@@ -229,10 +232,13 @@ class Robot(RobotServices):
         check_timeout("accept_timeout", accept_timeout)
         check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
-        return await self._goals.run(
-            command, deadline=Deadline(seconds), accept_timeout=accept,
-            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
-        )  # fmt: skip
+        try:
+            return await self._goals.run(
+                command, deadline=Deadline(seconds), accept_timeout=accept,
+                arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+            )  # fmt: skip
+        except CommandSuperseded as exc:  # a user stop came before ``g N`` was written
+            raise goal_superseded(exc, target_id) from exc
 
     async def goto_point(
         self,
@@ -247,14 +253,21 @@ class Robot(RobotServices):
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_bool("cancel_on_exit", cancel_on_exit)
-        self._targets.map_target_count("goto_point")
+        first_id = self._targets.map_target_count("goto_point")
         deadline = Deadline(seconds)
-        await self._targets.reset(deadline, what="goto_point", require=GOAL_READY)
-        target_id = await self._targets.add(command, deadline)
-        return await self._goals.run(
-            Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
-            arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
-        )  # fmt: skip
+        stops_at = self._ops.stops  # a user stop supersedes every step still to come
+        try:
+            await self._targets.reset(
+                deadline, what="goto_point", require=GOAL_READY, stops_at=stops_at
+            )
+            target_id = await self._targets.add(command, deadline, stops_at=stops_at)
+            return await self._goals.run(
+                Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
+                arrive_tolerance=self.arrive_tolerance, cancel_on_exit=cancel_on_exit,
+                stops_at=stops_at,
+            )  # fmt: skip
+        except CommandSuperseded as exc:  # a user stop came before the last step was written
+            raise goal_superseded(exc, first_id) from exc
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -264,7 +277,7 @@ class Robot(RobotServices):
         Cancelling the caller does not interrupt it: the link is closed (within a few
         seconds at most), then the cancellation is raised.
         """
-        self._ops.ensure_loop()
+        self._ops.user_stopped("close()")
         task = self._close_task
         if task is None:
             self._ops.closed = True

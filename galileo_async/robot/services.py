@@ -57,6 +57,10 @@ _ROTATE_READY = Require(
 )
 
 
+#: Drive commands: a user stop supersedes them while they wait (Operations.user_stopped).
+_DRIVE_COMMANDS = (Forward, Backward, TurnLeft, TurnRight)
+
+
 class _Rotation(Confirm):
     """Confirms ``a``: angle_goal_status 0 then 1, with no navigation goal meanwhile."""
 
@@ -104,7 +108,8 @@ class RobotServices:
     # --- goal control ---------------------------------------------------------------
 
     async def pause(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Pause the working goal; return once the status shows it paused."""
+        """Pause the working goal; return once the status shows it paused (a user stop)."""
+        self._ops.user_stopped("pause()")
         await self._goal_command(Pause(), TargetStatus.WORKING, TargetStatus.PAUSED, timeout)
 
     async def resume(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -117,6 +122,7 @@ class RobotServices:
         On a stale link ``i 2`` is still sent (the transmit side may work), then LinkStale
         is raised: the status cannot confirm it.
         """
+        self._ops.user_stopped("cancel()")
         check_timeout("timeout", timeout)
         self._ops.ensure_open()
         self._goals.cancelling()
@@ -183,7 +189,12 @@ class RobotServices:
         await self._written(TurnRight(percent), "turn_right", timeout)
 
     async def stop(self, brake: int = 100) -> None:
-        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale."""
+        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale.
+
+        A user stop: a drive or goal command called before it that still waits is never
+        written (Operations.user_stopped).
+        """
+        self._ops.user_stopped("stop()")
         await self._ops.send(Stop(brake), what="stop", even_stale=True)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
@@ -278,7 +289,10 @@ class RobotServices:
     ) -> None:
         """Send ``command`` (busy back-off within ``timeout``); nothing confirms it."""
         check_timeout("timeout", timeout)
-        await self._ops.send(command, what=what, deadline=Deadline(timeout), require=require)
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout), require=require,
+            supersedable=isinstance(command, _DRIVE_COMMANDS),
+        )  # fmt: skip
 
     async def _mapping_command(
         self, command: Command, mapping: bool, timeout: float | None, what: str
