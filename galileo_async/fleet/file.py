@@ -39,7 +39,7 @@ OPTION_TYPES: dict[str, type] = {
     "stale_timeout": float, "stale_reconnect": float, "reconnect_initial": float,
     "reconnect_max": float, "connect_timeout": float, "first_status_timeout": float,
     "accept_timeout": float, "arrive_tolerance": float, "goal_timeout": float,
-    "wait_timeout": float, "min_command_interval": float,
+    "wait_timeout": float, "min_command_interval": float, "angle_tolerance": float,
 }  # fmt: skip
 _TOP_LEVEL = ("robots", "defaults", "targets")
 

@@ -19,6 +19,7 @@ ROBOT_OPTIONS = (
     "arrive_tolerance",
     "goal_timeout",
     "wait_timeout",
+    "angle_tolerance",
 )
 #: Options connect() takes itself; the rest go to the link.
 CONNECT_OPTIONS = (*ROBOT_OPTIONS, "first_status_timeout")
@@ -33,12 +34,17 @@ def _check_metres(name: str, value: object) -> None:
     check_number(name, value, low=0.0)
 
 
+def _check_degrees(name: str, value: object) -> None:
+    check_number(name, value, low=0.0, high=180.0)
+
+
 _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "map_targets": _check_map_targets,
     "accept_timeout": functools.partial(check_timeout, allow_none=False),
     "arrive_tolerance": _check_metres,
     "goal_timeout": check_timeout,
     "wait_timeout": check_timeout,
+    "angle_tolerance": _check_degrees,
     "first_status_timeout": check_timeout,
 }
 

@@ -38,12 +38,13 @@ from .runtime import (
     finish_shielded,
     or_default,
 )
-from .services import RobotServices
+from .services import DEFAULT_ANGLE_TOLERANCE, RobotServices
 from .supersede import goal_superseded
 from .targets import DynamicTargets
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
+    "DEFAULT_ANGLE_TOLERANCE",
     "DEFAULT_ARRIVE_TOLERANCE",
     "DEFAULT_GOAL_TIMEOUT",
     "DEFAULT_TIMEOUT",
@@ -86,9 +87,11 @@ class Robot(RobotServices):
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
+        angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE,
     ) -> None:
         check_robot_options(
             {
+                "angle_tolerance": angle_tolerance,
                 "map_targets": map_targets,
                 "accept_timeout": accept_timeout,
                 "arrive_tolerance": arrive_tolerance,
@@ -105,6 +108,7 @@ class Robot(RobotServices):
         #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
         self.goal_timeout = goal_timeout
         self.wait_timeout = wait_timeout
+        self.angle_tolerance = float(angle_tolerance)
         self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------

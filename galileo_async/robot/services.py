@@ -3,6 +3,8 @@ teleoperation, patrol, mapping, charging, the host. Each validates, then Operati
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from .._checks import check_int, check_number, check_timeout
 from ..errors import (
     GalileoTimeout,
@@ -49,7 +51,10 @@ from .operations import (
 from .runtime import Deadline
 from .targets import DynamicTargets
 
-__all__ = ["RobotServices"]
+__all__ = ["DEFAULT_ANGLE_TOLERANCE", "RobotServices"]
+
+#: Degrees within which the robot already faces a rotate_to heading (the Robot's option).
+DEFAULT_ANGLE_TOLERANCE = 2.0
 
 _ROTATE_READY = Require(
     lambda s: s.visual_initialised and not s.goal_active,
@@ -97,6 +102,19 @@ class _Rotation(Confirm):
         return self._started and status.angle_goal_status == AngleGoalStatus.DONE
 
 
+def _facing(degrees: float, tolerance: float) -> Callable[[GalileoStatus], bool]:
+    """A predicate: the status shows a heading within ``tolerance`` degrees of ``degrees``."""
+
+    def facing(status: GalileoStatus) -> bool:
+        pose = status.pose
+        if pose is None:
+            return False  # the layout has no heading, or it is unknown: rotate
+        off = (pose.degrees - degrees + 180.0) % 360.0 - 180.0  # wrapped into [-180, 180)
+        return abs(off) <= tolerance
+
+    return facing
+
+
 class RobotServices:
     """The Robot's methods besides goto and navigation, on the parts a Robot is made of."""
 
@@ -104,6 +122,8 @@ class RobotServices:
         self._ops = ops
         self._goals = goals
         self._targets = targets
+        #: rotate_to within this many degrees of the heading the robot has: done, not sent.
+        self.angle_tolerance = DEFAULT_ANGLE_TOLERANCE
 
     # --- goal control ---------------------------------------------------------------
 
@@ -145,14 +165,16 @@ class RobotServices:
 
         Returns once angle_goal_status shows this rotation done (0, then 1). A navigation
         goal that runs meanwhile (this Robot's or another host's) raises OperationFailed:
-        it replaces the rotation, and on real firmware angle_goal_status follows it.
+        it replaces the rotation, and on real firmware angle_goal_status follows it. Facing
+        ``degrees`` already, within ``angle_tolerance`` (-180 and 180 are one heading), it
+        returns at once and sends nothing.
         """
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         what = f"rotate_to({degrees})"
         await self._ops.send(
             command, what=what, deadline=Deadline(timeout), require=_ROTATE_READY,
-            then=_Rotation(what),
+            unless=_facing(degrees, self.angle_tolerance), then=_Rotation(what),
         )  # fmt: skip
 
     # --- dynamic targets -------------------------------------------------------------
