@@ -43,6 +43,7 @@ SUPERSEDED: dict[str, tuple[Call, type[GalileoError]]] = {
     "turn_right": (lambda r: r.turn_right(30, timeout=WAIT), CommandSuperseded),
     "goto": (lambda r: r.goto(FAR, timeout=WAIT), GoalCancelled),
     "goto_point": (lambda r: r.goto_point(10.0, 0.0, timeout=WAIT), GoalCancelled),
+    "send(Goto)": (lambda r: r.send(Goto(FAR), timeout=WAIT), CommandSuperseded),
 }
 #: Commands that must never reach the robot once superseded.
 MOVING = (Forward, Backward, TurnLeft, TurnRight, Goto, AddTarget, ResetTargets)

@@ -20,6 +20,7 @@ from ..protocol import (
     Cancel,
     Command,
     Forward,
+    Goto,
     Pause,
     Resume,
     RotateTo,
@@ -62,8 +63,9 @@ _ROTATE_READY = Require(
 )
 
 
-#: Drive commands: a user stop supersedes them while they wait (Operations.user_stopped).
-_DRIVE_COMMANDS = (Forward, Backward, TurnLeft, TurnRight)
+#: What a user stop supersedes while it waits (Operations.user_stopped): drive commands, and
+#: a goal sent as is with send().
+_SUPERSEDABLE = (Forward, Backward, TurnLeft, TurnRight, Goto)
 
 
 class _Rotation(Confirm):
@@ -313,7 +315,7 @@ class RobotServices:
         check_timeout("timeout", timeout)
         await self._ops.send(
             command, what=what, deadline=Deadline(timeout), require=require,
-            supersedable=isinstance(command, _DRIVE_COMMANDS),
+            supersedable=isinstance(command, _SUPERSEDABLE),
         )  # fmt: skip
 
     async def _mapping_command(
