@@ -16,13 +16,14 @@ import anyio
 import pytest
 from cancel_ways import WAYS, stop_waiting
 from scripted_robot import DEFAULTS, READY, ScriptedRobot, connected, flush
-from sim_integration import FAR, MAP_TARGETS, SPEED, TARGETS, WAIT, record_commands
+from sim_integration import FAR, MAP_TARGETS, RIGHT, SPEED, TARGETS, WAIT, record_commands
 
 import galileo_async as galileo
 from galileo_async import CommandSuperseded, GalileoError, GoalCancelled
 from galileo_async.protocol import (
     AddTarget,
     Backward,
+    Cancel,
     Command,
     Forward,
     Goto,
@@ -211,3 +212,20 @@ async def test_a_waiting_call_cancelled_by_its_caller_is_never_written(name: str
         await robot.forward(10)
         await written(robot, log, Forward(10))
         assert moving(log) == [Forward(10)]
+
+
+async def test_a_withdrawn_goal_cancels_the_goal_it_was_to_replace() -> None:
+    # One write every 0.5 s: ``g RIGHT`` waits in the link's queue, where it already counts
+    # as replacing goal FAR; withdrawn, it must not leave goal FAR driving unwatched.
+    async with busy_robot(min_command_interval=0.5) as (sim, robot, log):
+        sim.model.hold_busy(0.0)
+        first = asyncio.ensure_future(robot.goto(FAR, timeout=WAIT))
+        await robot.wait_until(lambda s: s.target_num_id == FAR and s.goal_active, timeout=WAIT)
+        second = await waiting(robot, lambda r: r.goto(RIGHT, timeout=WAIT))
+        await robot.stop()
+        await superseded_at_once(second, GoalCancelled, "stop()")
+        with pytest.raises(GoalCancelled):
+            await first
+        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
+        await written(robot, log, Cancel())
+        assert moving(log) == [Goto(FAR)]

@@ -20,7 +20,7 @@ from ..errors import (
 from ..models import GalileoStatus, TargetStatus
 from ..protocol import Goto
 from ..transitions import ACTIVE, arrived, end_distance, valid_distance
-from .operations import GOAL_READY, Operations, Sent
+from .operations import GOAL_READY, LEAVING, Operations, Sent
 from .runtime import Deadline
 
 if TYPE_CHECKING:
@@ -248,10 +248,10 @@ class GoalRunner:
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
                 then=goal, supersedable=True, stops_at=stops_at,
             )  # fmt: skip
-        except (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost) as exc:
-            # Leaving while the robot may still drive: stop it, unless a newer goal of this
-            # Robot already replaced this one (a cancel would stop the new goal). Before
-            # goal.tracker exists nothing was queued: nothing to stop.
+        except LEAVING as exc:
+            # Leaving while the robot may still drive (also a queued goal a user stop withdrew:
+            # it preempted the goal before it): stop it, unless a newer goal replaced this one
+            # (a cancel would stop it). Before goal.tracker exists nothing was queued.
             if goal.tracker is not None and cancel_on_exit and not goal.preempted:
                 if goal.written and isinstance(exc, (LinkStale, ConnectionLost)):
                     ops.abandon(goal.target_id)  # unseen, it may drive on: check once back

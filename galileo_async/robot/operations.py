@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
 import anyio
 
 from ..errors import (
+    CommandSuperseded,
     ConnectionLost,
     GalileoConnectionError,
     GalileoError,
@@ -37,6 +38,7 @@ __all__ = [
     "CANCEL_SEND_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "GOAL_READY",
+    "LEAVING",
     "NAVIGATING",
     "NOT_NAVIGATING",
     "ROTATE_TIMEOUT",
@@ -55,6 +57,8 @@ DEFAULT_TIMEOUT = 10.0
 ROTATE_TIMEOUT = 20.0
 #: Longest a shielded cancel (``i 2``) sent on the way out of an operation may take.
 CANCEL_SEND_TIMEOUT = 1.0
+#: What a goal leaves on while the robot may still drive, so that its exit cancel follows.
+LEAVING = (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost, CommandSuperseded)
 
 Predicate = Callable[[GalileoStatus], bool]
 _R = TypeVar("_R")
