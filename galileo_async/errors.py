@@ -10,6 +10,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AcceptTimeout",
     "AsyncioRequired",
+    "CommandSuperseded",
     "ConnectionLost",
     "GalileoConnectionError",
     "GalileoError",
@@ -79,6 +80,14 @@ class NotReady(GalileoError):
     def __init__(self, message: str, status: GalileoStatus | None) -> None:
         super().__init__(message)
         self.status = status
+
+
+class CommandSuperseded(GalileoError):
+    """A user stop (``superseded_by``, e.g. "stop()") came while the command waited; not sent."""
+
+    def __init__(self, message: str, *, superseded_by: str) -> None:
+        super().__init__(message)
+        self.superseded_by = superseded_by
 
 
 class OperationFailed(GalileoError):

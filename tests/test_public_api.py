@@ -7,7 +7,8 @@ import inspect
 import galileo_async as galileo
 
 PUBLIC = {
-    "AcceptTimeout", "AngleGoalStatus", "AsyncioRequired", "ChargeStatus", "Connection",
+    "AcceptTimeout", "AngleGoalStatus", "AsyncioRequired", "ChargeStatus", "CommandSuperseded",
+    "Connection",
     "ConnectionLost",
     "DiscoveredRobot", "GalileoConnectionError", "GalileoError", "GalileoStatus",
     "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",

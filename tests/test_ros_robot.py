@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -11,8 +12,14 @@ import pytest
 from ros_support import RobotNode, RosMaster
 
 import galileo_async as galileo
-from galileo_async.errors import GoalAborted, GoalCancelled, GoalRejected, NotReady
-from galileo_async.models import StatusLayout, TargetStatus
+from galileo_async.errors import (
+    CommandSuperseded,
+    GoalAborted,
+    GoalCancelled,
+    GoalRejected,
+    NotReady,
+)
+from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.robot import Robot, connect
 from galileo_async.ros import RosLink
 
@@ -227,3 +234,36 @@ async def test_timeout_around_goto_stops_the_robot(robot: Robot) -> None:
     # cancel_on_exit: i 2 went out over /galileo/cmds before the timeout was re-raised.
     status = await robot.wait_until(lambda s: not s.goal_active, timeout=5)
     assert status.target_num_id == -1
+
+
+async def test_a_stop_over_ros_supersedes_drive_and_goal_waiting_out_busy(
+    robot: Robot, node: RobotNode
+) -> None:
+    await robot.start_navigation(timeout=10)
+    await node.control("busy 30")
+    await robot.wait_until(lambda s: s.is_busy, timeout=5)
+    seen: list[GalileoStatus] = []
+
+    async def collect() -> None:
+        async for status in robot.statuses():
+            seen.append(status)
+
+    collector = asyncio.ensure_future(collect())
+    drive = asyncio.ensure_future(robot.forward(30, timeout=15))
+    goal = asyncio.ensure_future(robot.goto(FAR, timeout=15))
+    await asyncio.sleep(0)  # both reach the busy back-off
+    await robot.stop()
+    with pytest.raises(CommandSuperseded):
+        await asyncio.wait_for(drive, 1.0)
+    with pytest.raises(GoalCancelled):
+        await asyncio.wait_for(goal, 1.0)
+    await node.control("busy 0")
+    await robot.forward(10)  # a marker: applied after anything written before it
+    await robot.wait_until(lambda s: s.control_speed_x == pytest.approx(0.1), timeout=5)
+    await robot.stop()
+    collector.cancel()
+    with contextlib.suppress(asyncio.CancelledError):
+        await collector
+    assert seen
+    assert not [s for s in seen if s.control_speed_x == pytest.approx(0.3)]
+    assert not [s for s in seen if s.target_num_id == FAR]

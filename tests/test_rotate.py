@@ -12,14 +12,24 @@ import asyncio
 import contextlib
 import math
 from collections.abc import AsyncIterator
+from typing import Any
 
 import anyio
 import pytest
-from sim_integration import NEAR, SPEED, TARGETS, WAIT, near, sim_seconds, time_limit
+from sim_integration import (
+    NEAR,
+    SPEED,
+    TARGETS,
+    WAIT,
+    near,
+    record_commands,
+    sim_seconds,
+    time_limit,
+)
 
 import galileo_async as galileo
 from galileo_async import OperationFailed, TargetStatus, UnconfirmedOperation
-from galileo_async.protocol import Goto
+from galileo_async.protocol import Command, Goto, RotateTo, Stop
 from galileo_async.sim import Simulator
 
 
@@ -93,3 +103,44 @@ async def test_rotate_to_under_a_time_limit_leaves_nothing_running() -> None:
         with anyio.move_on_after(sim_seconds(5)) as scope:
             await robot.rotate_to(-90)
         assert scope.cancelled_caught
+
+
+# --- a heading the robot already has (issue 21, item 5) ----------------------------------
+
+
+@contextlib.asynccontextmanager
+async def facing(
+    firmware: str, degrees: float, **options: Any
+) -> AsyncIterator[tuple[galileo.Robot, list[tuple[Command, bool]]]]:
+    """A navigating simulated robot that faces ``degrees``, and its command log from now."""
+    pose = (0.0, 0.0, math.radians(degrees))
+    async with Simulator(speed=SPEED, targets=TARGETS, firmware=firmware, start_pose=pose) as sim:
+        server = await sim.serve_tcp()
+        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        async with galileo.connect(url, **options) as robot:
+            await robot.start_navigation(timeout=WAIT)
+            yield robot, record_commands(sim)
+
+
+@pytest.mark.parametrize("firmware", ["real", "document"])
+@pytest.mark.parametrize(
+    ("heading", "requested"), [(180, -180), (-180, 180), (180, 179), (-179.5, 179), (0, 1.5)]
+)
+async def test_rotate_to_the_heading_the_robot_has_returns_at_once_without_sending(
+    firmware: str, heading: float, requested: float
+) -> None:
+    async with facing(firmware, heading) as (robot, log):
+        with anyio.fail_after(1.0):  # real firmware would leave it waiting out the timeout
+            await robot.rotate_to(requested, timeout=WAIT)
+        await robot.stop()  # a marker: whatever was sent before it has arrived
+        await robot.wait_until(lambda _s: bool(log), timeout=WAIT)
+        assert [command for command, _busy in log] == [Stop(100)]
+
+
+async def test_a_heading_outside_the_angle_tolerance_is_rotated_to() -> None:
+    async with facing("document", 180, angle_tolerance=0.5) as (robot, log):
+        await robot.rotate_to(-179, timeout=WAIT)
+        assert [command for command, _busy in log] == [RotateTo(-179)]
+        assert robot.status is not None
+        assert robot.status.pose is not None
+        assert near(robot.status.pose.degrees, -179, 0.01)

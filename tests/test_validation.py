@@ -32,7 +32,7 @@ BAD_VALUES: tuple[Any, ...] = (math.nan, math.inf, -math.inf, 10**400, -1, 0, "1
 
 ROBOT_OPTIONS = (
     "map_targets", "accept_timeout", "arrive_tolerance", "goal_timeout", "wait_timeout",
-    "first_status_timeout", "progress_timeout",
+    "first_status_timeout", "progress_timeout", "angle_tolerance",
 )  # fmt: skip
 LINK_OPTIONS = (
     "reconnect", "reconnect_initial", "reconnect_max", "stale_timeout", "stale_reconnect",
@@ -46,6 +46,7 @@ ACCEPTED: dict[str, tuple[Any, ...]] = {
     "reconnect": (True,),
     "map_targets": (0,),
     "arrive_tolerance": (0,),
+    "angle_tolerance": (0,),
     "min_command_interval": (0,),
     "host": ("1",),
     "bind": ("1",),

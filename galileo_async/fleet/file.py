@@ -40,6 +40,7 @@ OPTION_TYPES: dict[str, type] = {
     "reconnect_max": float, "connect_timeout": float, "first_status_timeout": float,
     "accept_timeout": float, "arrive_tolerance": float, "goal_timeout": float,
     "wait_timeout": float, "min_command_interval": float, "progress_timeout": float,
+    "angle_tolerance": float,
 }  # fmt: skip
 _TOP_LEVEL = ("robots", "defaults", "targets")
 

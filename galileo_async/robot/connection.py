@@ -97,6 +97,7 @@ def connect(url: str, **options: Any) -> Connection:
     ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
     Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
     ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
+    ``angle_tolerance`` (degrees: rotate_to's "already facing"),
     ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
     Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
     ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,

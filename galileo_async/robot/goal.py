@@ -20,7 +20,7 @@ from ..errors import (
 from ..events import GoalStalledEvent
 from ..models import GalileoStatus
 from ..protocol import Goto
-from .operations import GOAL_READY, Operations, Sent
+from .operations import GOAL_READY, LEAVING, Operations, Sent
 from .progress import ProgressCheck
 from .runtime import Deadline
 from .tracker import ALREADY_THERE_FRAMES, ALREADY_THERE_TIME, GoalTracker
@@ -39,7 +39,7 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 #: How a goto may end while the robot may still drive: it is cancelled on the way out.
-_LEAVING = (asyncio.CancelledError, GalileoTimeout, GoalStalled, LinkStale, ConnectionLost)
+_LEAVING = (*LEAVING, GoalStalled)
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,19 +77,20 @@ class GoalRunner:
         arrive_tolerance: float,
         progress_timeout: float | None,
         cancel_on_exit: bool,
+        stops_at: int | None = None,
     ) -> GoalResult:
-        """Send ``command`` through Operations.send and follow its goal to the end; see goto."""
+        """Send ``command`` through Operations.send (supersedable) and follow its goal; see goto."""
         ops = self._ops
         goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance, progress_timeout)
         try:
             return await ops.send(
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
-                then=goal,
+                then=goal, supersedable=True, stops_at=stops_at,
             )  # fmt: skip
         except _LEAVING as exc:
-            # Leaving while the robot may still drive: stop it, unless a newer goal of this
-            # Robot already replaced this one (a cancel would stop the new goal). Before
-            # goal.tracker exists nothing was queued: nothing to stop.
+            # Leaving while the robot may still drive (also a queued goal a user stop withdrew:
+            # it preempted the goal before it): stop it, unless a newer goal replaced this one
+            # (a cancel would stop it). Before goal.tracker exists nothing was queued.
             if goal.tracker is not None and cancel_on_exit and not goal.preempted:
                 if goal.written and isinstance(exc, (LinkStale, ConnectionLost)):
                     ops.abandon(goal.target_id)  # unseen, it may drive on: check once back

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
 import anyio
 
 from ..errors import (
+    CommandSuperseded,
     ConnectionLost,
     GalileoConnectionError,
     GalileoError,
@@ -26,6 +27,7 @@ from ..events import AbandonedGoalCancelled
 from ..models import GalileoStatus
 from ..protocol import Cancel, Command, Goto
 from .runtime import Deadline
+from .supersede import Supersession
 
 if TYPE_CHECKING:
     from ..state.store import StatusStore
@@ -36,6 +38,7 @@ __all__ = [
     "CANCEL_SEND_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "GOAL_READY",
+    "LEAVING",
     "NAVIGATING",
     "NOT_NAVIGATING",
     "ROTATE_TIMEOUT",
@@ -54,6 +57,8 @@ DEFAULT_TIMEOUT = 10.0
 ROTATE_TIMEOUT = 20.0
 #: Longest a shielded cancel (``i 2``) sent on the way out of an operation may take.
 CANCEL_SEND_TIMEOUT = 1.0
+#: What a goal leaves on while the robot may still drive, so that its exit cancel follows.
+LEAVING = (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost, CommandSuperseded)
 
 Predicate = Callable[[GalileoStatus], bool]
 _R = TypeVar("_R")
@@ -140,10 +145,11 @@ class Confirm:
                 return status
 
 
-class Operations:
+class Operations(Supersession):
     """Send commands on behalf of one Robot, after checks, and follow their effect."""
 
     def __init__(self, link: BaseLink, store: StatusStore) -> None:
+        super().__init__()
         self.link = link
         self.store = store
         #: The event loop that connected the Robot: its link, timers and futures live there.
@@ -160,23 +166,26 @@ class Operations:
     async def send(
         self, command: Command, *, what: str, deadline: Deadline | None = None,
         require: Require | None = None, unless: Predicate | None = None, then: None = None,
-        even_stale: bool = False,
+        even_stale: bool = False, supersedable: bool = False, stops_at: int | None = None,
     ) -> None: ...  # fmt: skip
     @overload
     async def send(
         self, command: Command, *, what: str, deadline: Deadline,
         require: Require | None = None, unless: None = None, then: Follower[_R],
+        supersedable: bool = False, stops_at: int | None = None,
     ) -> _R: ...  # fmt: skip
     @overload
     async def send(
         self, command: Command, *, what: str, deadline: Deadline,
         require: Require | None = None, unless: Predicate, then: Follower[_R],
+        supersedable: bool = False, stops_at: int | None = None,
     ) -> _R | None: ...  # fmt: skip
 
     async def send(
         self, command: Command, *, what: str, deadline: Deadline | None = None,
         require: Require | None = None, unless: Predicate | None = None,
         then: Follower[_R] | None = None, even_stale: bool = False,
+        supersedable: bool = False, stops_at: int | None = None,
     ) -> _R | None:  # fmt: skip
         """Send ``command`` once, the one way a Robot does; ``what`` names it in errors.
 
@@ -190,31 +199,43 @@ class Operations:
         ``then`` registered for every later status (before the write, so no status that
         shows the effect can be missed); the write, through the link's one writer; then
         ``then.follow``, whose result is returned.
+
+        A ``supersedable`` command (drive and goal commands) that a user stop finds waiting
+        anywhere before its write (user_stopped) is never written: CommandSuperseded, at
+        once; ``stops_at``: ``stops`` when the user's call began (default: now).
         """
         self.ensure_open()
         if not even_stale:
             self.check_link(what)
-        status = self.store.status
-        if status is None and deadline is not None and (require is not None or then is not None):
-            status = await self._first_status(what, require, deadline)
-        if require is not None:
-            self._check(require, what)
-        if unless is not None and status is not None and unless(status):
-            return None
-        if deadline is not None and status is not None and status.is_busy:
-            await self._not_busy(what, deadline)
+        written = self.withdrawable(what, stops_at) if supersedable else None
+        try:
+            status = self.store.status
+            followed = require is not None or then is not None
+            if status is None and deadline is not None and followed:
+                status = await self._first_status(what, require, deadline, written)
             if require is not None:
                 self._check(require, what)
-        if not even_stale:
-            self.check_link(what)  # the link may have dropped while waiting above
-        if then is None:
-            await self.link.send(command)
-            return None
-        assert deadline is not None, "a command that is followed needs a deadline"
-        with self.store.watch() as watch:
-            then.sending(self.store.status)
-            await self.link.send(command)
-            return await then.follow(watch, Sent(what, deadline, self.store.status))
+            if unless is not None and status is not None and unless(status):
+                return None
+            if deadline is not None and status is not None and status.is_busy:
+                await self._not_busy(what, deadline, written)
+                if require is not None:
+                    self._check(require, what)
+            if not even_stale:
+                self.check_link(what)  # the link may have dropped while waiting above
+            if then is None:
+                await self.link.send(command, written=written)
+                return None
+            assert deadline is not None, "a command that is followed needs a deadline"
+            with self.store.watch() as watch:
+                if written is not None and written.done():
+                    await written  # superseded: raises before the follower starts anything
+                then.sending(self.store.status)
+                await self.link.send(command, written=written)
+                return await then.follow(watch, Sent(what, deadline, self.store.status))
+        finally:
+            if written is not None:
+                self.settled(written)
 
     def ensure_open(self) -> None:
         """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed."""
@@ -258,11 +279,17 @@ class Operations:
             raise NotReady(f"{what}: {require.reason}", status)
 
     async def _first_status(
-        self, what: str, require: Require | None, deadline: Deadline
+        self,
+        what: str,
+        require: Require | None,
+        deadline: Deadline,
+        abort: asyncio.Future[bool] | None,
     ) -> GalileoStatus:
         """The robot's first real status, within ``deadline``; else NotReady."""
         try:
-            return await self.store.wait_until(lambda _status: True, deadline.remaining())
+            return await self.store.wait_until(
+                lambda _status: True, deadline.remaining(), abort=abort
+            )
         except GalileoTimeout:
             needed = "" if require is None else f": {require.reason}"
             raise NotReady(
@@ -272,10 +299,12 @@ class Operations:
                 None,
             ) from None
 
-    async def _not_busy(self, what: str, deadline: Deadline) -> None:
+    async def _not_busy(
+        self, what: str, deadline: Deadline, abort: asyncio.Future[bool] | None
+    ) -> None:
         """Wait while busy_status is 1 (the robot would only queue the command), within deadline."""
         try:
-            await self.store.wait_until(lambda s: not s.is_busy, deadline.remaining())
+            await self.store.wait_until(lambda s: not s.is_busy, deadline.remaining(), abort=abort)
         except GalileoTimeout as exc:
             raise OperationTimeout(
                 f"{what}: the robot stayed busy (busy_status 1) for {deadline.elapsed():.1f} s",

@@ -20,6 +20,7 @@ ROBOT_OPTIONS = (
     "goal_timeout",
     "wait_timeout",
     "progress_timeout",
+    "angle_tolerance",
 )
 #: Options connect() takes itself; the rest go to the link.
 CONNECT_OPTIONS = (*ROBOT_OPTIONS, "first_status_timeout")
@@ -34,6 +35,10 @@ def _check_metres(name: str, value: object) -> None:
     check_number(name, value, low=0.0)
 
 
+def _check_degrees(name: str, value: object) -> None:
+    check_number(name, value, low=0.0, high=180.0)
+
+
 _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "map_targets": _check_map_targets,
     "accept_timeout": functools.partial(check_timeout, allow_none=False),
@@ -41,6 +46,7 @@ _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "goal_timeout": check_timeout,
     "wait_timeout": check_timeout,
     "progress_timeout": check_timeout,
+    "angle_tolerance": _check_degrees,
     "first_status_timeout": check_timeout,
 }
 

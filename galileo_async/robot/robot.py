@@ -8,6 +8,7 @@ from types import TracebackType
 
 from .._checks import check_bool, check_timeout
 from ..errors import (
+    CommandSuperseded,
     GalileoTimeout,
     InvalidArgument,
     UnconfirmedOperation,
@@ -38,11 +39,13 @@ from .runtime import (
     finish_shielded,
     or_default,
 )
-from .services import RobotServices
+from .services import DEFAULT_ANGLE_TOLERANCE, RobotServices
+from .supersede import goal_superseded
 from .targets import DynamicTargets, landed_at
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
+    "DEFAULT_ANGLE_TOLERANCE",
     "DEFAULT_ARRIVE_TOLERANCE",
     "DEFAULT_GOAL_TIMEOUT",
     "DEFAULT_PROGRESS_TIMEOUT",
@@ -87,9 +90,11 @@ class Robot(RobotServices):
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
         progress_timeout: float | None = DEFAULT_PROGRESS_TIMEOUT,
+        angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE,
     ) -> None:
         check_robot_options(
             {
+                "angle_tolerance": angle_tolerance,
                 "map_targets": map_targets,
                 "accept_timeout": accept_timeout,
                 "arrive_tolerance": arrive_tolerance,
@@ -109,6 +114,7 @@ class Robot(RobotServices):
         self.wait_timeout = wait_timeout
         #: Default ``progress_timeout`` of goto/goto_point (None: never stalled).
         self.progress_timeout = progress_timeout
+        self.angle_tolerance = float(angle_tolerance)
         self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------
@@ -203,7 +209,8 @@ class Robot(RobotServices):
             ) from None
 
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Stop navigation (also patrol and the goal); return once it is closed."""
+        """Stop navigation (also patrol and the goal); return once it is closed (a user stop)."""
+        self._ops.user_stopped("stop_navigation()")
         check_timeout("timeout", timeout)
         await self._ops.send(
             StopNavigation(), what="stop_navigation", deadline=Deadline(timeout),
@@ -241,11 +248,14 @@ class Robot(RobotServices):
         check_timeout("progress_timeout", progress)
         check_bool("cancel_on_exit", cancel_on_exit)
         accept = self.accept_timeout if accept_timeout is None else accept_timeout
-        return await self._goals.run(
-            command, deadline=Deadline(seconds), accept_timeout=accept,
-            arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
-            cancel_on_exit=cancel_on_exit,
-        )  # fmt: skip
+        try:
+            return await self._goals.run(
+                command, deadline=Deadline(seconds), accept_timeout=accept,
+                arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
+                cancel_on_exit=cancel_on_exit,
+            )  # fmt: skip
+        except CommandSuperseded as exc:  # a user stop came before ``g N`` was written
+            raise goal_superseded(exc, target_id) from exc
 
     async def goto_point(
         self,
@@ -269,15 +279,21 @@ class Robot(RobotServices):
         progress = or_default(progress_timeout, self.progress_timeout)
         check_timeout("progress_timeout", progress)
         check_bool("cancel_on_exit", cancel_on_exit)
-        self._targets.map_target_count("goto_point")
+        first_id = self._targets.map_target_count("goto_point")
         deadline = Deadline(seconds)
-        await self._targets.reset(deadline, what="goto_point", require=GOAL_READY)
-        target_id = await self._targets.add(command, deadline)
-        result = await self._goals.run(
-            Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
-            arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
-            cancel_on_exit=cancel_on_exit,
-        )  # fmt: skip
+        stops_at = self._ops.stops  # a user stop supersedes every step still to come
+        try:
+            await self._targets.reset(
+                deadline, what="goto_point", require=GOAL_READY, stops_at=stops_at
+            )
+            target_id = await self._targets.add(command, deadline, stops_at=stops_at)
+            result = await self._goals.run(
+                Goto(target_id), deadline=deadline, accept_timeout=self.accept_timeout,
+                arrive_tolerance=self.arrive_tolerance, progress_timeout=progress,
+                cancel_on_exit=cancel_on_exit, stops_at=stops_at,
+            )  # fmt: skip
+        except CommandSuperseded as exc:  # a user stop came before the last step was written
+            raise goal_superseded(exc, first_id) from exc
         return landed_at(result, x, y, self.arrive_tolerance)
 
     # --- lifecycle -----------------------------------------------------------------------
@@ -288,7 +304,7 @@ class Robot(RobotServices):
         Cancelling the caller does not interrupt it: the link is closed (within a few
         seconds at most), then the cancellation is raised.
         """
-        self._ops.ensure_loop()
+        self._ops.user_stopped("close()")
         task = self._close_task
         if task is None:
             self._ops.closed = True

@@ -3,6 +3,8 @@ teleoperation, patrol, mapping, charging, the host. Each validates, then Operati
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from .._checks import check_int, check_number, check_timeout
 from ..errors import (
     GalileoTimeout,
@@ -18,6 +20,7 @@ from ..protocol import (
     Cancel,
     Command,
     Forward,
+    Goto,
     Pause,
     Resume,
     RotateTo,
@@ -49,12 +52,20 @@ from .operations import (
 from .runtime import Deadline
 from .targets import DynamicTargets
 
-__all__ = ["RobotServices"]
+__all__ = ["DEFAULT_ANGLE_TOLERANCE", "RobotServices"]
+
+#: Degrees within which the robot already faces a rotate_to heading (the Robot's option).
+DEFAULT_ANGLE_TOLERANCE = 2.0
 
 _ROTATE_READY = Require(
     lambda s: s.visual_initialised and not s.goal_active,
     "the visual system must be initialised and no goal active",
 )
+
+
+#: What a user stop supersedes while it waits (Operations.user_stopped): drive commands, and
+#: a goal sent as is with send().
+_SUPERSEDABLE = (Forward, Backward, TurnLeft, TurnRight, Goto)
 
 
 class _Rotation(Confirm):
@@ -93,6 +104,19 @@ class _Rotation(Confirm):
         return self._started and status.angle_goal_status == AngleGoalStatus.DONE
 
 
+def _facing(degrees: float, tolerance: float) -> Callable[[GalileoStatus], bool]:
+    """A predicate: the status shows a heading within ``tolerance`` degrees of ``degrees``."""
+
+    def facing(status: GalileoStatus) -> bool:
+        pose = status.pose
+        if pose is None:
+            return False  # the layout has no heading, or it is unknown: rotate
+        off = (pose.degrees - degrees + 180.0) % 360.0 - 180.0  # wrapped into [-180, 180)
+        return abs(off) <= tolerance
+
+    return facing
+
+
 class RobotServices:
     """The Robot's methods besides goto and navigation, on the parts a Robot is made of."""
 
@@ -100,11 +124,14 @@ class RobotServices:
         self._ops = ops
         self._goals = goals
         self._targets = targets
+        #: rotate_to within this many degrees of the heading the robot has: done, not sent.
+        self.angle_tolerance = DEFAULT_ANGLE_TOLERANCE
 
     # --- goal control ---------------------------------------------------------------
 
     async def pause(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Pause the working goal; return once the status shows it paused."""
+        """Pause the working goal; return once the status shows it paused (a user stop)."""
+        self._ops.user_stopped("pause()")
         await self._goal_command(Pause(), TargetStatus.WORKING, TargetStatus.PAUSED, timeout)
 
     async def resume(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -117,6 +144,7 @@ class RobotServices:
         On a stale link ``i 2`` is still sent (the transmit side may work), then LinkStale
         is raised: the status cannot confirm it.
         """
+        self._ops.user_stopped("cancel()")
         check_timeout("timeout", timeout)
         self._ops.ensure_open()
         self._goals.cancelling()
@@ -139,14 +167,16 @@ class RobotServices:
 
         Returns once angle_goal_status shows this rotation done (0, then 1). A navigation
         goal that runs meanwhile (this Robot's or another host's) raises OperationFailed:
-        it replaces the rotation, and on real firmware angle_goal_status follows it.
+        it replaces the rotation, and on real firmware angle_goal_status follows it. Facing
+        ``degrees`` already, within ``angle_tolerance`` (-180 and 180 are one heading), it
+        returns at once and sends nothing.
         """
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         what = f"rotate_to({degrees})"
         await self._ops.send(
             command, what=what, deadline=Deadline(timeout), require=_ROTATE_READY,
-            then=_Rotation(what),
+            unless=_facing(degrees, self.angle_tolerance), then=_Rotation(what),
         )  # fmt: skip
 
     # --- dynamic targets -------------------------------------------------------------
@@ -183,7 +213,12 @@ class RobotServices:
         await self._written(TurnRight(percent), "turn_right", timeout)
 
     async def stop(self, brake: int = 100) -> None:
-        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale."""
+        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale.
+
+        A user stop: a drive or goal command called before it that still waits is never
+        written (Operations.user_stopped).
+        """
+        self._ops.user_stopped("stop()")
         await self._ops.send(Stop(brake), what="stop", even_stale=True)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
@@ -278,7 +313,10 @@ class RobotServices:
     ) -> None:
         """Send ``command`` (busy back-off within ``timeout``); nothing confirms it."""
         check_timeout("timeout", timeout)
-        await self._ops.send(command, what=what, deadline=Deadline(timeout), require=require)
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout), require=require,
+            supersedable=isinstance(command, _SUPERSEDABLE),
+        )  # fmt: skip
 
     async def _mapping_command(
         self, command: Command, mapping: bool, timeout: float | None, what: str

@@ -62,20 +62,28 @@ class DynamicTargets:
         return self.map_targets
 
     async def reset(
-        self, deadline: Deadline, *, what: str = "reset_targets", require: Require = NAVIGATING
-    ) -> None:
-        """Send ``g r 0``: the robot then has no dynamic targets."""
-        await self._ops.send(
-            ResetTargets(), what=what, deadline=deadline, require=require, then=_Reset(self)
-        )
+        self, deadline: Deadline, *, what: str = "reset_targets", require: Require = NAVIGATING,
+        stops_at: int | None = None,
+    ) -> None:  # fmt: skip
+        """Send ``g r 0``: the robot then has no dynamic targets.
 
-    async def add(self, command: AddTarget, deadline: Deadline) -> int:
-        """Send ``command`` (``g i x y``); the new target's goal id."""
+        With ``stops_at`` (a goal's step): superseded by a user stop after it (Operations.send).
+        """
+        await self._ops.send(
+            ResetTargets(), what=what, deadline=deadline, require=require, then=_Reset(self),
+            supersedable=stops_at is not None, stops_at=stops_at,
+        )  # fmt: skip
+
+    async def add(
+        self, command: AddTarget, deadline: Deadline, *, stops_at: int | None = None
+    ) -> int:
+        """Send ``command`` (``g i x y``); the new target's goal id; ``stops_at`` as for reset."""
         adding = _Add(self, self.map_target_count("add_target"))
         try:
             return await self._ops.send(
-                command, what="add_target", deadline=deadline, require=NAVIGATING, then=adding
-            )
+                command, what="add_target", deadline=deadline, require=NAVIGATING, then=adding,
+                supersedable=stops_at is not None, stops_at=stops_at,
+            )  # fmt: skip
         except BaseException:
             if adding.target_id is not None:
                 self._count = None  # it may or may not have reached the robot

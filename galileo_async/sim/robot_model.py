@@ -175,6 +175,10 @@ class RobotModel(ServiceCommands, Body):
         """Be busy for ``seconds`` from now (at least)."""
         self.busy_until = max(self.busy_until, self.time + seconds)
 
+    def hold_busy(self, seconds: float) -> None:
+        """Be busy for exactly ``seconds`` from now; 0 ends busy now (fault injection)."""
+        self.busy_until = self.time + seconds
+
     def _handle(self, command: cmd.Command) -> None:
         handler = self._handlers.get(type(command))
         self.commands_handled += 1

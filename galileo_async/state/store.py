@@ -22,6 +22,7 @@ from .streams import (
     Subscription,
     Watch,
     expire,
+    fail_with,
     offer_to_waiting,
     offer_to_watches,
 )
@@ -265,9 +266,10 @@ class StatusStore:
     # --- used by robot and users -------------------------------------------------------
 
     async def wait_until(
-        self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None
-    ) -> GalileoStatus:
-        """First status (the latest included) matching ``predicate``; GalileoTimeout on timeout."""
+        self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None,
+        *, abort: asyncio.Future[Any] | None = None,
+    ) -> GalileoStatus:  # fmt: skip
+        """First status (latest included) matching ``predicate``; GalileoTimeout; abort's error."""
         self._raise_if_unusable()
         status = self.status
         if status is not None and predicate(status):
@@ -277,6 +279,7 @@ class StatusStore:
         waiter = _Waiter(predicate, future)
         self._waiters.append(waiter)
         timer = None if timeout is None else loop.call_later(timeout, expire, future)
+        unlink = fail_with(future, abort)
         try:
             return await future
         except TimeoutError:
@@ -284,6 +287,7 @@ class StatusStore:
                 f"status did not match within {timeout} s", status=self.status
             ) from None
         finally:
+            unlink()
             if timer is not None:
                 timer.cancel()
             if waiter in self._waiters:

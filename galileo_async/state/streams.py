@@ -25,6 +25,7 @@ __all__ = [
     "Subscription",
     "Watch",
     "expire",
+    "fail_with",
     "offer_to_waiting",
     "offer_to_watches",
 ]
@@ -189,6 +190,24 @@ def expire(future: asyncio.Future[Any]) -> None:
     """Fail ``future`` with TimeoutError unless it is done (a call_later callback)."""
     if not future.done():
         future.set_exception(TimeoutError())
+
+
+def fail_with(
+    future: asyncio.Future[Any], source: asyncio.Future[Any] | None
+) -> Callable[[], None]:
+    """Fail ``future``, unless done, once ``source`` fails, as it did; returns the undo."""
+    if source is None:
+        return lambda: None
+
+    def fail(done: asyncio.Future[Any]) -> None:
+        if not future.done() and not done.cancelled() and done.exception() is not None:
+            future.set_exception(done.exception())  # type: ignore[arg-type]
+
+    def undo() -> None:
+        source.remove_done_callback(fail)
+
+    source.add_done_callback(fail)
+    return undo
 
 
 class Watch(_Queue[GalileoStatus]):

@@ -35,7 +35,11 @@ class CommandQueue:
         raise NotImplementedError
 
     def enqueue(
-        self, command: Command, *, superseded_by: tuple[type[Command], ...] = ()
+        self,
+        command: Command,
+        *,
+        superseded_by: tuple[type[Command], ...] = (),
+        written: asyncio.Future[bool] | None = None,
     ) -> asyncio.Future[bool]:
         """Queue ``command`` now, behind every earlier command and ahead of every later one.
 
@@ -44,10 +48,11 @@ class CommandQueue:
         queue a bounded number of commands use it. The future is True once the command is
         written, False when it was dropped because a command of a type in
         ``superseded_by`` was queued after it first; cancelling it unqueues the command.
-        Raises ConnectionLost while the link is closed or down.
+        Raises ConnectionLost while the link is closed or down. ``written``: use this future
+        (see send) instead of a new one.
         """
         self._check_can_send()
-        future: asyncio.Future[bool] = asyncio.get_running_loop().create_future()
+        future = asyncio.get_running_loop().create_future() if written is None else written
         entry = (command, future)
         if self._supersedable:
             self._supersede(type(command))
@@ -57,17 +62,25 @@ class CommandQueue:
         self._queue_ready.set()
         return future
 
-    async def send(self, command: Command) -> None:
-        """Queue one command for the paced writer (waiting while full); return once written."""
+    async def send(self, command: Command, *, written: asyncio.Future[bool] | None = None) -> None:
+        """Queue one command for the paced writer (waiting while full); return once written.
+
+        ``written``, if given, is the future the writer resolves: the caller may fail it
+        (or cancel it) to withdraw the command; as long as that happens before its turn,
+        synchronously, the command is never written and send raises that failure.
+        """
         self._check_can_send()
         if self._room_waiters or len(self._queue) >= self.max_queued_commands:
             await self._wait_for_room()
-        future = self.enqueue(command)
+        if written is not None and written.done():
+            self._make_room()  # withdrawn while waiting for room: hand the place on
+            await written  # raises its failure
+        future = self.enqueue(command, written=written)
         try:
             await future
         finally:
-            if future.cancelled():  # its sender gave up before its turn: free the place now
-                self._unqueue(future)
+            if future.done() and (future.cancelled() or future.exception() is not None):
+                self._unqueue(future)  # not written: free its place now
 
     def _supersede(self, kind: type[Command]) -> None:
         """Drop the queued commands that a command of type ``kind`` supersedes."""

@@ -1,0 +1,71 @@
+"""Supersession: a user stop withdraws every drive or goal command still waiting to be written."""
+
+from __future__ import annotations
+
+import asyncio
+
+from ..errors import CommandSuperseded, GoalCancelled
+
+__all__ = ["Supersession", "goal_superseded"]
+
+
+class Supersession:
+    """The part of Operations that knows the user's stops (Operations.send applies it)."""
+
+    def __init__(self) -> None:
+        #: Bumped synchronously (before any await) by every user stop: Robot.stop(), cancel(),
+        #: pause(), stop_navigation(), close(). A drive or goal command called before the bump
+        #: and not yet written is never written.
+        self.stops = 0
+        self._stopped_by = ""
+        # The write futures of the waiting drive and goal commands, with their sends' names.
+        self._withdrawable: dict[asyncio.Future[bool], str] = {}
+
+    def ensure_loop(self) -> None:
+        """Raise WrongEventLoop unless called on the Robot's loop (Operations has it)."""
+        raise NotImplementedError
+
+    def user_stopped(self, what: str) -> None:
+        """A user stop (``what``, e.g. "stop()") was called: supersede each waiting drive/goal.
+
+        Synchronous: a withdrawn command's write future fails now, so the link's writer, which
+        skips a command whose future is done, can never write it, even in this loop turn.
+        """
+        self.ensure_loop()
+        self.stops += 1
+        self._stopped_by = what
+        waiting, self._withdrawable = self._withdrawable, {}
+        for written, sent in waiting.items():
+            if not written.done():
+                written.set_exception(_superseded(sent, what))
+
+    def withdrawable(self, what: str, stops_at: int | None) -> asyncio.Future[bool]:
+        """The write future of drive or goal command ``what``, which a user stop fails.
+
+        ``stops_at`` is ``stops`` when the user's call began (None: now): a command of a call
+        that a stop has already superseded raises CommandSuperseded at once.
+        """
+        if stops_at is not None and stops_at != self.stops:
+            raise _superseded(what, self._stopped_by)
+        written: asyncio.Future[bool] = asyncio.get_running_loop().create_future()
+        self._withdrawable[written] = what
+        return written
+
+    def settled(self, written: asyncio.Future[bool]) -> None:
+        """The send of ``written`` is over, written or not."""
+        self._withdrawable.pop(written, None)
+        if written.done() and not written.cancelled():
+            written.exception()  # retrieved: a failure nobody awaited is not logged
+
+
+def goal_superseded(exc: CommandSuperseded, target_id: int) -> GoalCancelled:
+    """The GoalCancelled of a goal a user stop superseded before its ``g N`` was written."""
+    return GoalCancelled(
+        f"goal {target_id} was cancelled before it was sent: {exc}", target_id=target_id
+    )
+
+
+def _superseded(what: str, stop: str) -> CommandSuperseded:
+    return CommandSuperseded(
+        f"{what}: not sent: {stop} was called while it waited to be written", superseded_by=stop
+    )
