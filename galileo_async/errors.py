@@ -10,6 +10,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AcceptTimeout",
     "AsyncioRequired",
+    "CommandSuperseded",
     "ConnectionLost",
     "GalileoConnectionError",
     "GalileoError",
@@ -78,6 +79,15 @@ class NotReady(GalileoError):
     def __init__(self, message: str, status: GalileoStatus | None) -> None:
         super().__init__(message)
         self.status = status
+
+
+# placeholder: replaced by the supersede change
+class CommandSuperseded(GalileoError):
+    """A user stop (``superseded_by`` names it) came first: the command was not written."""
+
+    def __init__(self, message: str, *, superseded_by: str) -> None:
+        super().__init__(message)
+        self.superseded_by = superseded_by
 
 
 class OperationFailed(GalileoError):

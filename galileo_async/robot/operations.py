@@ -155,6 +155,8 @@ class Operations:
         #: Goals started through this object (goal_started); an abandoned goal's follow-up
         #: does nothing once a newer goal was started.
         self.goals_started = 0
+        # placeholder: replaced by the supersede change
+        self.stops = 0
 
     @overload
     async def send(

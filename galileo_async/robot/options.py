@@ -19,6 +19,8 @@ ROBOT_OPTIONS = (
     "arrive_tolerance",
     "goal_timeout",
     "wait_timeout",
+    "max_linear_speed",
+    "max_angular_speed",
 )
 #: Options connect() takes itself; the rest go to the link.
 CONNECT_OPTIONS = (*ROBOT_OPTIONS, "first_status_timeout")
@@ -33,6 +35,11 @@ def _check_metres(name: str, value: object) -> None:
     check_number(name, value, low=0.0)
 
 
+def _check_speed_limit(name: str, value: object) -> None:
+    # The vendor's node turns a percentage of these into a speed (VENDOR.md §2.2, §2.3).
+    check_number(name, value, low=0.0, low_open=True, high=10.0)
+
+
 _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "map_targets": _check_map_targets,
     "accept_timeout": functools.partial(check_timeout, allow_none=False),
@@ -40,6 +47,8 @@ _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "goal_timeout": check_timeout,
     "wait_timeout": check_timeout,
     "first_status_timeout": check_timeout,
+    "max_linear_speed": _check_speed_limit,
+    "max_angular_speed": _check_speed_limit,
 }
 
 

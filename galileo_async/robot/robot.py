@@ -10,6 +10,7 @@ from .._checks import check_bool, check_timeout
 from ..errors import (
     GalileoTimeout,
     InvalidArgument,
+    NotReady,
     UnconfirmedOperation,
 )
 from ..events import Event
@@ -18,8 +19,16 @@ from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import BaseLink, LinkStats
+from .drive import (
+    DEFAULT_DRIVE_RATE,
+    DEFAULT_MAX_ANGULAR_SPEED,
+    DEFAULT_MAX_LINEAR_SPEED,
+    DriveSession,
+    SpeedLimits,
+)
 from .goal import GoalResult, GoalRunner
 from .operations import (
+    CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
     GOAL_READY,
     NAVIGATING,
@@ -84,9 +93,13 @@ class Robot(RobotServices):
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
         goal_timeout: float | None = DEFAULT_GOAL_TIMEOUT,
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
+        max_linear_speed: float = DEFAULT_MAX_LINEAR_SPEED,
+        max_angular_speed: float = DEFAULT_MAX_ANGULAR_SPEED,
     ) -> None:
         check_robot_options(
             {
+                "max_linear_speed": max_linear_speed,
+                "max_angular_speed": max_angular_speed,
                 "map_targets": map_targets,
                 "accept_timeout": accept_timeout,
                 "arrive_tolerance": arrive_tolerance,
@@ -103,6 +116,8 @@ class Robot(RobotServices):
         #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
         self.goal_timeout = goal_timeout
         self.wait_timeout = wait_timeout
+        #: Speeds at 100 % of the serial speed commands (drive() converts to percentages).
+        self.speed_limits = SpeedLimits(float(max_linear_speed), float(max_angular_speed))
         self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------
@@ -172,6 +187,22 @@ class Robot(RobotServices):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
         await self._written(command, f"send({command!r})", timeout)
 
+    def drive(
+        self, linear: float = 0.0, angular: float = 0.0, *, rate: float = DEFAULT_DRIVE_RATE
+    ) -> DriveSession:
+        """Velocity control: ``async with robot.drive(0.3, 0.0) as d: d.set(angular=0.5)``.
+
+        ``linear`` m/s (forward positive) and ``angular`` rad/s (left positive), within
+        ``speed_limits``; re-sent every 1/``rate`` s (2-20 Hz) while inside, from the
+        session's own task; one stop is written when the block is left, whatever way.
+        InvalidArgument (bad value) at once; NotReady on entering while a goal is working
+        or paused, or another drive session is active. A goal, goto_point or start_patrol
+        inside is NotReady. On serial links the speeds become f/b and c/d percentages
+        (protocol.speed_commands); on ros:// a geometry_msgs/Twist on /cmd_vel.
+        """
+        self._ops.ensure_loop()
+        return _OwnedDrive(self, linear, angular, rate)
+
     # --- navigation --------------------------------------------------------------------
 
     async def start_navigation(self, *, timeout: float | None = NAVIGATION_TIMEOUT) -> None:
@@ -224,6 +255,7 @@ class Robot(RobotServices):
         at the target already: a GoalResult with ``already_there`` True.
         """
         command = Goto(target_id)  # validates before anything is sent
+        self._refuse_while_driving("goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
@@ -244,6 +276,7 @@ class Robot(RobotServices):
     ) -> GoalResult:
         """Reset the dynamic targets, add one at (x, y) metres in the map frame, go there."""
         command = AddTarget(x, y)  # validate before anything is sent
+        self._refuse_while_driving("goto_point")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_bool("cancel_on_exit", cancel_on_exit)
@@ -267,14 +300,20 @@ class Robot(RobotServices):
         self._ops.ensure_loop()
         task = self._close_task
         if task is None:
+            stop_written = None
+            if self._drive is not None:  # its stop is queued first, and written before closing
+                self._drive.end()
+                stop_written = self._drive.stop_written
             self._ops.closed = True
             task = self._close_task = asyncio.get_running_loop().create_task(
-                self._shutdown(), name=f"close {self._link!r}"
+                self._shutdown(stop_written), name=f"close {self._link!r}"
             )
         await finish_shielded(task, "close()")
 
-    async def _shutdown(self) -> None:
+    async def _shutdown(self, stop_written: asyncio.Future[bool] | None) -> None:
         try:
+            if stop_written is not None:
+                await asyncio.wait((stop_written,), timeout=CANCEL_SEND_TIMEOUT)
             await self._link.close()
             await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:
@@ -290,3 +329,31 @@ class Robot(RobotServices):
         tb: TracebackType | None,
     ) -> None:
         await self.close()
+
+
+class _OwnedDrive(DriveSession):
+    """A DriveSession the Robot knows of: one at a time; close() writes its stop."""
+
+    def __init__(self, robot: Robot, linear: float, angular: float, rate: float) -> None:
+        super().__init__(robot._ops, robot.speed_limits, linear, angular, rate)
+        self._robot = robot
+
+    async def __aenter__(self) -> DriveSession:
+        robot = self._robot
+        if robot._drive is not None and robot._drive.active:
+            raise NotReady("drive: another drive session is active", robot.status)
+        await super().__aenter__()
+        robot._drive = self
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        try:
+            await super().__aexit__(exc_type, exc, tb)
+        finally:
+            if self._robot._drive is self:
+                self._robot._drive = None

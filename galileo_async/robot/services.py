@@ -8,6 +8,7 @@ from ..errors import (
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
+    NotReady,
     OperationFailed,
     UnconfirmedOperation,
 )
@@ -36,6 +37,7 @@ from ..protocol import (
     TurnRight,
     UpdateMap,
 )
+from .drive import DriveSession
 from .goal import GoalRunner
 from .operations import (
     DEFAULT_TIMEOUT,
@@ -100,6 +102,8 @@ class RobotServices:
         self._ops = ops
         self._goals = goals
         self._targets = targets
+        #: The drive session inside whose block the caller is, if any.
+        self._drive: DriveSession | None = None
 
     # --- goal control ---------------------------------------------------------------
 
@@ -194,6 +198,7 @@ class RobotServices:
         """Start auto-patrol (``dwell`` s at each target if given); return once loop_status is 1."""
         if dwell is not None:
             check_int("dwell", dwell, 0, 255)
+        self._refuse_while_driving("start_patrol")
         command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
         check_timeout("timeout", timeout)
         await self._ops.send(
@@ -272,6 +277,13 @@ class RobotServices:
         await self._ops.send(ShutdownHost(), what="shutdown_host")
 
     # --- helpers -----------------------------------------------------------------------
+
+    def _refuse_while_driving(self, what: str) -> None:
+        """NotReady inside an active drive block: a goal and the drive's speeds would fight."""
+        if self._drive is not None and self._drive.active:
+            raise NotReady(
+                f"{what}: a drive session is active; leave its block first", self._ops.store.status
+            )
 
     async def _written(
         self, command: Command, what: str, timeout: float | None, require: Require | None = None
