@@ -89,6 +89,7 @@ class DriveSession:
         self._due = 0.0
         self._entered = False
         self._ended = False
+        self._left = False
         self._stop_written: asyncio.Future[bool] | None = None
         #: Speed commands this session wrote (queued and not replaced by a newer one).
         self.writes = 0
@@ -118,12 +119,12 @@ class DriveSession:
             self._linear if linear is None else linear,
             self._angular if angular is None else angular,
         )
-        if not self._entered or self._ended:
+        if not self._entered or self._left:
             raise GalileoError("drive: set() is only valid inside the drive block")
         if not self._live():
+            by = "close()" if self._ops.closed else "a user stop"
             raise CommandSuperseded(
-                "drive: a user stop ended the drive session; nothing was written",
-                superseded_by="a user stop",
+                f"drive: {by} ended the drive session; nothing was written", superseded_by=by
             )
         self._linear, self._angular = new
         self._write()
@@ -154,6 +155,7 @@ class DriveSession:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        self._left = True
         error = self.end()  # before any await: nothing can be written after the stop
         finishing = asyncio.ensure_future(self._finish())
         # Its own task, as Operations.send_cancel_shielded: a second task.cancel() cannot
