@@ -67,7 +67,8 @@ def assert_one_stop_last(log: Log) -> None:
     wire = drive_commands(log)
     assert wire[-1] == Stop(), wire
     assert wire.count(Stop()) == 1, wire
-    assert Forward(50) in wire and TurnLeft(40) in wire, wire  # the session did drive first
+    assert Forward(50) in wire, wire  # the session did drive first
+    assert TurnLeft(40) in wire, wire
 
 
 async def drive_forever(robot: galileo.Robot) -> None:
@@ -108,31 +109,31 @@ async def test_the_keep_alive_beats_the_chassis_watchdog() -> None:
 
 
 async def test_set_writes_at_once_not_at_the_next_tick() -> None:
-    async with robot_and_log() as (robot, log):
-        async with robot.drive(0.4, rate=2) as d:  # next tick 0.5 s away
-            await robot.wait_until(
-                lambda s: s.control_speed_x == pytest.approx(0.4, abs=1e-3), timeout=WAIT
-            )
-            d.set(linear=0.2)
-            await robot.wait_until(
-                lambda s: s.control_speed_x == pytest.approx(0.2, abs=1e-3), timeout=0.3
-            )
-            assert (d.linear, d.angular) == (0.2, 0.0)
+    # The next tick is 0.5 s away at 2 Hz.
+    async with robot_and_log() as (robot, log), robot.drive(0.4, rate=2) as d:
+        await robot.wait_until(
+            lambda s: s.control_speed_x == pytest.approx(0.4, abs=1e-3), timeout=WAIT
+        )
+        d.set(linear=0.2)
+        await robot.wait_until(
+            lambda s: s.control_speed_x == pytest.approx(0.2, abs=1e-3), timeout=0.3
+        )
+        assert (d.linear, d.angular) == (0.2, 0.0)
     assert drive_commands(log)[:3] == [Forward(50), TurnLeft(0), Forward(25)]
 
 
 async def test_linear_and_angular_make_an_arc() -> None:
     async with robot_and_log(navigate=True) as (robot, _log):
         async with robot.drive(0.4, 0.8, rate=10):
-            await robot.wait_until(
-                lambda s: (s.current_angle or 0.0) > 1.0, timeout=WAIT
-            )
+            await robot.wait_until(lambda s: (s.current_angle or 0.0) > 1.0, timeout=WAIT)
             status = robot.status
         assert status is not None
         assert status.control_speed_x == pytest.approx(0.4, abs=1e-3)
         assert status.control_speed_theta == pytest.approx(0.8, abs=0.01)
-        assert status.current_pose_x is not None and status.current_pose_y is not None
-        assert status.current_pose_x > 0.1 and status.current_pose_y > 0.1
+        assert status.current_pose_x is not None
+        assert status.current_pose_y is not None
+        assert status.current_pose_x > 0.1
+        assert status.current_pose_y > 0.1
 
 
 # --- every way out writes one stop, last ------------------------------------------------
@@ -148,24 +149,26 @@ async def test_every_cancellation_route_writes_one_stop_last(how: str) -> None:
 
 
 async def test_an_exception_inside_writes_one_stop_and_propagates() -> None:
+    async def failing() -> None:
+        async with robot.drive(0.4, 0.6, rate=20):
+            await asyncio.sleep(0.1)
+            raise RuntimeError("inside")
+
     async with robot_and_log() as (robot, log):
         with pytest.raises(RuntimeError, match="inside"):
-            async with robot.drive(0.4, 0.6, rate=20):
-                await asyncio.sleep(0.1)
-                raise RuntimeError("inside")
+            await failing()
         await stopped(robot)
         await asyncio.sleep(0.2)
     assert_one_stop_last(log)
 
 
 async def test_close_inside_writes_the_stop_before_closing() -> None:
-    async with robot_and_log() as (robot, log):
-        async with robot.drive(0.4, 0.6, rate=20) as d:
-            await asyncio.sleep(0.1)
-            await robot.close()
-            assert not d.active
-            with pytest.raises(CommandSuperseded):
-                d.set(linear=0.1)
+    async with robot_and_log() as (robot, log), robot.drive(0.4, 0.6, rate=20) as d:
+        await asyncio.sleep(0.1)
+        await robot.close()
+        assert not d.active
+        with pytest.raises(CommandSuperseded):
+            d.set(linear=0.1)
     assert_one_stop_last(log)
 
 
@@ -233,8 +236,10 @@ async def test_the_limits_are_connect_options() -> None:
                 robot.drive(0.5)
             async with robot.drive(0.4, 1.2):
                 await robot.wait_until(
-                    lambda s: s.control_speed_x == pytest.approx(0.4, abs=1e-3)
-                    and s.control_speed_theta == pytest.approx(1.2, abs=1e-3),
+                    lambda s: (
+                        s.control_speed_x == pytest.approx(0.4, abs=1e-3)
+                        and s.control_speed_theta == pytest.approx(1.2, abs=1e-3)
+                    ),
                     timeout=WAIT,
                 )
     assert drive_commands(log)[:2] == [Forward(100), TurnLeft(100)]
@@ -255,7 +260,8 @@ async def test_a_goal_inside_a_drive_is_not_ready() -> None:
                     pass
         await robot.goto(0, timeout=WAIT)  # allowed again once the block is left
     kinds = {type(command).__name__ for command, _busy in log}
-    assert "ResetTargets" not in kinds and "StartPatrol" not in kinds
+    assert "ResetTargets" not in kinds
+    assert "StartPatrol" not in kinds
 
 
 async def test_drive_while_a_goal_runs_is_not_ready() -> None:

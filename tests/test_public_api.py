@@ -8,7 +8,7 @@ import galileo_async as galileo
 
 PUBLIC = {
     "AcceptTimeout", "AngleGoalStatus", "AsyncioRequired", "ChargeStatus", "Connection",
-    "ConnectionLost",
+    "CommandSuperseded", "ConnectionLost",
     "DiscoveredRobot", "GalileoConnectionError", "GalileoError", "GalileoStatus",
     "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
