@@ -170,20 +170,23 @@ class RobotServices:
 
     # --- teleoperation ---------------------------------------------------------------
 
+    # One command each: 22 chassis builds hold it until the next, others stop 1-3 s after
+    # it (VENDOR.md §2.5); drive() keeps a speed alive and always ends with a stop.
+
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Drive forward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        """Write ``f`` once at ``percent`` (0-100) of max speed; the chassis decides how long."""
         await self._written(Forward(percent), "forward", timeout)
 
     async def backward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Drive backward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        """Write ``b`` once at ``percent`` (0-100) of max speed; as forward()."""
         await self._written(Backward(percent), "backward", timeout)
 
     async def turn_left(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Turn left at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        """Write ``c`` once at ``percent`` (0-100) of max angular speed; as forward()."""
         await self._written(TurnLeft(percent), "turn_left", timeout)
 
     async def turn_right(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Turn right at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        """Write ``d`` once at ``percent`` (0-100) of max angular speed; as forward()."""
         await self._written(TurnRight(percent), "turn_right", timeout)
 
     async def stop(self, brake: int = 100) -> None:
