@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING
@@ -48,6 +47,7 @@ MIN_DRIVE_RATE, DEFAULT_DRIVE_RATE, MAX_DRIVE_RATE = 2.0, 5.0, 20.0
 # A newer speed command replaces a queued one of the same component; a stop replaces both.
 _LINEAR_REPLACED_BY = (Forward, Backward, Stop, Velocity)
 _ANGULAR_REPLACED_BY = (TurnLeft, TurnRight, Stop, Velocity)
+_Replaced = tuple[type[Command], ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,13 +59,10 @@ class SpeedLimits:
 
     def check(self, linear: float, angular: float) -> tuple[float, float]:
         """(linear, angular) as floats within the limits; else InvalidArgument."""
-        values = (
+        return (
             check_number("linear", linear, low=-self.linear, high=self.linear),
             check_number("angular", angular, low=-self.angular, high=self.angular),
         )
-        if math.copysign(1.0, values[0]) < 0 and values[0] == 0.0:
-            values = (0.0, values[1])
-        return values
 
 
 class DriveSession:
@@ -84,6 +81,7 @@ class DriveSession:
         self.rate = check_number("rate", rate, low=MIN_DRIVE_RATE, high=MAX_DRIVE_RATE)
         self._ops = ops
         self._limits = limits
+        self._encode(self._linear, self._angular)
         self._stops = ops.stops
         self._task: asyncio.Task[None] | None = None
         self._due = 0.0
@@ -126,6 +124,7 @@ class DriveSession:
             raise CommandSuperseded(
                 f"drive: {by} ended the drive session; nothing was written", superseded_by=by
             )
+        self._encode(*new)  # InvalidArgument here changes nothing
         self._linear, self._angular = new
         self._write()
 
@@ -226,24 +225,21 @@ class DriveSession:
                 _log.debug("drive: keep-alive not written: %r", exc)
                 self._due = loop.time() + 1.0 / self.rate
 
+    def _encode(self, linear: float, angular: float) -> list[tuple[Command, _Replaced]]:
+        """One write's commands, each with what replaces it queued; InvalidArgument if none."""
+        if self._ops.link.carries_velocity:
+            return [(Velocity(linear, angular), (Stop, Velocity))]
+        commands = speed_commands(
+            linear, angular, max_linear=self._limits.linear, max_angular=self._limits.angular
+        )
+        return list(zip(commands, (_LINEAR_REPLACED_BY, _ANGULAR_REPLACED_BY), strict=True))
+
     def _write(self) -> None:
         """Queue the current speed now, replacing any of this speed still queued."""
         link = self._ops.link
         self._due = self._ops.loop.time() + 1.0 / self.rate
-        if link.carries_velocity:
-            velocity = Velocity(self._linear, self._angular)
-            pending = [link.enqueue(velocity, superseded_by=(Stop, Velocity))]
-        else:
-            linear, angular = speed_commands(
-                self._linear, self._angular,
-                max_linear=self._limits.linear, max_angular=self._limits.angular,
-            )  # fmt: skip
-            pending = [
-                link.enqueue(linear, superseded_by=_LINEAR_REPLACED_BY),
-                link.enqueue(angular, superseded_by=_ANGULAR_REPLACED_BY),
-            ]
-        for future in pending:
-            future.add_done_callback(self._written)
+        for command, replaced_by in self._encode(self._linear, self._angular):
+            link.enqueue(command, superseded_by=replaced_by).add_done_callback(self._written)
 
     def _written(self, future: asyncio.Future[bool]) -> None:
         if future.cancelled():
