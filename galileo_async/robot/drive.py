@@ -226,7 +226,7 @@ class DriveSession:
                 self._due = loop.time() + 1.0 / self.rate
 
     def _encode(self, linear: float, angular: float) -> list[tuple[Command, _Replaced]]:
-        """One write's commands, each with what replaces it queued; InvalidArgument if none."""
+        """One write's commands, each with what replaces it queued; InvalidArgument past 100 %."""
         if self._ops.link.carries_velocity:
             return [(Velocity(linear, angular), (Stop, Velocity))]
         commands = speed_commands(
