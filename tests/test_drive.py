@@ -245,6 +245,31 @@ async def test_the_limits_are_connect_options() -> None:
     assert drive_commands(log)[:2] == [Forward(100), TurnLeft(100)]
 
 
+async def test_a_speed_the_percentages_cannot_carry_is_invalid() -> None:
+    # The vendor divides the angular by |linear| from 1 m/s: 1.2 rad/s at 1.5 m/s needs 120 %.
+    async with Simulator(speed=SPEED, max_speed=2.0) as sim:
+        server = await sim.serve_tcp()
+        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        async with galileo.connect(url, max_linear_speed=2.0) as robot:
+            log = record_commands(sim)
+            with pytest.raises(InvalidArgument, match="exceed"):
+                robot.drive(1.5, 1.2)
+            async with robot.drive(1.5, 0.6) as d:
+                with pytest.raises(InvalidArgument, match="exceed"):
+                    d.set(angular=1.2)
+                assert (d.linear, d.angular) == (1.5, 0.6)
+    assert drive_commands(log)[-1] == Stop()
+
+
+async def test_over_a_pty_too() -> None:
+    async with Simulator(speed=SPEED) as sim, galileo.connect(sim.open_pty()) as robot:
+        log = record_commands(sim)
+        await stop_waiting("cancel", lambda: drive_forever(robot), after=0.2)
+        await stopped(robot)
+        await asyncio.sleep(0.2)
+    assert_one_stop_last(log)
+
+
 async def test_a_goal_inside_a_drive_is_not_ready() -> None:
     async with robot_and_log(navigate=True) as (robot, log):
         async with robot.drive(0.2, rate=20):
