@@ -25,6 +25,7 @@ from galileo_async.protocol import (
     Stop,
     TurnLeft,
     TurnRight,
+    Velocity,
     speed_commands,
 )
 from galileo_async.robot.operations import Operations
@@ -304,6 +305,13 @@ async def test_drive_while_a_goal_runs_is_not_ready() -> None:
         with pytest.raises(asyncio.CancelledError):
             await goal
     assert drive_commands(log) == []
+
+
+async def test_a_velocity_command_is_refused_on_a_serial_link() -> None:
+    async with robot_and_log() as (robot, log):
+        with pytest.raises(InvalidArgument, match="ros://"):
+            await robot.send(Velocity(0.1, 0.0))
+    assert log == []
 
 
 # --- the serial encoding -------------------------------------------------------------

@@ -15,7 +15,7 @@ from ..errors import (
 )
 from ..events import Event
 from ..models import GalileoStatus
-from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
+from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation, Velocity
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import BaseLink, LinkStats
@@ -185,6 +185,8 @@ class Robot(RobotServices):
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
+        if isinstance(command, Velocity) and not self._link.carries_velocity:
+            raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
         await self._written(command, f"send({command!r})", timeout)
 
     def drive(
