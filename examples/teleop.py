@@ -1,9 +1,10 @@
-"""Drive by hand from a script: forward, an arc, a turn on the spot, then stop.
+"""Drive by velocity from a script: forward, an arc, a turn on the spot; stopped on exit.
 
     python examples/teleop.py [URL]    # default: $GALILEO_PORT, else sim://
 
-Teleop speeds persist until changed (the firmware has no keep-alive), so a script must
-always send a stop at the end, even when something fails on the way.
+Some chassis hold the last speed command forever, others stop 1 to 3 s after it
+(VENDOR.md §2.5). ``robot.drive()`` re-sends the speed while its block runs and writes
+one stop when the block is left, whatever way (an error, a cancellation, Ctrl-C).
 """
 
 from __future__ import annotations
@@ -29,21 +30,17 @@ async def hold(robot: galileo.Robot, frames: int) -> galileo.GalileoStatus:
 
 async def main() -> int:
     async with galileo.connect(URL) as robot:
-        await robot.start_navigation(timeout=60)  # for a pose to print; teleop works without
-        try:
-            await robot.forward(50)
+        await robot.start_navigation(timeout=60)  # for a pose to print; driving works without
+        async with robot.drive(linear=0.4, angular=0.0, rate=5.0) as d:  # m/s, rad/s, Hz
             status = await hold(robot, 45)
             print(f"forward: {status.current_speed_x:+.2f} m/s")
-            await robot.turn_left(40)  # forward and a turn together drive an arc
+            d.set(angular=0.6)  # the linear speed is kept: an arc
             status = await hold(robot, 30)
             speed, turn = status.current_speed_x, status.current_speed_theta
             print(f"arc: {speed:+.2f} m/s, {turn:+.2f} rad/s")
-            await robot.stop()
-            await robot.turn_right(60)
+            d.set(linear=0.0, angular=-0.9)
             status = await hold(robot, 30)
             print(f"turn on the spot: {status.current_speed_theta:+.2f} rad/s")
-        finally:
-            await robot.stop()
         status = await robot.wait_until(
             lambda s: s.current_speed_x == 0 and s.current_speed_theta == 0, timeout=10
         )

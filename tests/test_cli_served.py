@@ -414,6 +414,26 @@ def test_teleop_under_a_pty(served: ServedSim) -> None:
 
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pty")
+def test_teleop_keeps_a_held_key_alive_and_stops_on_release(served: ServedSim) -> None:
+    terminal = Terminal([*GALILEO, "--port", served.url, "teleop", "--speed", "50"])
+    try:
+        terminal.expect(b"q quit")
+        for _ in range(15):  # a held key: the terminal repeats it, here every 0.1 s
+            terminal.send(b"w")
+            time.sleep(0.1)
+        assert served.state.status.control_speed_x == pytest.approx(0.4, abs=1e-3)
+        released = time.monotonic()
+        served.wait_for(lambda state: state.status.current_speed_x == 0.0)
+        assert time.monotonic() - released < 1.0  # 0.5 s without a repeat, then the stop
+        terminal.expect(b"released: stop")
+        terminal.send(b"q")
+        terminal.expect(b"stop (on exit)")
+        assert terminal.process.wait(WAIT) == 0
+    finally:
+        terminal.close()
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pty")
 def test_teleop_sends_stop_when_interrupted(served: ServedSim) -> None:
     terminal = Terminal([*GALILEO, "--port", served.url, "teleop"])
     try:

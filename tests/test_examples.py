@@ -58,8 +58,9 @@ def test_monitor_example_sees_statuses_and_events() -> None:
 
 def test_teleop_example_drives_and_stops() -> None:
     out = run_example("teleop.py")
-    assert "forward: +0.40 m/s" in out  # 50 % of 0.8 m/s
-    assert "turn on the spot: -0.90 rad/s" in out  # 60 % of 1.5 rad/s, to the right
+    assert "forward: +0.40 m/s" in out
+    assert "arc: +0.40 m/s, +0.60 rad/s" in out  # the linear speed kept while turning
+    assert "turn on the spot: -0.90 rad/s" in out  # to the right
     assert "stopped at" in out
 
 

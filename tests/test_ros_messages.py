@@ -282,3 +282,8 @@ def test_parse_msg_constants_and_arrays() -> None:
         compile_decoder("a/B", {"a/B": parse_msg("a/B", "Missing thing\n")})
     with pytest.raises(MessageDefinitionError):
         parse_full_definition("a/B", "int32 x\n" + "=" * 80 + "\nnot a MSG line\n")
+
+
+def test_the_twist_message_matches_geometry_msgs() -> None:
+    assert m.TWIST_MD5 == "9f195f881246fdfa2798d1d3eebca84a"  # geometry_msgs/Twist's md5sum
+    assert struct.unpack("<6d", m.encode_twist(0.3, -0.5)) == (0.3, 0.0, 0.0, 0.0, 0.0, -0.5)

@@ -302,6 +302,33 @@ def test_teleop_persists_until_stop(firmware: str) -> None:
     assert (model.target_status, model.target_num_id) == (-1, -1)
 
 
+def test_cmd_vel_timeout_models_a_chassis_watchdog() -> None:
+    held = make()  # None: the speed holds, as on chassis builds without a watchdog
+    held.submit(c.Forward(50))
+    run(held, 30.0)
+    assert held.control_v == pytest.approx(0.4)
+    model = make(cmd_vel_timeout=3.0)  # chitu-noetic: stops 3 s after the last command
+    model.submit(c.Forward(50))
+    model.submit(c.TurnLeft(20))
+    run(model, 2.0)
+    model.submit(c.Forward(50))  # a keep-alive restarts the watchdog's 3 s
+    run(model, 2.5)
+    assert (model.control_v, model.control_w) == (pytest.approx(0.4), pytest.approx(0.3))
+    run(model, 1.0)
+    assert (model.control_v, model.control_w) == (0.0, 0.0)
+    assert parse_sim_url("sim://?cmd_vel_timeout=1.5").cmd_vel_timeout == 1.5
+    with pytest.raises(InvalidArgument, match="cmd_vel_timeout"):
+        SimConfig(cmd_vel_timeout=-1.0)
+
+
+def test_cmd_vel_timeout_leaves_a_goal_alone() -> None:
+    model = navigating(cmd_vel_timeout=0.5)
+    model.submit(c.Goto(1))
+    run(model, 2.0)
+    assert model.target_status == 1
+    assert model.current_v > 0
+
+
 def test_teleop_does_not_change_goal_state() -> None:
     model = navigating()
     model.submit(c.Goto(1))

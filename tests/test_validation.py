@@ -33,6 +33,8 @@ BAD_VALUES: tuple[Any, ...] = (math.nan, math.inf, -math.inf, 10**400, -1, 0, "1
 ROBOT_OPTIONS = (
     "map_targets", "accept_timeout", "arrive_tolerance", "goal_timeout", "wait_timeout",
     "first_status_timeout", "progress_timeout", "angle_tolerance",
+    "max_linear_speed", "max_angular_speed",
+    "first_status_timeout",
 )  # fmt: skip
 LINK_OPTIONS = (
     "reconnect", "reconnect_initial", "reconnect_max", "stale_timeout", "stale_reconnect",

@@ -7,23 +7,19 @@ import os
 import sys
 from typing import TYPE_CHECKING, Annotated
 
-import anyio
 import typer
 
-from ..errors import GalileoError
 from .runner import (
     ExitCode,
     err_console,
-    error_text,
     fail,
     out_console,
-    print_error,
     run_robot,
     settings_of,
 )
 
 if TYPE_CHECKING:
-    from ..robot import Robot
+    from ..robot import DriveSession, Robot
 
 __all__ = ["KEYS", "parse_keys", "teleop"]
 
@@ -39,9 +35,11 @@ KEYS: dict[bytes, str] = {
 }  # fmt: skip
 _ESCAPES = tuple(key for key in KEYS if key.startswith(b"\x1b"))
 HELP = "keys: w/↑ forward · s/↓ back · a/← left · d/→ right · space stop · +/- speed · q quit"
-#: Seconds allowed for the final stop command on the way out.
-STOP_TIMEOUT = 2.0
 SPEED_STEP = 10
+#: Seconds without a key repeat after which a held key counts as released (and stops).
+RELEASE_AFTER = 0.5
+#: Hz at which the speed is kept alive (chassis watchdogs stop after 1 to 3 s).
+DRIVE_RATE = 10.0
 
 
 def parse_keys(data: bytes) -> tuple[list[str], bytes]:
@@ -67,27 +65,42 @@ def parse_keys(data: bytes) -> tuple[list[str], bytes]:
     return actions, b""
 
 
-async def _apply(robot: Robot, action: str, percent: int) -> int:
+class _Keys:
+    """What the keys ask for: a percentage of the robot's limits, a direction, held or not."""
+
+    def __init__(self, robot: Robot, percent: int) -> None:
+        self.limits = robot.speed_limits
+        self.percent = percent
+
+    def velocity(self, action: str) -> tuple[float, float]:
+        """(linear m/s, angular rad/s) of a direction key at the current percentage."""
+        linear, angular = _DIRECTIONS[action]
+        share = self.percent / 100
+        return linear * share * self.limits.linear, angular * share * self.limits.angular
+
+
+#: Direction keys: the sign of (linear, angular); one key is held at a time.
+_DIRECTIONS = {
+    "forward": (1, 0), "backward": (-1, 0), "left": (0, 1), "right": (0, -1),
+}  # fmt: skip
+
+
+def _apply(drive: DriveSession, keys: _Keys, action: str) -> bool:
+    """Apply one action; True while a direction key is held (its speed is kept alive)."""
     console = out_console()
-    if action == "faster":
-        percent = min(100, percent + SPEED_STEP)
-        console.print(f"speed {percent}%")
-    elif action == "slower":
-        percent = max(SPEED_STEP, percent - SPEED_STEP)
-        console.print(f"speed {percent}%")
-    elif action == "stop":
-        await robot.stop()
+    if action in ("faster", "slower"):
+        step = SPEED_STEP if action == "faster" else -SPEED_STEP
+        keys.percent = max(SPEED_STEP, min(100, keys.percent + step))
+        console.print(f"speed {keys.percent}%")
+        return False
+    if action == "stop":
+        drive.set(linear=0.0, angular=0.0)
         console.print("stop")
-    else:
-        move = {
-            "forward": robot.forward,
-            "backward": robot.backward,
-            "left": robot.turn_left,
-            "right": robot.turn_right,
-        }[action]
-        await move(percent)
-        console.print(f"{action} {percent}%")
-    return percent
+        return False
+    linear, angular = keys.velocity(action)
+    drive.set(linear=linear, angular=angular)
+    console.print(f"{action} {keys.percent}%")
+    return True
 
 
 async def _drive(robot: Robot, fd: int, percent: int) -> None:
@@ -103,27 +116,45 @@ async def _drive(robot: Robot, fd: int, percent: int) -> None:
             loop.remove_reader(fd)
         chunks.put_nowait(data)
 
+    keys = _Keys(robot, percent)
     loop.add_reader(fd, readable)
     try:
-        pending = b""
-        while True:
-            chunk = await chunks.get()
-            if not chunk:
-                return
-            actions, pending = parse_keys(pending + chunk)
-            for action in actions:
-                if action == "quit":
+        async with robot.drive(rate=DRIVE_RATE) as drive:
+            pending = b""
+            held = False
+            while True:
+                try:
+                    # A held key repeats; none for RELEASE_AFTER s means it was released.
+                    chunk = await asyncio.wait_for(chunks.get(), RELEASE_AFTER if held else None)
+                except asyncio.TimeoutError:
+                    drive.set(linear=0.0, angular=0.0)
+                    out_console().print("released: stop")
+                    held = False
+                    continue
+                if not chunk:
                     return
-                percent = await _apply(robot, action, percent)
+                actions, pending = parse_keys(pending + chunk)
+                for action in actions:
+                    if action == "quit":
+                        return
+                    held = _apply(drive, keys, action) or (held and action in _KEEP)
     finally:
         loop.remove_reader(fd)
+
+
+#: Keys that leave a held direction held.
+_KEEP = ("faster", "slower")
 
 
 def teleop(
     ctx: typer.Context,
     speed: Annotated[int, typer.Option(min=1, max=100, help="Start speed, % of max.")] = 30,
 ) -> None:
-    """Drive with the keyboard (arrows or WASD); space stops, q quits, stop is sent on exit."""
+    """Drive with the keyboard (arrows or WASD) while a key is held; space stops, q quits.
+
+    The speed is kept alive while the key repeats; released (no repeat for 0.5 s) it
+    stops; a stop is written on every way out.
+    """
     settings = settings_of(ctx)
     if not sys.stdin.isatty():
         fail("teleop needs an interactive terminal (stdin is not a tty)")
@@ -144,15 +175,10 @@ def teleop(
                 await robot.cancel()
                 err_console().print("cancelled the running goal to take over")
             err_console().print(HELP)
-            await _drive(robot, fd, speed)
+            await _drive(robot, fd, speed)  # its drive block writes a stop on every exit
+            out_console().print("stop (on exit)")
         finally:
             termios.tcsetattr(fd, termios.TCSADRAIN, saved)
-            with anyio.move_on_after(STOP_TIMEOUT, shield=True):
-                try:
-                    await robot.stop()
-                    out_console().print("stop (on exit)")
-                except GalileoError as exc:
-                    print_error(f"could not send stop on exit: {error_text(exc)}")
         return 0
 
     run_robot(settings, body, interrupted=ExitCode.OK)

@@ -46,6 +46,7 @@ from .device import (
 )
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS, Layout
 from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder
+from .velocity import Velocity, speed_commands
 
 __all__ = [
     "COMMAND_TYPES",
@@ -90,8 +91,10 @@ __all__ = [
     "TurnLeft",
     "TurnRight",
     "UpdateMap",
+    "Velocity",
     "encode",
     "encode_status",
     "nudge_coordinates",
     "parse_payload",
+    "speed_commands",
 ]

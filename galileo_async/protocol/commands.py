@@ -224,7 +224,7 @@ class _Percent(Command):
 
 @dataclass(frozen=True, slots=True)
 class Forward(_Percent):
-    """Drive forward at ``percent`` of max speed ('f'); persists until changed."""
+    """Drive forward at ``percent`` of max speed ('f'); how long it lasts is the chassis's."""
 
     code: ClassVar[int] = ord("f")
 

@@ -3,6 +3,15 @@
 from __future__ import annotations
 
 from .connection import FIRST_STATUS_TIMEOUT, Connection, connect
+from .drive import (
+    DEFAULT_DRIVE_RATE,
+    DEFAULT_MAX_ANGULAR_SPEED,
+    DEFAULT_MAX_LINEAR_SPEED,
+    MAX_DRIVE_RATE,
+    MIN_DRIVE_RATE,
+    DriveSession,
+    SpeedLimits,
+)
 from .goal import GoalResult
 from .robot import (
     DEFAULT_ACCEPT_TIMEOUT,
@@ -21,17 +30,24 @@ from .robot import (
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
     "DEFAULT_ARRIVE_TOLERANCE",
+    "DEFAULT_DRIVE_RATE",
     "DEFAULT_GOAL_TIMEOUT",
+    "DEFAULT_MAX_ANGULAR_SPEED",
+    "DEFAULT_MAX_LINEAR_SPEED",
     "DEFAULT_PROGRESS_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "DEFAULT_WAIT_TIMEOUT",
     "FIRST_STATUS_TIMEOUT",
+    "MAX_DRIVE_RATE",
+    "MIN_DRIVE_RATE",
     "NAVIGATION_TIMEOUT",
     "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
     "Connection",
+    "DriveSession",
     "GoalResult",
     "Robot",
     "RobotDefault",
+    "SpeedLimits",
     "connect",
 ]

@@ -21,6 +21,8 @@ ROBOT_OPTIONS = (
     "wait_timeout",
     "progress_timeout",
     "angle_tolerance",
+    "max_linear_speed",
+    "max_angular_speed",
 )
 #: Options connect() takes itself; the rest go to the link.
 CONNECT_OPTIONS = (*ROBOT_OPTIONS, "first_status_timeout")
@@ -37,6 +39,9 @@ def _check_metres(name: str, value: object) -> None:
 
 def _check_degrees(name: str, value: object) -> None:
     check_number(name, value, low=0.0, high=180.0)
+def _check_speed_limit(name: str, value: object) -> None:
+    # The vendor's node turns a percentage of these into a speed (VENDOR.md §2.2, §2.3).
+    check_number(name, value, low=0.0, low_open=True, high=10.0)
 
 
 _CHECKS: dict[str, Callable[[str, Any], object]] = {
@@ -48,6 +53,8 @@ _CHECKS: dict[str, Callable[[str, Any], object]] = {
     "progress_timeout": check_timeout,
     "angle_tolerance": _check_degrees,
     "first_status_timeout": check_timeout,
+    "max_linear_speed": _check_speed_limit,
+    "max_angular_speed": _check_speed_limit,
 }
 
 

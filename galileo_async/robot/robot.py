@@ -15,12 +15,20 @@ from ..errors import (
 )
 from ..events import Event
 from ..models import GalileoStatus
-from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation
+from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation, Velocity
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import BaseLink, LinkStats
+from .drive import (
+    DEFAULT_DRIVE_RATE,
+    DEFAULT_MAX_ANGULAR_SPEED,
+    DEFAULT_MAX_LINEAR_SPEED,
+    DriveSession,
+    SpeedLimits,
+)
 from .goal import GoalResult, GoalRunner
 from .operations import (
+    CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
     GOAL_READY,
     NAVIGATING,
@@ -91,10 +99,14 @@ class Robot(RobotServices):
         wait_timeout: float | None = DEFAULT_WAIT_TIMEOUT,
         progress_timeout: float | None = DEFAULT_PROGRESS_TIMEOUT,
         angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE,
+        max_linear_speed: float = DEFAULT_MAX_LINEAR_SPEED,
+        max_angular_speed: float = DEFAULT_MAX_ANGULAR_SPEED,
     ) -> None:
         check_robot_options(
             {
                 "angle_tolerance": angle_tolerance,
+                "max_linear_speed": max_linear_speed,
+                "max_angular_speed": max_angular_speed,
                 "map_targets": map_targets,
                 "accept_timeout": accept_timeout,
                 "arrive_tolerance": arrive_tolerance,
@@ -115,6 +127,8 @@ class Robot(RobotServices):
         #: Default ``progress_timeout`` of goto/goto_point (None: never stalled).
         self.progress_timeout = progress_timeout
         self.angle_tolerance = float(angle_tolerance)
+        #: Speeds at 100 % of the serial speed commands (drive() converts to percentages).
+        self.speed_limits = SpeedLimits(float(max_linear_speed), float(max_angular_speed))
         self._close_task: asyncio.Task[None] | None = None
 
     # --- state -----------------------------------------------------------------------
@@ -182,7 +196,25 @@ class Robot(RobotServices):
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
+        if isinstance(command, Velocity) and not self._link.carries_velocity:
+            raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
         await self._written(command, f"send({command!r})", timeout)
+
+    def drive(
+        self, linear: float = 0.0, angular: float = 0.0, *, rate: float = DEFAULT_DRIVE_RATE
+    ) -> DriveSession:
+        """Velocity control: ``async with robot.drive(0.3, 0.0) as d: d.set(angular=0.5)``.
+
+        ``linear`` m/s (forward positive) and ``angular`` rad/s (left positive), within
+        ``speed_limits``; re-sent every 1/``rate`` s (2-20 Hz) while inside, from the
+        session's own task; one stop is written when the block is left, whatever way.
+        InvalidArgument (bad value) at once; NotReady on entering while a goal is working
+        or paused, or another drive session is active. A goal, goto_point or start_patrol
+        inside is NotReady. On serial links the speeds become f/b and c/d percentages
+        (protocol.speed_commands); on ros:// a geometry_msgs/Twist on /cmd_vel.
+        """
+        self._ops.ensure_loop()
+        return DriveSession(self._ops, self.speed_limits, linear, angular, rate, self._drives)
 
     # --- navigation --------------------------------------------------------------------
 
@@ -210,7 +242,7 @@ class Robot(RobotServices):
 
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop navigation (also patrol and the goal); return once it is closed (a user stop)."""
-        self._ops.user_stopped("stop_navigation()")
+        self._user_stop("stop_navigation()")
         check_timeout("timeout", timeout)
         await self._ops.send(
             StopNavigation(), what="stop_navigation", deadline=Deadline(timeout),
@@ -241,6 +273,7 @@ class Robot(RobotServices):
         at the target already: a GoalResult with ``already_there`` True.
         """
         command = Goto(target_id)  # validates before anything is sent
+        self._refuse_while_driving("goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
@@ -274,6 +307,7 @@ class Robot(RobotServices):
         read at connect (sim://, ros://).
         """
         command = AddTarget(x, y)  # validate before anything is sent
+        self._refuse_while_driving("goto_point")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         progress = or_default(progress_timeout, self.progress_timeout)
@@ -307,14 +341,17 @@ class Robot(RobotServices):
         self._ops.user_stopped("close()")
         task = self._close_task
         if task is None:
+            stop_written = self._drives.end()  # queued first, and written before closing
             self._ops.closed = True
             task = self._close_task = asyncio.get_running_loop().create_task(
-                self._shutdown(), name=f"close {self._link!r}"
+                self._shutdown(stop_written), name=f"close {self._link!r}"
             )
         await finish_shielded(task, "close()")
 
-    async def _shutdown(self) -> None:
+    async def _shutdown(self, stop_written: asyncio.Future[bool] | None) -> None:
         try:
+            if stop_written is not None:
+                await asyncio.wait((stop_written,), timeout=CANCEL_SEND_TIMEOUT)
             await self._link.close()
             await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:

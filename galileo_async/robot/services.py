@@ -10,6 +10,7 @@ from ..errors import (
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
+    NotReady,
     OperationFailed,
     UnconfirmedOperation,
 )
@@ -39,6 +40,7 @@ from ..protocol import (
     TurnRight,
     UpdateMap,
 )
+from .drive import DriveSlot
 from .goal import GoalRunner
 from .operations import (
     DEFAULT_TIMEOUT,
@@ -126,12 +128,14 @@ class RobotServices:
         self._targets = targets
         #: rotate_to within this many degrees of the heading the robot has: done, not sent.
         self.angle_tolerance = DEFAULT_ANGLE_TOLERANCE
+        #: The drive session inside whose block the caller is, if any.
+        self._drives = DriveSlot()
 
     # --- goal control ---------------------------------------------------------------
 
     async def pause(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Pause the working goal; return once the status shows it paused (a user stop)."""
-        self._ops.user_stopped("pause()")
+        self._user_stop("pause()")
         await self._goal_command(Pause(), TargetStatus.WORKING, TargetStatus.PAUSED, timeout)
 
     async def resume(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
@@ -144,7 +148,7 @@ class RobotServices:
         On a stale link ``i 2`` is still sent (the transmit side may work), then LinkStale
         is raised: the status cannot confirm it.
         """
-        self._ops.user_stopped("cancel()")
+        self._user_stop("cancel()")
         check_timeout("timeout", timeout)
         self._ops.ensure_open()
         self._goals.cancelling()
@@ -196,20 +200,23 @@ class RobotServices:
 
     # --- teleoperation ---------------------------------------------------------------
 
+    # One command each: 22 chassis builds hold it until the next, others stop 1-3 s after
+    # it (VENDOR.md §2.5); drive() keeps a speed alive and always ends with a stop.
+
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Drive forward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        """Write ``f`` once at ``percent`` (0-100) of max speed; the chassis decides how long."""
         await self._written(Forward(percent), "forward", timeout)
 
     async def backward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Drive backward at ``percent`` (0-100) of max speed until changed; not confirmed."""
+        """Write ``b`` once at ``percent`` (0-100) of max speed; as forward()."""
         await self._written(Backward(percent), "backward", timeout)
 
     async def turn_left(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Turn left at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        """Write ``c`` once at ``percent`` (0-100) of max angular speed; as forward()."""
         await self._written(TurnLeft(percent), "turn_left", timeout)
 
     async def turn_right(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
-        """Turn right at ``percent`` (0-100) of max angular speed until changed; not confirmed."""
+        """Write ``d`` once at ``percent`` (0-100) of max angular speed; as forward()."""
         await self._written(TurnRight(percent), "turn_right", timeout)
 
     async def stop(self, brake: int = 100) -> None:
@@ -218,7 +225,7 @@ class RobotServices:
         A user stop: a drive or goal command called before it that still waits is never
         written (Operations.user_stopped).
         """
-        self._ops.user_stopped("stop()")
+        self._user_stop("stop()")
         await self._ops.send(Stop(brake), what="stop", even_stale=True)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
@@ -229,6 +236,7 @@ class RobotServices:
         """Start auto-patrol (``dwell`` s at each target if given); return once loop_status is 1."""
         if dwell is not None:
             check_int("dwell", dwell, 0, 255)
+        self._refuse_while_driving("start_patrol")
         command: Command = StartPatrol() if dwell is None else SetPatrolDwell(dwell)
         check_timeout("timeout", timeout)
         await self._ops.send(
@@ -307,6 +315,18 @@ class RobotServices:
         await self._ops.send(ShutdownHost(), what="shutdown_host")
 
     # --- helpers -----------------------------------------------------------------------
+
+    def _user_stop(self, what: str) -> None:
+        """A user stop: withdraw waiting drive/goal commands, end the drive session (its stop)."""
+        self._ops.user_stopped(what)
+        self._drives.end()
+
+    def _refuse_while_driving(self, what: str) -> None:
+        """NotReady inside an active drive block: a goal and the drive's speeds would fight."""
+        if self._drives.active:
+            raise NotReady(
+                f"{what}: a drive session is active; leave its block first", self._ops.store.status
+            )
 
     async def _written(
         self, command: Command, what: str, timeout: float | None, require: Require | None = None

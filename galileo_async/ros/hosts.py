@@ -11,8 +11,9 @@ from collections.abc import Mapping
 from urllib.parse import urlsplit, urlunsplit
 
 from ..errors import InvalidArgument
+from .xmlrpc import RosApiError
 
-__all__ = ["RESOLVE_TIMEOUT", "PeerAddresses", "parse_hosts"]
+__all__ = ["RESOLVE_TIMEOUT", "PeerAddresses", "local_address_for", "parse_hosts"]
 
 _log = logging.getLogger(__name__)
 
@@ -107,3 +108,18 @@ class PeerAddresses:
         host = f"[{address}]" if ":" in address else address
         netloc = host if parts.port is None else f"{host}:{parts.port}"
         return urlunsplit(parts._replace(netloc=netloc))
+
+
+async def local_address_for(master_uri: str) -> str:
+    """The local IP address that routes to the master (what ROS_IP would be)."""
+    host = urlsplit(master_uri).hostname or "127.0.0.1"
+    port = urlsplit(master_uri).port or 11311
+    loop = asyncio.get_running_loop()
+    try:
+        infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+        family, _, _, _, address = infos[0]
+        with socket.socket(family, socket.SOCK_DGRAM) as probe:
+            probe.connect(address)  # UDP connect sends nothing; it only picks a route
+            return str(probe.getsockname()[0])
+    except (OSError, IndexError) as exc:
+        raise RosApiError(f"cannot find a local address towards {host}: {exc}") from exc

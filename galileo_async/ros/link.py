@@ -13,9 +13,10 @@ from .._checks import check_names, check_seconds
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ..models import GalileoStatus
 from ..protocol.commands import Command
+from ..protocol.velocity import Velocity
 from ..transports.base import BaseLink, StatusSink
 from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
-from .hosts import parse_hosts
+from .hosts import local_address_for, parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
     DEFAULT_MASTER_CHECK_INTERVAL,
@@ -23,7 +24,6 @@ from .node import (
     NodeStats,
     RosNode,
     default_node_name,
-    local_address_for,
 )
 from .xmlrpc import RosApiError
 
@@ -126,7 +126,12 @@ def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
 
 
 class RosLink(BaseLink):
-    """Commands published on /galileo/cmds, statuses from /galileo/status (any version)."""
+    """Commands published on /galileo/cmds, statuses from /galileo/status (any version).
+
+    A Velocity (drive()) is published as geometry_msgs/Twist on /cmd_vel.
+    """
+
+    carries_velocity = True
 
     def __init__(
         self,
@@ -234,7 +239,10 @@ class RosLink(BaseLink):
     def _write(self, command: Command) -> None:
         if self.node is None:
             raise GalileoConnectionError(f"not connected to {self.master_uri}")
-        self.node.publish(command)
+        if isinstance(command, Velocity):
+            self.node.publish_velocity(command.linear, command.angular)
+        else:
+            self.node.publish(command)
 
     async def _disconnect(self) -> None:
         await self._drop_node()

@@ -24,20 +24,28 @@ __all__ = [
     "CMDS_MD5",
     "CMDS_TOPIC",
     "CMDS_TYPE",
+    "CMD_VEL_TOPIC",
     "ROS_FIELD_NAMES",
     "STATUS_DEFINITION",
     "STATUS_DEFINITION_13",
     "STATUS_MD5",
     "STATUS_TOPIC",
     "STATUS_TYPE",
+    "TWIST_DEFINITION",
+    "TWIST_MD5",
+    "TWIST_TYPE",
     "StatusMessageDecoder",
     "encode_cmds",
+    "encode_twist",
     "full_definition",
 ]
 
 CMDS_TOPIC = "/galileo/cmds"
 STATUS_TOPIC = "/galileo/status"
 CMDS_TYPE = "galileo_serial_server/GalileoNativeCmds"
+#: Velocity commands for the chassis driver (VENDOR.md §2.1): only linear.x and angular.z.
+CMD_VEL_TOPIC = "/cmd_vel"
+TWIST_TYPE = "geometry_msgs/Twist"
 STATUS_TYPE = "galileo_serial_server/GalileoStatus"
 
 _HEADER_TEXT = (
@@ -115,6 +123,20 @@ STATUS_DEFINITION_13 = _status_text(
 )
 
 
+#: geometry_msgs/Twist with its Vector3 dependency, as a publisher's message_definition.
+TWIST_DEFINITION = (
+    "Vector3 linear\nVector3 angular\n"
+    + SEPARATOR
+    + "MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n"
+)
+_TWIST = struct.Struct("<6d")
+
+
+def encode_twist(linear: float, angular: float) -> bytes:
+    """Serialise a Twist of ``linear`` m/s along x and ``angular`` rad/s about z."""
+    return _TWIST.pack(linear, 0.0, 0.0, 0.0, 0.0, angular)
+
+
 def full_definition(text: str) -> str:
     """A message text followed by the std_msgs/Header dependency, as genpy's _full_text."""
     return text + SEPARATOR + "MSG: std_msgs/Header\n" + _HEADER_TEXT
@@ -126,6 +148,7 @@ def _md5(full_name: str, text: str) -> str:
 
 CMDS_MD5 = _md5(CMDS_TYPE, CMDS_DEFINITION)
 STATUS_MD5 = _md5(STATUS_TYPE, STATUS_DEFINITION)
+TWIST_MD5 = md5sum(TWIST_TYPE, parse_full_definition(TWIST_TYPE, TWIST_DEFINITION))
 _KNOWN_STATUS = {
     STATUS_MD5: STATUS_DEFINITION,
     _md5(STATUS_TYPE, STATUS_DEFINITION_13): STATUS_DEFINITION_13,

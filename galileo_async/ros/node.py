@@ -8,7 +8,6 @@ import ipaddress
 import itertools
 import logging
 import os
-import socket
 import time
 from collections.abc import Awaitable, Callable, Coroutine, Mapping
 from dataclasses import dataclass
@@ -20,14 +19,19 @@ from ..models import GalileoStatus
 from ..protocol.commands import Command
 from .hosts import PeerAddresses
 from .messages import (
+    CMD_VEL_TOPIC,
     CMDS_DEFINITION,
     CMDS_MD5,
     CMDS_TOPIC,
     CMDS_TYPE,
     STATUS_TOPIC,
     STATUS_TYPE,
+    TWIST_DEFINITION,
+    TWIST_MD5,
+    TWIST_TYPE,
     StatusMessageDecoder,
     encode_cmds,
+    encode_twist,
     full_definition,
 )
 from .msgdef import MessageDefinitionError
@@ -42,7 +46,6 @@ __all__ = [
     "NodeStats",
     "RosNode",
     "default_node_name",
-    "local_address_for",
 ]
 
 _log = logging.getLogger(__name__)
@@ -62,21 +65,6 @@ _node_numbers = itertools.count(1)
 def default_node_name() -> str:
     """A caller id unique within this process (several links may share one master)."""
     return f"/galileo_async_{os.getpid()}_{next(_node_numbers)}"
-
-
-async def local_address_for(master_uri: str) -> str:
-    """The local IP address that routes to the master (what ROS_IP would be)."""
-    host = urlsplit(master_uri).hostname or "127.0.0.1"
-    port = urlsplit(master_uri).port or 11311
-    loop = asyncio.get_running_loop()
-    try:
-        infos = await loop.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
-        family, _, _, _, address = infos[0]
-        with socket.socket(family, socket.SOCK_DGRAM) as probe:
-            probe.connect(address)  # UDP connect sends nothing; it only picks a route
-            return str(probe.getsockname()[0])
-    except (OSError, IndexError) as exc:
-        raise RosApiError(f"cannot find a local address towards {host}: {exc}") from exc
 
 
 @dataclass
@@ -134,6 +122,10 @@ class RosNode:
             definition=full_definition(CMDS_DEFINITION),
             caller_id=self.name,
         )
+        self._cmd_vel = TcprosPublisher(
+            topic=CMD_VEL_TOPIC, msg_type=TWIST_TYPE, md5sum=TWIST_MD5,
+            definition=TWIST_DEFINITION, caller_id=self.name,
+        )  # fmt: skip
         self._status_transport: asyncio.Transport | None = None
         self._publishers: list[str] = []
         self._publishers_changed = asyncio.Event()
@@ -164,6 +156,8 @@ class RosNode:
         self._slave.uri = slave_uri
         port = await self._cmds.start(self.bind)
         self._slave.publications[CMDS_TOPIC] = (CMDS_TYPE, (self.host, port))
+        port = await self._cmd_vel.start(self.bind)
+        self._slave.publications[CMD_VEL_TOPIC] = (TWIST_TYPE, (self.host, port))
         self._slave.subscriptions[STATUS_TOPIC] = (STATUS_TYPE, self._publisher_update)
         self._master_pid = await self._master.get_pid()
         await self._register(slave_uri)
@@ -190,6 +184,7 @@ class RosNode:
 
     async def _register(self, slave_uri: str) -> None:
         await self._master.register_publisher(CMDS_TOPIC, CMDS_TYPE, slave_uri)
+        await self._master.register_publisher(CMD_VEL_TOPIC, TWIST_TYPE, slave_uri)
         self._publishers = await self._master.register_subscriber(
             STATUS_TOPIC, STATUS_TYPE, slave_uri
         )
@@ -329,6 +324,12 @@ class RosNode:
         if self._cmds.publish(message) == 0:
             raise ConnectionLost(f"nobody subscribes to {CMDS_TOPIC}")
 
+    def publish_velocity(self, linear: float, angular: float) -> None:
+        """Publish one Twist on /cmd_vel (no subscriber yet: nobody gets it, as with rospy)."""
+        if not self._up:
+            raise ConnectionLost(f"not connected to {self.master_uri}")
+        self._cmd_vel.publish(encode_twist(linear, angular))
+
     async def close(self) -> None:
         """Release every socket and task, then unregister (best effort); bounded by CLOSE_BOUND.
 
@@ -343,6 +344,7 @@ class RosNode:
                 self._status_transport.abort()
                 self._status_transport = None
             self._cmds.stop()
+            self._cmd_vel.stop()
             self._slave.stop()
             self._close_task = asyncio.ensure_future(self._finish_close())
         await asyncio.shield(self._close_task)
@@ -352,12 +354,15 @@ class RosNode:
             self._watch_task.cancel()
             await asyncio.gather(self._watch_task, return_exceptions=True)
             self._watch_task = None
-        waits: list[Coroutine[Any, Any, None]] = [self._cmds.close(), self._slave.close()]
+        waits: list[Coroutine[Any, Any, None]] = [
+            self._cmds.close(), self._cmd_vel.close(), self._slave.close()
+        ]  # fmt: skip
         slave_uri = self._slave.uri
         if slave_uri is not None and self._master_pid is not None:
             self._master.timeout = min(self.rpc_timeout, CLOSE_BOUND)
             waits.append(self._unregister(self._master.unregister_subscriber, STATUS_TOPIC))
             waits.append(self._unregister(self._master.unregister_publisher, CMDS_TOPIC))
+            waits.append(self._unregister(self._master.unregister_publisher, CMD_VEL_TOPIC))
         tasks = [asyncio.ensure_future(wait) for wait in waits]
         try:
             _, pending = await asyncio.wait(tasks, timeout=CLOSE_BOUND)

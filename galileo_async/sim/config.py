@@ -106,6 +106,10 @@ class SimConfig:
     concat_loss: bool | None = None
     max_speed: float = 0.8
     max_turn_rate: float = 1.5
+    #: Seconds after the last speed command (f, b, c, d) that the chassis zeroes both
+    #: speeds; None: the last speed holds forever, as on 22 of the vendor's chassis builds
+    #: (VENDOR.md §2.5; chitu-noetic stops after 3 s).
+    cmd_vel_timeout: float | None = None
     acceleration: float = 1.0
     angular_acceleration: float = 3.0
     arrival_distance: float = 0.005
@@ -141,8 +145,9 @@ class SimConfig:
             "arrival_distance", "power", "power_full",
         ):  # fmt: skip
             _check_non_negative(name, getattr(self, name))
-        if self.start_ignore_time is not None:
-            _check_non_negative("start_ignore_time", self.start_ignore_time)
+        for name in ("start_ignore_time", "cmd_vel_timeout"):
+            if getattr(self, name) is not None:
+                _check_non_negative(name, getattr(self, name))
         for name, size in (("start_pose", 3), ("dock", 2)):
             value = getattr(self, name)
             if len(value) != size or not all(map(math.isfinite, value)):
@@ -190,6 +195,7 @@ _FLOAT_OPTIONS = frozenset(
         "acceleration", "angular_acceleration", "arrival_distance", "docking_time", "power",
         "power_drain", "power_full", "charge_rate", "garbage", "drop", "bitflip",
         "disconnect_after", "freeze_after", "block_after",
+        "cmd_vel_timeout",
     }
 )  # fmt: skip
 _BOOL_OPTIONS = frozenset({"ignore_save_map", "concat_loss"})

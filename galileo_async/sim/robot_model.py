@@ -85,6 +85,8 @@ class RobotModel(ServiceCommands, Body):
         self._patrol_next = 0
         self._patrol_resume_at: float | None = None
         self._docked_at: float | None = None
+        #: When the last speed command (f, b, c, d) arrived: the chassis watchdog's clock.
+        self._speed_at = 0.0
         self._handlers: dict[type[cmd.Command], Callable[[Any], None]] = {
             cmd.StartNavigation: self._start_navigation,
             cmd.StopNavigation: self._stop_navigation,
@@ -231,14 +233,17 @@ class RobotModel(ServiceCommands, Body):
             if done and not fresh:
                 self.theta, self.control_w, self.current_w = self._rotate_goal, 0.0, 0.0
                 self._rotate_goal, self.rotate_status = None, 1
-        elif self.charge_status == FINDING and self.drive_to(self.dock, dt):
-            self.charge_status, self._docked_at = DOCKING, self.time
+        elif self.charge_status == FINDING:
+            if self.drive_to(self.dock, dt):
+                self.charge_status, self._docked_at = DOCKING, self.time
         elif (
             self.charge_status == DOCKING
             and self._docked_at is not None
             and self.time + EPSILON - self._docked_at >= config.docking_time
         ):
             self.charge_status = CHARGING
+        else:
+            self._chassis_watchdog()
         self.integrate(dt)
 
     def _goal_fault_due(self, after: float | None) -> bool:
@@ -247,6 +252,10 @@ class RobotModel(ServiceCommands, Body):
         if after is None or started is None or self.target_status not in ACTIVE:
             return False
         return self.time + EPSILON >= started + after
+    def _chassis_watchdog(self) -> None:
+        timeout = self.config.cmd_vel_timeout
+        if timeout is not None and self.time + EPSILON - self._speed_at >= timeout:
+            self.control_v = self.control_w = 0.0
 
     def _drive_goal(self, dt: float) -> None:
         assert self._goal is not None
@@ -377,7 +386,9 @@ class RobotModel(ServiceCommands, Body):
         del self.targets[len(self.config.targets) :]
 
     def _teleop(self, *, v: float | None = None, w: float | None = None) -> None:
-        # Speeds persist until changed: the firmware has no keep-alive (PROTOCOL.md §2.e).
+        # Linear and angular are kept separately (arcs); without cmd_vel_timeout the speed
+        # holds until changed, as on chassis builds without a watchdog (VENDOR.md §2.5).
+        self._speed_at = self.time
         if v is not None:
             self.control_v = v
         if w is not None:

@@ -7,6 +7,7 @@ import asyncio
 import logging
 import time
 from collections import deque
+from typing import ClassVar
 
 from ..errors import ConnectionLost, GalileoConnectionError, LinkStale
 from ..models import GalileoStatus
@@ -40,6 +41,8 @@ class BaseLink(CommandQueue, abc.ABC):
         "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
         "stale_reconnect", "stale_timeout", "stats", "store",
     )  # fmt: skip
+    #: True when the link writes a Velocity (a Twist) itself; serial links write f/b and c/d.
+    carries_velocity: ClassVar[bool] = False
 
     def __init__(
         self,
