@@ -183,6 +183,7 @@ class MemoryConnector:
         self.transports: list[RecordingTransport] = []
         self.attempts: list[float] = []
         self.failures = 0  # how many of the next connects raise OSError
+        self._connected = asyncio.Event()
 
     async def __call__(
         self, loop: asyncio.AbstractEventLoop, factory: Callable[[], asyncio.Protocol]
@@ -195,7 +196,18 @@ class MemoryConnector:
         transport = RecordingTransport(loop, protocol)
         protocol.connection_made(transport)
         self.transports.append(transport)
+        self._connected.set()
         return transport, protocol
+
+    async def wait_connects(self, count: int, timeout: float = 2.0) -> None:
+        """Wait until ``count`` connects have succeeded."""
+
+        async def until() -> None:
+            while len(self.transports) < count:
+                self._connected.clear()
+                await self._connected.wait()
+
+        await asyncio.wait_for(until(), timeout)
 
     @property
     def transport(self) -> RecordingTransport:

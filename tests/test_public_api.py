@@ -12,7 +12,8 @@ PUBLIC = {
     "DiscoveredRobot", "GalileoConnectionError", "GalileoError", "GalileoStatus",
     "GalileoTimeout", "GoalAborted", "GoalCancelled", "GoalError", "GoalRejected",
     "GoalResult", "InvalidArgument", "LinkStale", "MapStatus", "NavStatus", "NotReady",
-    "OperationFailed", "OperationTimeout", "Pose", "Robot", "StatusLayout", "TargetStatus",
+    "OperationFailed", "OperationTimeout", "PortBusy", "Pose", "Robot", "StatusLayout",
+    "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
 }  # fmt: skip

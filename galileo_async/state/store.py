@@ -217,7 +217,7 @@ class StatusStore:
             self._emit(ev.ConnectionLostEvent(status=self.status, reason=str(exc)))
 
     def connection_restored(self) -> None:
-        """The transport is back (no-op unless it was lost)."""
+        """Valid frames arrive again after a drop (no-op unless it was lost)."""
         if self._link_error is None:
             return
         was_lost = isinstance(self._link_error, ConnectionLost)
@@ -240,12 +240,12 @@ class StatusStore:
             self._emit(ev.LinkRestored(status=self.status))
 
     def close(self) -> None:
-        """End every iterator and fail every waiter with ConnectionLost (idempotent)."""
+        """End every iterator; fail every waiter with the drop that ended the link, if any."""
         if self.closed:
             return
         self.closed = True
         self._status_hooks = []
-        closed = ConnectionLost("the status store is closed")
+        closed = self._closed_error()
         self._fail_waiters(closed)
         frame_waiters, self._frame_waiters = self._frame_waiters, []
         for future in frame_waiters:
@@ -292,7 +292,7 @@ class StatusStore:
     async def first_frame(self, timeout: float | None) -> None:
         """Return once a valid frame (a placeholder too) came; stale or lost links do not end it."""
         if self.closed:
-            raise ConnectionLost("the status store is closed")
+            raise self._closed_error()
         if self.status is not None or self.placeholder_frames:
             return
         loop = asyncio.get_running_loop()
@@ -349,9 +349,14 @@ class StatusStore:
             registry.add(subscription)
         return subscription
 
+    def _closed_error(self) -> ConnectionLost:
+        """What a closed store fails with: the link's drop (its reason), else "closed"."""
+        lost = self._link_error
+        return lost if isinstance(lost, ConnectionLost) else ConnectionLost("the store is closed")
+
     def _raise_if_unusable(self) -> None:
         if self.closed:
-            raise ConnectionLost("the status store is closed")
+            raise self._closed_error()
         if self._link_error is not None:
             raise self._link_error
 

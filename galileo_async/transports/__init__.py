@@ -7,7 +7,7 @@ switch, also used by the CLI.
 
 from __future__ import annotations
 
-from .base import BaseLink, LinkStats, StatusSink
+from .base import BaseLink, LinkState, LinkStats, StatusSink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -47,6 +47,7 @@ __all__ = [
     "STREAM_OPTIONS",
     "BaseLink",
     "Connector",
+    "LinkState",
     "LinkStats",
     "StatusSink",
     "StreamLink",

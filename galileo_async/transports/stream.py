@@ -13,7 +13,7 @@ from typing import Any, cast
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import StatusLayout
 from ..protocol import Command, StatusDecoder, encode
-from .base import BaseLink, StatusSink, frames_log
+from .base import BaseLink, LinkState, StatusSink, frames_log
 from .connectors import Connector, translate_errors
 from .options import CLOSE_TIMEOUT
 
@@ -22,6 +22,7 @@ __all__ = ["StreamLink"]
 _log = logging.getLogger(__name__)
 _DEBUG = logging.DEBUG
 _monotonic = time.monotonic
+_UP = LinkState.UP
 #: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
 READ_SIZE = 4096
 
@@ -92,7 +93,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
             # BaseLink._on_status for a whole read, inlined.
             stats = self._stats
             stats.last_frame_at = _monotonic()
-            if stats.stale:
+            if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update
             for status in statuses:
@@ -108,7 +109,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         if statuses:
             stats = self._stats
             stats.last_frame_at = _monotonic()
-            if stats.stale:
+            if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update
             for status in statuses:
