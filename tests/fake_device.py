@@ -53,6 +53,7 @@ class _DeviceProtocol(asyncio.Protocol):
         self.transport = transport
         self.device.clients.append(self)
         self.device.connections += 1
+        self.device.accepted_at.append(time.monotonic())
         self.device.changes.notify()
 
     def data_received(self, data: bytes) -> None:
@@ -72,6 +73,7 @@ class FakeDevice:
     def __init__(self) -> None:
         self.clients: list[_DeviceProtocol] = []
         self.connections = 0
+        self.accepted_at: list[float] = []  # time.monotonic() of each accepted connection
         self.writes: list[tuple[float, bytes]] = []  # (time.monotonic(), one received chunk)
         self.commands: list[Command] = []
         self.decoder = CommandDecoder()
