@@ -154,19 +154,23 @@ async def open_robot(url: str, **options: object) -> galileo.Robot:
     return await galileo.connect(url, **options)
 
 
-async def test_a_drop_while_connect_waits_for_the_first_frame_names_its_reason() -> None:
+@pytest.mark.parametrize("reconnect", [False, True])
+async def test_a_drop_while_connect_waits_for_the_first_frame_names_its_reason(
+    reconnect: bool,
+) -> None:
     master, slave = os.openpty()  # a device that never sends, then is unplugged
     path = os.ttyname(slave)
     opened = asyncio.Event()
+    # Reconnecting, connect() waits out its timeout (the port is gone), then says why.
+    options = {"reconnect": reconnect, "first_status_timeout": 0.5 if reconnect else WAIT}
+    expected = galileo.GalileoConnectionError if reconnect else ConnectionLost
     try:
         with port_opened(opened):
-            connecting = asyncio.create_task(
-                open_robot(path, reconnect=False, first_status_timeout=WAIT)
-            )
+            connecting = asyncio.create_task(open_robot(path, **options))
             await asyncio.wait_for(opened.wait(), WAIT)
             os.close(master)
             os.close(slave)
-            with pytest.raises(ConnectionLost) as info:
+            with pytest.raises(expected) as info:
                 await asyncio.wait_for(connecting, WAIT)
     finally:
         for fd in (master, slave):
