@@ -25,6 +25,7 @@ __all__ = [
     "NotReady",
     "OperationFailed",
     "OperationTimeout",
+    "PortBusy",
     "UnconfirmedOperation",
     "WrongEventLoop",
 ]
@@ -61,6 +62,14 @@ class GalileoConnectionError(GalileoError, ConnectionError):
 
 class ConnectionLost(GalileoConnectionError):
     """The transport dropped while an operation was waiting on it."""
+
+
+class PortBusy(GalileoConnectionError):
+    """The serial port ``port`` is open elsewhere (serial ports are opened exclusively)."""
+
+    def __init__(self, message: str, *, port: str) -> None:
+        super().__init__(message)
+        self.port = port
 
 
 class LinkStale(GalileoConnectionError):

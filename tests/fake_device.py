@@ -53,6 +53,7 @@ class _DeviceProtocol(asyncio.Protocol):
         self.transport = transport
         self.device.clients.append(self)
         self.device.connections += 1
+        self.device.accepted_at.append(time.monotonic())
         self.device.changes.notify()
 
     def data_received(self, data: bytes) -> None:
@@ -72,6 +73,7 @@ class FakeDevice:
     def __init__(self) -> None:
         self.clients: list[_DeviceProtocol] = []
         self.connections = 0
+        self.accepted_at: list[float] = []  # time.monotonic() of each accepted connection
         self.writes: list[tuple[float, bytes]] = []  # (time.monotonic(), one received chunk)
         self.commands: list[Command] = []
         self.decoder = CommandDecoder()
@@ -183,6 +185,7 @@ class MemoryConnector:
         self.transports: list[RecordingTransport] = []
         self.attempts: list[float] = []
         self.failures = 0  # how many of the next connects raise OSError
+        self._connected = asyncio.Event()
 
     async def __call__(
         self, loop: asyncio.AbstractEventLoop, factory: Callable[[], asyncio.Protocol]
@@ -195,7 +198,18 @@ class MemoryConnector:
         transport = RecordingTransport(loop, protocol)
         protocol.connection_made(transport)
         self.transports.append(transport)
+        self._connected.set()
         return transport, protocol
+
+    async def wait_connects(self, count: int, timeout: float = 2.0) -> None:
+        """Wait until ``count`` connects have succeeded."""
+
+        async def until() -> None:
+            while len(self.transports) < count:
+                self._connected.clear()
+                await self._connected.wait()
+
+        await asyncio.wait_for(until(), timeout)
 
     @property
     def transport(self) -> RecordingTransport:

@@ -49,6 +49,7 @@ class Relay:
         self.to_robot: ToRobot = "pass"  # "hold": the host's bytes wait for release()
         self.held: list[tuple[asyncio.StreamWriter, bytes]] = []
         self.holding = asyncio.Event()  # set once bytes are held
+        self.served = asyncio.Event()  # set when a host connects
         self._writers: list[asyncio.StreamWriter] = []
         self._sessions: set[asyncio.Task[Any]] = set()
         self._server: asyncio.Server | None = None
@@ -85,6 +86,7 @@ class Relay:
         session = asyncio.current_task()
         assert session is not None
         self._sessions.add(session)
+        self.served.set()
         robot_in, robot_out = await asyncio.open_connection("127.0.0.1", self.robot_port)
         self._writers += [host_out, robot_out]
         try:
@@ -209,6 +211,7 @@ async def test_a_goal_that_ended_meanwhile_gets_no_cancel() -> None:
     async with robot_via_relay() as (robot, relay, _sim, log):
         events = robot.events()
         goal = await _driving_to_far(robot)
+        relay.served.clear()
         relay.go_away()
         relay.to_host = False  # the link stays silent after the reconnect
         with anyio.fail_after(WAIT), pytest.raises(ConnectionLost):
@@ -218,9 +221,9 @@ async def test_a_goal_that_ended_meanwhile_gets_no_cancel() -> None:
             f"socket://127.0.0.1:{relay.robot_port}", map_targets=len(TARGETS)
         ) as other:
             await other.cancel(timeout=WAIT)
-        await _next_event(events, ev.LinkStaleEvent)  # reconnected, and silent
+        await asyncio.wait_for(relay.served.wait(), WAIT)  # reconnected, and silent
         relay.to_host = True
-        await _next_event(events, ev.LinkRestored)
+        await _next_event(events, ev.ConnectionRestored)  # once frames come
         await _frames(robot, 30)
         assert robot.status is not None
         assert not robot.status.goal_active
@@ -228,25 +231,24 @@ async def test_a_goal_that_ended_meanwhile_gets_no_cancel() -> None:
     assert not any(isinstance(e, AbandonedGoalCancelled) for e in await _rest(events))
 
 
-async def test_a_newer_goal_started_before_the_first_frame_is_not_cancelled() -> None:
+async def test_a_goal_asked_for_before_the_first_frame_after_a_drop_is_refused() -> None:
     async with robot_via_relay(stale_timeout=WAIT) as (robot, relay, _sim, log):
         events = robot.events()
         goal = await _driving_to_far(robot)
-        relay.to_host, relay.to_robot = False, "hold"
+        relay.to_host = False
+        relay.served.clear()
         relay.go_away()
         with anyio.fail_after(WAIT), pytest.raises(ConnectionLost):
             await goal
-        await _next_event(events, ev.ConnectionRestored)
-        # Back, but no frame yet: this Robot starts a new goal, held in the relay.
-        newer = asyncio.create_task(robot.goto(NEAR, timeout=WAIT))
-        await asyncio.wait_for(relay.holding.wait(), WAIT)
+        await asyncio.wait_for(relay.served.wait(), WAIT)
+        # Reopened, but no frame yet: the link is still lost, and a goal is refused unsent.
+        with pytest.raises(ConnectionLost, match="nothing was sent"):
+            await robot.goto(NEAR, timeout=WAIT)
         relay.to_host = True  # the first frames still show the abandoned goal working
-        first = await _frames(robot, 1)
-        assert (first.target_num_id, first.target_status) == (FAR, TargetStatus.WORKING)
-        relay.release()
-        result = await asyncio.wait_for(newer, WAIT)
-    assert result.target_id == NEAR
-    assert [command for command, _ in log] == [Goto(FAR), Goto(NEAR)]
+        event = await _next_event(events, AbandonedGoalCancelled)
+        assert isinstance(event, AbandonedGoalCancelled)
+        assert event.target_id == FAR
+    assert [command for command, _ in log] == [Goto(FAR), Cancel()]
 
 
 async def _frames(robot: galileo.Robot, count: int) -> galileo.GalileoStatus:

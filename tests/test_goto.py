@@ -34,6 +34,7 @@ from galileo_async import (
     OperationTimeout,
     TargetStatus,
 )
+from galileo_async import events as ev
 from galileo_async.protocol import Cancel, Goto, Stop
 
 # --- completion ------------------------------------------------------------------------
@@ -405,12 +406,15 @@ async def test_unplug_with_reconnect_fails_the_goal_and_the_next_goal_works() ->
     async with connected(ScriptedRobot(**ENDLESS), **options) as (robot, fake):
         task = asyncio.create_task(robot.goto(3))
         await working(robot, 3)
+        events = robot.events()
         fake.drop()
         with anyio.fail_after(0.5), pytest.raises(ConnectionLost):
             await task
         with anyio.fail_after(2):
-            while not (robot.link.connected and robot.link.reconnects == 1):
-                await fake.frames(1)
+            async for event in events:
+                if isinstance(event, ev.ConnectionRestored):  # frames again, after the reopen
+                    break
+        assert robot.link.reconnects == 1
         fake.step = 1000.0
         result = await robot.goto(4, timeout=5)
     assert result.target_id == 4

@@ -19,6 +19,7 @@ from galileo_async import (
     NotReady,
     OperationTimeout,
 )
+from galileo_async import events as ev
 from galileo_async import robot as robot_module
 from galileo_async.protocol import AddTarget, Cancel, Goto, RawCommand, ResetTargets, Stop
 from galileo_async.robot import Robot
@@ -175,11 +176,14 @@ async def test_add_target_after_a_reconnect_needs_a_new_reset() -> None:
         await robot.reset_targets()
         assert await robot.add_target(1.0, 1.0) == 7
         await fake.command(AddTarget)
+        events = robot.events()
         fake.drop()
         fake.dynamic_targets = 0  # the robot rebooted: its dynamic targets are gone
         with anyio.fail_after(2):
-            while not (robot.link.connected and robot.link.reconnects == 1):
-                await fake.frames(1)
+            async for event in events:
+                if isinstance(event, ev.ConnectionRestored):  # frames again, after the reopen
+                    break
+        assert robot.link.reconnects == 1
         await robot.wait_until(lambda s: True, timeout=2)
         with pytest.raises(NotReady, match=r"reconnected.*reset_targets\(\)"):
             await robot.add_target(2.0, 2.0)

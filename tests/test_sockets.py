@@ -125,9 +125,7 @@ async def test_a_peer_that_does_not_read_holds_sends_back_and_the_buffer_stays_b
     writer.transport.pause_reading()  # the peer reads nothing until told to
     transport = link._current_transport()
     assert transport is not None
-    transport.get_extra_info("socket").setsockopt(
-        socket.SOL_SOCKET, socket.SO_SNDBUF, SMALL_BUFFER
-    )
+    transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SMALL_BUFFER)
     transport.write(b"\0" * BIG)  # the peer reads nothing yet: the socket stops taking bytes
     held = transport.get_write_buffer_size()
     assert held > 0

@@ -9,6 +9,7 @@ import signal
 import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import Any
 
 import anyio
 import pytest
@@ -332,12 +333,23 @@ class FreezingProxy:
         self.server: asyncio.Server | None = None
         self.writers: list[asyncio.StreamWriter] = []
         self.relays: list[asyncio.Task[None]] = []
+        self.accepted = 0
+        self._accept_event = asyncio.Event()
+
+    async def wait_accepted(self, count: int) -> None:
+        """Wait until ``count`` host connections have been accepted in all."""
+        with anyio.fail_after(WAIT):
+            while self.accepted < count:
+                self._accept_event.clear()
+                await self._accept_event.wait()
 
     async def start(self) -> int:
         self.server = await asyncio.start_server(self._accept, "127.0.0.1", 0)
         return int(self.server.sockets[0].getsockname()[1])
 
     def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.accepted += 1
+        self._accept_event.set()
         self.writers.append(writer)
         self.relays.append(asyncio.ensure_future(self._relay(reader, writer)))
 
@@ -394,6 +406,45 @@ async def test_a_stale_robot_link_is_fatal_until_frames_come_again(broker: Broke
                 assert back["orderId"] == "o1"
         finally:
             await proxy.close()
+
+
+async def test_a_dead_node_behind_a_port_that_reopens_is_one_outage(broker: Broker) -> None:
+    async with Simulator(speed=3) as sim:
+        server = await sim.serve_tcp()
+        proxy = FreezingProxy(server.sockets[0].getsockname()[1])
+        url = f"socket://127.0.0.1:{await proxy.start()}"
+        options: dict[str, Any] = {
+            "stale_timeout": 0.1, "stale_reconnect": 2.0,
+            "reconnect_initial": 0.02, "reconnect_max": 0.1,
+        }  # fmt: skip
+        try:
+            async with (
+                Master.connected(broker) as master,
+                galileo.connect(url, map_targets=6, **options) as robot,
+                vehicle_on(broker, robot),
+            ):
+                events = robot.events()
+                proxy.frozen = True  # the node dies; every reopen is accepted, then silent
+                lost = await master.next_state(lambda s: "robotLinkLost" in error_types(s))
+                await proxy.wait_accepted(5)
+                proxy.frozen = False
+                back = await master.next_state(lambda s: "robotLinkLost" not in error_types(s))
+                states = master.received["state"]
+                outage = states[states.index(lost) : states.index(back)]
+                assert all("robotLinkLost" in error_types(state) for state in outage)
+                seen: list[str] = []
+                with anyio.fail_after(WAIT):
+                    async for event in events:
+                        if event.name in LINK_EVENTS:
+                            seen.append(event.name)
+                        if event.name == "ConnectionRestored":
+                            break
+                assert seen == ["LinkStale", "ConnectionLost", "ConnectionRestored"]
+        finally:
+            await proxy.close()
+
+
+LINK_EVENTS = {"LinkStale", "LinkRestored", "ConnectionLost", "ConnectionRestored"}
 
 
 @pytest.mark.parametrize(

@@ -153,7 +153,7 @@ def record(
     async def main() -> int:
         chunks = connectors.ChunkQueue(connectors.RECORD_QUEUE_CHUNKS)
         written = count = 0
-        closed = False
+        closed_after: float | None = None
         async with (
             connectors.open_raw(url, chunks) as started,
             await anyio.open_file(path, "wb") as file,
@@ -170,18 +170,22 @@ def record(
                             await file.write(header + data)
                             written += len(data)
                             count += 1
-                        closed = True
+                        closed_after = asyncio.get_running_loop().time() - started
                     group.cancel_scope.cancel()
-        if closed:
-            err_console().print("the link closed; recording ended")
         out_console().print(f"recorded {written} bytes in {count} chunks to {path}")
+        code = ExitCode.OK
         if chunks.dropped_chunks:
             print_error(
                 f"the file writer fell behind: dropped {chunks.dropped_chunks} chunks "
                 f"({chunks.dropped_bytes} bytes); the recording has gaps"
             )
-            return int(ExitCode.ERROR)
-        return 0
+            code = ExitCode.ERROR
+        if closed_after is not None:  # the link ended before Ctrl-C or --duration
+            why = f" ({chunks.reason})" if chunks.reason else ""
+            wanted = "" if duration is None else f", before the requested {duration:g} s"
+            print_error(f"the link closed{why} after {closed_after:.1f} s{wanted}")
+            code = ExitCode.CONNECTION
+        return int(code)
 
     run(settings, main)
 

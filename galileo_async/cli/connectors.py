@@ -20,6 +20,8 @@ class ChunkQueue:
     def __init__(self, limit: int = RECORD_QUEUE_CHUNKS) -> None:
         self._queue: asyncio.Queue[tuple[float, bytes] | None] = asyncio.Queue(limit)
         self.ended = False
+        #: Why the link closed, when the transport said (an error's text), else None.
+        self.reason: str | None = None
         self.dropped_chunks = 0
         self.dropped_bytes = 0
 
@@ -31,9 +33,10 @@ class ChunkQueue:
             self.dropped_chunks += 1
             self.dropped_bytes += len(data)
 
-    def end(self) -> None:
-        """The link closed: get() returns None once the queued chunks are read."""
+    def end(self, reason: str | None = None) -> None:
+        """The link closed (for ``reason``): get() returns None once the queued chunks are read."""
         self.ended = True
+        self.reason = reason
         with contextlib.suppress(asyncio.QueueFull):
             self._queue.put_nowait(None)  # wakes a waiting get(); a full queue needs no wake
 
@@ -58,7 +61,7 @@ class _Tap(asyncio.Protocol):
         return None  # let the transport close
 
     def connection_lost(self, exc: Exception | None) -> None:
-        self._chunks.end()
+        self._chunks.end(None if exc is None else str(exc) or type(exc).__name__)
 
 
 @contextlib.asynccontextmanager

@@ -28,6 +28,7 @@ from ..errors import (
     GoalStalled,
     InvalidArgument,
     NotReady,
+    PortBusy,
 )
 from ..transports import link_kind
 
@@ -85,6 +86,7 @@ class ExitCode(enum.IntEnum):
     TIMEOUT = 6  # an operation ran past its timeout
     CONNECTION = 7  # the link could not be opened, dropped or went stale
     NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
+    PORT_BUSY = 9  # the serial port is open in another process or connection
     INTERRUPTED = 130  # Ctrl-C
 
 
@@ -203,6 +205,7 @@ _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     (GoalAborted, ExitCode.ABORTED),
     (GoalStalled, ExitCode.ABORTED),
     (GoalCancelled, ExitCode.CANCELLED),
+    (PortBusy, ExitCode.PORT_BUSY),
     (GalileoConnectionError, ExitCode.CONNECTION),
     (NotReady, ExitCode.NOT_READY),
     (InvalidArgument, ExitCode.USAGE),

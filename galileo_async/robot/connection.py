@@ -8,7 +8,7 @@ from collections.abc import Generator
 from types import TracebackType
 from typing import Any
 
-from ..errors import GalileoConnectionError, GalileoTimeout, InvalidArgument
+from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import open_link
@@ -85,10 +85,14 @@ async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
     try:
         await store.first_frame(timeout)
     except GalileoTimeout:
+        dropped = store.link_error
+        why = f"; last: {dropped}" if isinstance(dropped, ConnectionLost) else ""
         raise GalileoConnectionError(
             f"connected to {url}, but no valid status frame arrived within {timeout} s "
-            "(wrong port, baud rate or device?)"
+            f"(wrong port, baud rate or device?){why}"
         ) from None
+    except ConnectionLost as exc:  # the link ended (no reconnect): say why
+        raise ConnectionLost(f"{url}: dropped before the first status frame: {exc}") from exc
 
 
 def connect(url: str, **options: Any) -> Connection:

@@ -39,6 +39,8 @@ def _check_metres(name: str, value: object) -> None:
 
 def _check_degrees(name: str, value: object) -> None:
     check_number(name, value, low=0.0, high=180.0)
+
+
 def _check_speed_limit(name: str, value: object) -> None:
     # The vendor's node turns a percentage of these into a speed (VENDOR.md §2.2, §2.3).
     check_number(name, value, low=0.0, low_open=True, high=10.0)

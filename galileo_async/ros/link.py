@@ -14,8 +14,9 @@ from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ..models import GalileoStatus
 from ..protocol.commands import Command
 from ..protocol.velocity import Velocity
-from ..transports.base import BaseLink, StatusSink
+from ..transports.base import BaseLink
 from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
+from ..transports.stats import StatusSink
 from .hosts import local_address_for, parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,

@@ -16,7 +16,6 @@ from .services import ServiceCommands
 from .states import (
     ACTIVE,
     CHARGE_FREE,
-    CHARGED,
     CHARGING,
     DOCKING,
     EPSILON,
@@ -252,6 +251,7 @@ class RobotModel(ServiceCommands, Body):
         if after is None or started is None or self.target_status not in ACTIVE:
             return False
         return self.time + EPSILON >= started + after
+
     def _chassis_watchdog(self) -> None:
         timeout = self.config.cmd_vel_timeout
         if timeout is not None and self.time + EPSILON - self._speed_at >= timeout:
@@ -278,27 +278,6 @@ class RobotModel(ServiceCommands, Body):
         self._goal = self._abort_within = None
         self._patrol_resume_at = self.time + self.patrol_dwell  # used only while patrolling
         self.halt()
-
-    def _step_power(self, dt: float) -> None:
-        config = self.config
-        if self.charge_status in (CHARGING, CHARGED):
-            self.power = min(config.power_full, self.power + config.charge_rate * dt)
-            if self.charge_status == CHARGING and self.power >= config.power_full:
-                self.charge_status = CHARGED
-        else:
-            self.power = max(0.0, self.power - config.power_drain * dt)
-
-    def _step_patrol(self) -> None:
-        if not self.loop_status or self.target_status in ACTIVE or not self.visual_initialised:
-            return
-        if self._patrol_resume_at is None:  # a leg just ended: dwell at the target
-            self._patrol_resume_at = self.time + self.patrol_dwell
-        if self.time + EPSILON < self._patrol_resume_at or not self.targets:
-            return
-        target_id = self._patrol_next % len(self.targets)
-        self._patrol_next = target_id + 1
-        self._patrol_resume_at = None
-        self._begin_goal(target_id)
 
     # ------------------------------------------------------------------ navigation
     def _start_navigation(self, _: object) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ..protocol import commands as cmd
-from .states import ACTIVE, CHARGE_FREE, FINDING
+from .states import ACTIVE, CHARGE_FREE, CHARGED, CHARGING, EPSILON, FINDING
 
 if TYPE_CHECKING:
     from .config import SimConfig
@@ -34,7 +34,14 @@ class ServiceCommands:
         greeting: bool
         shutdown: bool
         _patrol_resume_at: float | None
+        _patrol_next: int
         _docked_at: float | None
+        power: float
+        targets: list[tuple[float, float]]
+
+        @property
+        def visual_initialised(self) -> bool: ...
+        def _begin_goal(self, target_id: int) -> None: ...
 
         def set_busy(self, seconds: float) -> None: ...
         def halt(self) -> None: ...
@@ -42,6 +49,27 @@ class ServiceCommands:
         def _stop_navigation(self, _: object) -> None: ...
 
     # ------------------------------------------------------------------ patrol
+    def _step_power(self, dt: float) -> None:
+        config = self.config
+        if self.charge_status in (CHARGING, CHARGED):
+            self.power = min(config.power_full, self.power + config.charge_rate * dt)
+            if self.charge_status == CHARGING and self.power >= config.power_full:
+                self.charge_status = CHARGED
+        else:
+            self.power = max(0.0, self.power - config.power_drain * dt)
+
+    def _step_patrol(self) -> None:
+        if not self.loop_status or self.target_status in ACTIVE or not self.visual_initialised:
+            return
+        if self._patrol_resume_at is None:  # a leg just ended: dwell at the target
+            self._patrol_resume_at = self.time + self.patrol_dwell
+        if self.time + EPSILON < self._patrol_resume_at or not self.targets:
+            return
+        target_id = self._patrol_next % len(self.targets)
+        self._patrol_next = target_id + 1
+        self._patrol_resume_at = None
+        self._begin_goal(target_id)
+
     def _start_patrol(self, _: object) -> None:
         if self.nav_status == 1 and not self.loop_status:
             self.loop_status = 1

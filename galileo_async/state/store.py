@@ -21,11 +21,10 @@ from .streams import (
     Subscribers,
     Subscription,
     Watch,
-    expire,
-    fail_with,
     offer_to_waiting,
     offer_to_watches,
 )
+from .waiters import Waiter, expire, fail_with
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",
@@ -51,16 +50,6 @@ _EVENT_KEY = attrgetter(
 )  # fmt: skip
 
 _Sub = TypeVar("_Sub", bound="Subscription[Any]")
-
-
-class _Waiter:
-    __slots__ = ("future", "predicate")
-
-    def __init__(
-        self, predicate: Callable[[GalileoStatus], bool], future: asyncio.Future[GalileoStatus]
-    ) -> None:
-        self.predicate = predicate
-        self.future = future
 
 
 class StatusStore:
@@ -94,7 +83,7 @@ class StatusStore:
         self._event_key: tuple[Any, ...] | None = None
         # The last status with a valid distance: the goal rule's memory (transitions.py).
         self._measured: GalileoStatus | None = None
-        self._waiters: list[_Waiter] = []
+        self._waiters: list[Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         # update() reads the registries' snapshots from the store's own slots: at 1000
         # robots, two objects fewer touched per frame (BENCHMARKS.md §2).
@@ -218,7 +207,7 @@ class StatusStore:
             self._emit(ev.ConnectionLostEvent(status=self.status, reason=str(exc)))
 
     def connection_restored(self) -> None:
-        """The transport is back (no-op unless it was lost)."""
+        """Valid frames arrive again after a drop (no-op unless it was lost)."""
         if self._link_error is None:
             return
         was_lost = isinstance(self._link_error, ConnectionLost)
@@ -241,12 +230,12 @@ class StatusStore:
             self._emit(ev.LinkRestored(status=self.status))
 
     def close(self) -> None:
-        """End every iterator and fail every waiter with ConnectionLost (idempotent)."""
+        """End every iterator; fail every waiter with the drop that ended the link, if any."""
         if self.closed:
             return
         self.closed = True
         self._status_hooks = []
-        closed = ConnectionLost("the status store is closed")
+        closed = self._closed_error()
         self._fail_waiters(closed)
         frame_waiters, self._frame_waiters = self._frame_waiters, []
         for future in frame_waiters:
@@ -276,7 +265,7 @@ class StatusStore:
             return status
         loop = asyncio.get_running_loop()
         future: asyncio.Future[GalileoStatus] = loop.create_future()
-        waiter = _Waiter(predicate, future)
+        waiter = Waiter(predicate, future)
         self._waiters.append(waiter)
         timer = None if timeout is None else loop.call_later(timeout, expire, future)
         unlink = fail_with(future, abort)
@@ -296,7 +285,7 @@ class StatusStore:
     async def first_frame(self, timeout: float | None) -> None:
         """Return once a valid frame (a placeholder too) came; stale or lost links do not end it."""
         if self.closed:
-            raise ConnectionLost("the status store is closed")
+            raise self._closed_error()
         if self.status is not None or self.placeholder_frames:
             return
         loop = asyncio.get_running_loop()
@@ -353,9 +342,14 @@ class StatusStore:
             registry.add(subscription)
         return subscription
 
+    def _closed_error(self) -> ConnectionLost:
+        """What a closed store fails with: the link's drop (its reason), else "closed"."""
+        lost = self._link_error
+        return lost if isinstance(lost, ConnectionLost) else ConnectionLost("the store is closed")
+
     def _raise_if_unusable(self) -> None:
         if self.closed:
-            raise ConnectionLost("the status store is closed")
+            raise self._closed_error()
         if self._link_error is not None:
             raise self._link_error
 

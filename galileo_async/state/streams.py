@@ -16,6 +16,7 @@ from typing import Any, Generic, Protocol, TypeVar
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout
 from ..events import Event
 from ..models import GalileoStatus
+from .waiters import expire
 
 __all__ = [
     "EventStream",
@@ -24,8 +25,6 @@ __all__ = [
     "Subscribers",
     "Subscription",
     "Watch",
-    "expire",
-    "fail_with",
     "offer_to_waiting",
     "offer_to_watches",
 ]
@@ -184,30 +183,6 @@ class Subscribers(Generic[_T]):
             item = ref()
             if item is not None:
                 yield item
-
-
-def expire(future: asyncio.Future[Any]) -> None:
-    """Fail ``future`` with TimeoutError unless it is done (a call_later callback)."""
-    if not future.done():
-        future.set_exception(TimeoutError())
-
-
-def fail_with(
-    future: asyncio.Future[Any], source: asyncio.Future[Any] | None
-) -> Callable[[], None]:
-    """Fail ``future``, unless done, once ``source`` fails, as it did; returns the undo."""
-    if source is None:
-        return lambda: None
-
-    def fail(done: asyncio.Future[Any]) -> None:
-        if not future.done() and not done.cancelled() and done.exception() is not None:
-            future.set_exception(done.exception())  # type: ignore[arg-type]
-
-    def undo() -> None:
-        source.remove_done_callback(fail)
-
-    source.add_done_callback(fail)
-    return undo
 
 
 class Watch(_Queue[GalileoStatus]):

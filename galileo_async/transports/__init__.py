@@ -7,7 +7,7 @@ switch, also used by the CLI.
 
 from __future__ import annotations
 
-from .base import BaseLink, LinkStats, StatusSink
+from .base import BaseLink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -29,6 +29,7 @@ from .options import (
     LINK_OPTIONS,
     STREAM_OPTIONS,
 )
+from .stats import LinkState, LinkStats, StatusSink
 from .stream import StreamLink
 from .urls import byte_connector, check_link_options, link_kind, open_link
 
@@ -47,6 +48,7 @@ __all__ = [
     "STREAM_OPTIONS",
     "BaseLink",
     "Connector",
+    "LinkState",
     "LinkStats",
     "StatusSink",
     "StreamLink",

@@ -14,14 +14,9 @@ from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
 from .queue import CommandQueue, Pending
-from .stats import LinkStats, StatusSink
+from .stats import LinkState, LinkStats, StatusSink
 
-__all__ = [
-    "BaseLink",
-    "LinkStats",
-    "StatusSink",
-    "frames_log",
-]
+__all__ = ["BaseLink", "frames_log"]
 
 _log = logging.getLogger(__name__)
 #: Raw frames in hex, both directions, at DEBUG only.
@@ -35,9 +30,9 @@ class BaseLink(CommandQueue, abc.ABC):
     # Slots: a fleet touches every link 30 times a second, and attributes kept inside the
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_closed", "_closing", "_connected_at", "_last_write", "_opened",
-        "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_supersedable",
-        "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
+        "__weakref__", "_backoff", "_closed", "_closing", "_connected_at", "_last_write",
+        "_opened", "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_state",
+        "_supersedable", "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
         "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
         "stale_reconnect", "stale_timeout", "stats", "store",
     )  # fmt: skip
@@ -88,6 +83,9 @@ class BaseLink(CommandQueue, abc.ABC):
         self._last_write: float | None = None
         self._connected_at = 0.0
         self._opened = False
+        self._state = LinkState.CONNECTING
+        #: The wait before the next reopen of this outage; None: the first is reconnect_initial.
+        self._backoff: float | None = None
         self._closing = False
         self._closed = asyncio.Event()
 
@@ -95,6 +93,11 @@ class BaseLink(CommandQueue, abc.ABC):
     def connected(self) -> bool:
         """True while the transport is up."""
         return self.stats.connected
+
+    @property
+    def state(self) -> LinkState:
+        """Where the link is (LinkState); each change is reported once to the store."""
+        return self._state
 
     @property
     def closed(self) -> bool:
@@ -150,6 +153,7 @@ class BaseLink(CommandQueue, abc.ABC):
             await self._closed.wait()
             return
         self._closing = True
+        self._state = LinkState.CLOSED
         try:
             self._cancel_watchdog()
             tasks = [t for t in (self._writer_task, self._reconnect_task) if t is not None]
@@ -180,15 +184,26 @@ class BaseLink(CommandQueue, abc.ABC):
         stats.decoder.layout = status.layout
         # Only a timestamp per status: the watchdog re-arms itself from it (_check_stale).
         stats.last_frame_at = _monotonic()
-        if stats.stale:
+        if self._state is not LinkState.UP:
             self._fresh_again()
         self.store.update(status)
 
     def _fresh_again(self) -> None:
-        """A valid frame came while the link was stale."""
+        """The first valid frame after connecting, a stale spell or a lost connection."""
+        previous = self._state
+        if previous is LinkState.CLOSED:
+            return
+        self._state = LinkState.UP
+        if previous is LinkState.CONNECTING:
+            return  # the watchdog runs from the connection's start
         self.stats.stale = False
-        _log.info("link fresh again")
-        self.store.link_fresh()
+        if previous is LinkState.STALE:
+            _log.info("link fresh again")
+            self.store.link_fresh()
+        else:  # lost: frames, not a reopened port, end the outage
+            self._backoff = None
+            _log.info("status frames again: connection restored")
+            self.store.connection_restored()
         self._arm_watchdog(self._stale_deadline(_monotonic()))
 
     def _on_lost(self, exc: BaseException | None) -> None:
@@ -200,9 +215,13 @@ class BaseLink(CommandQueue, abc.ABC):
         self._cancel_watchdog()
         reason = f"connection lost: {exc}" if exc is not None else "connection closed by the peer"
         error = ConnectionLost(reason)
-        _log.warning("%s", reason)
+        if self._state is LinkState.LOST:  # a reopened port that never answered: same outage
+            _log.info("%s (no status frame since the reopen)", reason)
+        else:
+            self._state = LinkState.LOST
+            _log.warning("%s", reason)
         self._fail_pending(error)
-        self.store.connection_lost(error)
+        self.store.connection_lost(error)  # reports an outage once, however often it drops
         if self.reconnect:
             self._reconnect_task = asyncio.get_running_loop().create_task(
                 self._reconnect_loop(), name=f"{self!r} reconnect"
@@ -217,24 +236,31 @@ class BaseLink(CommandQueue, abc.ABC):
         self.stats.connected = True
         self.stats.stale = False
         self._connected_at = _monotonic()
-        self.store.connection_restored()
+        # A lost link stays lost until a valid frame comes (_fresh_again): a port reopens
+        # fine when the node behind it is dead.
         self._arm_watchdog(self._stale_deadline(self._connected_at))
         if self._queue:
             self._queue_ready.set()
 
+    def _next_reconnect_delay(self) -> float:
+        """The wait before the next reopen: doubling up to reconnect_max over one outage."""
+        # Kept across reopens that stay silent (a dead node behind a port that opens);
+        # the first valid frame resets it (_fresh_again).
+        delay = self.reconnect_initial if self._backoff is None else self._backoff
+        self._backoff = min(delay * 2, self.reconnect_max)
+        return delay
+
     async def _reconnect_loop(self) -> None:
-        delay = self.reconnect_initial
         try:
             while not self._closing:
-                await asyncio.sleep(delay)
+                await asyncio.sleep(self._next_reconnect_delay())
                 try:
                     await self._connect()
                 except Exception as exc:  # any failure: back off and try again
-                    delay = min(delay * 2, self.reconnect_max)
-                    _log.info("reconnect failed (%s); next try in %.2f s", exc, delay)
+                    _log.info("reconnect failed (%s); next try in %.2f s", exc, self._backoff)
                     continue
                 self.stats.reconnects += 1
-                _log.info("reconnected")
+                _log.info("reopened; lost until a status frame comes")
                 self._on_connected()
                 return
         finally:
@@ -347,10 +373,12 @@ class BaseLink(CommandQueue, abc.ABC):
         last = self.stats.last_frame_at
         alive_since = self._connected_at if last is None else max(last, self._connected_at)
         silent = time.monotonic() - alive_since
-        if not self.stats.stale:
+        # A lost link reopened is not stale again: its outage is reported already.
+        if self._state is LinkState.UP or self._state is LinkState.CONNECTING:
             if silent < timeout:  # a frame came since (or the timer ran early): not yet
                 self._arm_watchdog(alive_since + timeout)
                 return
+            self._state = LinkState.STALE
             self.stats.stale = True
             error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
             _log.warning("%s", error)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import importlib
 import logging
 import socket
@@ -13,7 +14,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from .._checks import check_seconds
-from ..errors import GalileoConnectionError, GalileoError, InvalidArgument
+from ..errors import GalileoConnectionError, GalileoError, InvalidArgument, PortBusy
 from .options import check_values
 
 __all__ = [
@@ -41,6 +42,10 @@ DEFAULT_CONNECT_TIMEOUT = 5.0
 KEEPALIVE_IDLE = 5
 KEEPALIVE_INTERVAL = 2
 KEEPALIVE_COUNT = 3
+
+#: How opening a port that another holder has locked fails: pyserial's exclusive lock
+#: (flock) gives EWOULDBLOCK, a port another program set TIOCEXCL on gives EBUSY.
+_BUSY_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY})
 
 ProtocolFactory = Callable[[], asyncio.Protocol]
 #: Opens a transport and ties it to the protocol the factory makes.
@@ -81,8 +86,14 @@ def serial_backend() -> ModuleType:
 def serial_connector(
     port: str, *, baudrate: int = DEFAULT_BAUDRATE, **serial_options: Any
 ) -> Connector:
-    """Connector for a serial device path or pyserial URL (8N1, no flow control)."""
+    """Connector for a serial device path or pyserial URL (8N1, no flow control).
+
+    The port is opened exclusively (pyserial's ``exclusive``; ``exclusive=False`` in
+    ``serial_options`` turns it off): a second opener, in this process or another, gets
+    PortBusy instead of half of the byte stream.
+    """
     check_values({"baudrate": baudrate})
+    options = {"exclusive": True, **serial_options}
 
     async def connect(
         loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
@@ -92,10 +103,18 @@ def serial_connector(
             try:
                 result: tuple[asyncio.BaseTransport, asyncio.Protocol]
                 result = await backend.create_serial_connection(
-                    loop, factory, port, baudrate=baudrate, **serial_options
+                    loop, factory, port, baudrate=baudrate, **options
                 )
             except ValueError as exc:  # pyserial: a bad setting or an unknown URL scheme
                 raise InvalidArgument(f"serial port {port}: {exc}") from exc
+            except OSError as exc:  # serial.SerialException is one
+                if exc.errno in _BUSY_ERRNOS:
+                    raise PortBusy(
+                        f"serial port {port} is busy: another process or connection has it "
+                        f"open ({_describe(exc)})",
+                        port=port,
+                    ) from exc
+                raise
         _log.debug("opened %s at %d baud with %s", port, baudrate, backend.__name__)
         return result
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -10,7 +11,23 @@ from ..errors import GalileoConnectionError, LinkStale
 from ..models import GalileoStatus, StatusLayout
 from ..protocol import DecoderStats
 
-__all__ = ["LinkStats", "StatusSink"]
+__all__ = ["LinkState", "LinkStats", "StatusSink"]
+
+
+class LinkState(enum.Enum):
+    """Where a link is; one outage goes UP → STALE → LOST → UP, each step reported once."""
+
+    #: Opened the first time, or opening; no valid frame yet.
+    CONNECTING = "connecting"
+    #: Valid status frames arrive.
+    UP = "up"
+    #: Connected, but no valid frame for stale_timeout.
+    STALE = "stale"
+    #: The transport dropped or was given up; it stays lost, reopened or not, until a
+    #: valid frame arrives (a reopened port nobody answers on is still lost).
+    LOST = "lost"
+    #: close() has started.
+    CLOSED = "closed"
 
 
 @dataclass(slots=True, init=False)
@@ -98,7 +115,7 @@ class StatusSink(Protocol):
         """The transport dropped."""
 
     def connection_restored(self) -> None:
-        """The transport is up again."""
+        """Valid statuses arrive again after the transport dropped."""
 
     def link_stale(self, exc: LinkStale) -> None:
         """No valid status for stale_timeout."""

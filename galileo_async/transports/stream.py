@@ -13,15 +13,17 @@ from typing import Any, cast
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import StatusLayout
 from ..protocol import Command, StatusDecoder, encode
-from .base import BaseLink, StatusSink, frames_log
+from .base import BaseLink, frames_log
 from .connectors import Connector, translate_errors
 from .options import CLOSE_TIMEOUT
+from .stats import LinkState, StatusSink
 
 __all__ = ["StreamLink"]
 
 _log = logging.getLogger(__name__)
 _DEBUG = logging.DEBUG
 _monotonic = time.monotonic
+_UP = LinkState.UP
 #: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
 READ_SIZE = 4096
 
@@ -92,7 +94,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
             # BaseLink._on_status for a whole read, inlined.
             stats = self._stats
             stats.last_frame_at = _monotonic()
-            if stats.stale:
+            if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update
             for status in statuses:
@@ -108,7 +110,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         if statuses:
             stats = self._stats
             stats.last_frame_at = _monotonic()
-            if stats.stale:
+            if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update
             for status in statuses:

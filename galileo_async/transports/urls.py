@@ -9,7 +9,7 @@ from urllib.parse import urlsplit
 
 from .._checks import check_names, naming
 from ..errors import GalileoConnectionError, InvalidArgument
-from .base import BaseLink, StatusSink
+from .base import BaseLink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -23,6 +23,7 @@ from .options import (
     STREAM_OPTIONS,
     check_values,
 )
+from .stats import StatusSink
 from .stream import StreamLink
 
 if TYPE_CHECKING:
