@@ -121,6 +121,13 @@ class BaseLink(CommandQueue, abc.ABC):
         transport = getattr(self, "_transport", None)
         return transport if isinstance(transport, asyncio.WriteTransport) else None
 
+    def _stale_message(self, silent: float) -> str:
+        """What LinkStale says after ``silent`` seconds without a valid frame."""
+        return f"no valid status frame for {silent:.2f} s"
+
+    def _on_stale(self) -> None:
+        """The link just turned stale (after the store was told); default: nothing."""
+
     def _abandon(self, reason: str) -> None:
         """Give up a silent connection now: abort the transport, then handle it as a drop."""
         transport = self._current_transport()
@@ -349,9 +356,10 @@ class BaseLink(CommandQueue, abc.ABC):
                 self._arm_watchdog(alive_since + timeout)
                 return
             self.stats.stale = True
-            error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
+            error = LinkStale(self._stale_message(silent), silent_for=silent)
             _log.warning("%s", error)
             self.store.link_stale(error)
+            self._on_stale()
         # A peer that froze or vanished may keep its TCP connection open: give it up.
         if self.stale_reconnect is None:
             return
