@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import random
 from typing import Any, cast
 
 from ..protocol import DatagramCommandDecoder, RawCommand, RotateTo
@@ -40,6 +41,7 @@ class UdpFace(asyncio.DatagramProtocol):
         #: True after a datagram that stops the vendor's command thread.
         self.commands_dead = False
         self._since_env = 0
+        self._rng = random.Random(device.config.seed)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -81,15 +83,39 @@ class UdpFace(asyncio.DatagramProtocol):
         if transport is None or remote is None or transport.is_closing():
             return
         encode = self.encoder.encode
-        env = self.device.config.env_sensors
+        config = self.device.config
+        env, faulty = config.env_sensors, config.faults.any_stream_fault
         for values in frames:
-            transport.sendto(encode(values), remote)
-            self.frames_sent += 1
+            frame = encode(values)
+            if faulty:
+                frame = self._with_faults(frame)
+            if frame:
+                transport.sendto(frame, remote)
+                self.frames_sent += 1
+                self.device.stats.frames_sent += 1
             if env:
                 self._since_env += 1
                 if self._since_env > ENV_FRAME_EVERY:
                     self._since_env = 1
                     transport.sendto(encode_env_frame(_ENV_READINGS), remote)
+
+    def _with_faults(self, frame: bytes) -> bytes:
+        """The datagram ``frame`` becomes: lost (empty), bit-flipped, or after a garbage one."""
+        faults, rng, stats = self.device.config.faults, self._rng, self.device.stats
+        if faults.drop and rng.random() < faults.drop:
+            stats.frames_dropped += 1
+            return b""
+        if faults.garbage and rng.random() < faults.garbage and self.transport is not None:
+            # A datagram of its own, without 0xCD so that it cannot hold a header.
+            noise = bytes(b if b != 0xCD else 0 for b in rng.randbytes(rng.randint(1, 16)))
+            stats.garbage_bytes += len(noise)
+            self.transport.sendto(noise, self.remote)
+        if faults.bitflip and rng.random() < faults.bitflip:
+            flipped = bytearray(frame)
+            flipped[rng.randrange(len(flipped))] ^= 1 << rng.randrange(8)
+            stats.bit_flips += 1
+            return bytes(flipped)
+        return frame
 
     def close(self) -> None:
         """Stop serving: no more status, no more commands."""
