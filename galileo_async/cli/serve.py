@@ -86,7 +86,9 @@ def sim(
             if udp is not None:
                 face = await simulator.serve_udp(*_udp_address(udp))
                 served.append(_url("udp", face.address))
-            layouts = [layout] * (len(served) - (udp is not None)) + [udp_layout] * (udp is not None)
+            layouts = [layout] * (len(served) - (udp is not None)) + [udp_layout] * (
+                udp is not None
+            )
             console = out_console()
             for where in served:
                 console.print(where, markup=False)

@@ -173,7 +173,7 @@ class Simulator:
         return server
 
     async def serve_udp(self, host: str = "127.0.0.1", port: int = 0) -> UdpFace:
-        """Serve the robot's UDP port on ``host:port`` (loopback default); status to the last sender."""
+        """Serve the robot's UDP port on ``host:port`` (loopback default) to its last sender."""
         if self._device.closed:
             raise ConnectionRefusedError("the simulated robot is off")
         loop = asyncio.get_running_loop()

@@ -49,12 +49,12 @@ def parse_udp_url(url: str) -> tuple[str, int]:
 
 def check_datagram(command: Command) -> None:
     """Raise InvalidArgument for a command that would stop the robot's UDP service."""
-    if isinstance(command, RawCommand) and command.data[:2] == b"gi":
-        if len(command.data) < _MIN_GI_PAYLOAD:
-            raise InvalidArgument(
-                f"a 'gi' payload shorter than {_MIN_GI_PAYLOAD} bytes stops the robot's UDP "
-                f"service until it restarts; got {len(command.data)} bytes"
-            )
+    data = command.data if isinstance(command, RawCommand) else b""
+    if data[:2] == b"gi" and len(data) < _MIN_GI_PAYLOAD:
+        raise InvalidArgument(
+            f"a 'gi' payload shorter than {_MIN_GI_PAYLOAD} bytes stops the robot's UDP "
+            f"service until it restarts; got {len(data)} bytes"
+        )
 
 
 class _DatagramProtocol(asyncio.DatagramProtocol):
@@ -159,7 +159,9 @@ class UdpLink(BaseLink):
 
     def _write_buffer_size(self) -> int:
         transport = self._transport
-        return 0 if transport is None else transport.get_write_buffer_size()
+        # asyncio's datagram transports have it; the DatagramTransport interface does not.
+        size = getattr(transport, "get_write_buffer_size", None)
+        return 0 if size is None else int(size())
 
     def _on_datagram(self, data: bytes) -> None:
         stats = self.stats

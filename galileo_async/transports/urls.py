@@ -35,7 +35,7 @@ __all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 
 
 def link_kind(url: str) -> str:
-    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a device path or pyserial URL)."""
+    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
     scheme = urlsplit(url).scheme.lower()
     return scheme if scheme in ("ros", "socket", "udp", "sim") else "serial"
 
