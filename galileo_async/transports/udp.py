@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ..protocol import HEADER, Command, RawCommand, UdpStatusDecoder, encode
 from .base import BaseLink, StatusSink, frames_log
-from .connectors import translate_errors
+from .connectors import parse_host_port, translate_errors
 from .options import CLOSE_TIMEOUT
 
 __all__ = ["DEFAULT_UDP_PORT", "REGISTRATION", "UdpLink", "check_datagram", "parse_udp_url"]
@@ -36,15 +36,9 @@ _MIN_GI_PAYLOAD = 10
 def parse_udp_url(url: str) -> tuple[str, int]:
     """(host, port) of ``udp://host[:port]`` (port 20001 by default, IPv6 hosts in brackets)."""
     parts = urlsplit(url)
-    try:
-        port = parts.port
-    except ValueError as exc:
-        raise InvalidArgument(f"bad port in {url!r}") from exc
-    if parts.scheme != "udp" or not parts.hostname:
-        raise InvalidArgument(f"expected udp://host[:port], got {url!r}")
     if parts.path not in ("", "/") or parts.query:
         raise InvalidArgument(f"udp:// takes no path or query, got {url!r}")
-    return parts.hostname, DEFAULT_UDP_PORT if port is None else port
+    return parse_host_port(url, "udp", DEFAULT_UDP_PORT)
 
 
 def check_datagram(command: Command) -> None:
