@@ -37,6 +37,7 @@ class Peer(asyncio.DatagramProtocol):
 
     def __init__(self) -> None:
         self.datagrams: list[bytes] = []
+        self.senders: list[Any] = []
         self.last_sender: Any = None
         self.transport: asyncio.DatagramTransport | None = None
         self.arrived = asyncio.Event()
@@ -46,6 +47,7 @@ class Peer(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         self.datagrams.append(data)
+        self.senders.append(addr)
         self.last_sender = addr
         self.arrived.set()
 
@@ -153,6 +155,29 @@ async def test_registers_then_sends_one_whole_frame_per_datagram() -> None:
             assert b"" not in robot_port.datagrams
         finally:
             await robot.close()
+
+
+async def test_registers_again_when_stale_and_from_a_new_socket_after_giving_up() -> None:
+    async with peer() as robot_port:
+        url = f"udp://127.0.0.1:{robot_port.port}"
+        connecting = asyncio.ensure_future(
+            galileo.connect(url, stale_timeout=0.2, stale_reconnect=2.0)
+        )
+        try:
+            await robot_port.next()
+            robot_port.answer(status_frame())  # one frame, then silence
+            robot = await asyncio.wait_for(connecting, WAIT)
+        finally:
+            connecting.cancel()
+        try:
+            assert await robot_port.next() == REGISTRATION  # stale: take the stream back
+            assert await robot_port.next() == REGISTRATION  # given up: a new socket
+        finally:
+            await robot.close()
+        assert robot_port.datagrams == [REGISTRATION] * 3
+        first, stale, reconnected = robot_port.senders
+        assert stale == first
+        assert reconnected != first
 
 
 async def test_a_short_gi_is_refused_before_anything_is_sent() -> None:
