@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import socket
 import subprocess
 import sys
 from collections.abc import AsyncIterator
@@ -230,6 +231,18 @@ async def test_another_sender_takes_the_stream_and_the_link_says_so() -> None:
         assert [type(e) for e in events] == [LinkStaleEvent, LinkRestored]
         assert face.remote[1] != thief.port
         assert robot.link.reconnects == 0
+
+
+async def test_nothing_listening_is_named_in_the_stale_error() -> None:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()  # nothing listens there now: the kernel answers port unreachable
+    async with galileo.connect(
+        f"udp://127.0.0.1:{port}", first_status_timeout=None, stale_timeout=0.2
+    ) as robot:
+        with pytest.raises(LinkStale, match="the robot refused our datagrams"):
+            await robot.wait_until(lambda _s: True, timeout=WAIT)
 
 
 # --- the layouts ------------------------------------------------------------------------------
