@@ -21,7 +21,7 @@ from galileo_async import (
     StatusLayout,
 )
 from galileo_async.events import LinkRestored, LinkStaleEvent
-from galileo_async.protocol import Forward, RawCommand, Stop, encode, encode_status
+from galileo_async.protocol import HEADER, Forward, RawCommand, Stop, encode, encode_status
 from galileo_async.sim import Simulator
 from galileo_async.transports import open_link
 from galileo_async.transports.udp import REGISTRATION, parse_udp_url
@@ -197,6 +197,24 @@ async def test_the_simulator_sends_nothing_before_a_datagram() -> None:
         assert face.remote is None
         assert face.frames_sent == 0
         assert sim.state.time > 0  # the robot's clock runs meanwhile
+
+
+async def test_the_simulator_dies_of_what_kills_the_vendors_service() -> None:
+    async with Simulator(speed=SPEED) as sim:
+        face = await sim.serve_udp()
+        async with peer(face.address) as host:
+            assert host.transport is not None
+            host.transport.sendto(HEADER + b"\x03gi\x00")  # a short gi: commands stop
+            await host.next()  # status still flows
+            assert face.commands_dead
+            host.transport.sendto(encode(Forward(50)))
+            await host.next()
+            await host.next()  # a whole tick after the command arrived
+            assert face.datagrams == 2
+            assert sim.state.commands_handled == 0
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
+                raw.sendto(b"", face.address)  # an empty datagram (asyncio sends none): the end
+            await asyncio.wait_for(face.wait_closed(), WAIT)
 
 
 # --- last sender wins -------------------------------------------------------------------------

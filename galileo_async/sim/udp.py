@@ -41,6 +41,7 @@ class UdpFace(asyncio.DatagramProtocol):
         #: True after a datagram that stops the vendor's command thread.
         self.commands_dead = False
         self._since_env = 0
+        self._closed = asyncio.Event()
         self._rng = random.Random(device.config.seed)
 
     @property
@@ -54,6 +55,14 @@ class UdpFace(asyncio.DatagramProtocol):
         """Listening."""
         # Not an asyncio.DatagramTransport subclass on every Python (3.11's selector one).
         self.transport = cast(asyncio.DatagramTransport, transport)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        """The socket closed."""
+        self._closed.set()
+
+    async def wait_closed(self) -> None:
+        """Return once the face's socket has closed (close(), the robot off, an empty datagram)."""
+        await self._closed.wait()
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         """Any datagram makes its sender the one the status goes to; its commands run in order."""
