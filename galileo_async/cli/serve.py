@@ -76,27 +76,24 @@ def sim(
         simulator = Simulator.from_url(f"sim://?{query}")
         server: Any = None
         try:
-            served = []
+            served: list[tuple[str, str]] = []  # (where, its status layout)
             if pty:
-                served.append(simulator.open_pty())
+                served.append((simulator.open_pty(), layout))
             elif tcp is not None or udp is None:
                 host, port = _host_port(tcp or DEFAULT_TCP)
                 server = await simulator.serve_tcp(host, port)
-                served.append(_url("socket", server.sockets[0].getsockname()))
+                served.append((_url("socket", server.sockets[0].getsockname()), layout))
             if udp is not None:
                 face = await simulator.serve_udp(*_udp_address(udp))
-                served.append(_url("udp", face.address))
-            layouts = [layout] * (len(served) - (udp is not None)) + [udp_layout] * (
-                udp is not None
-            )
+                served.append((_url("udp", face.address), udp_layout))
             console = out_console()
-            for where in served:
+            for where, _ in served:
                 console.print(where, markup=False)
             console.file.flush()
+            places = ", ".join(f"{where} ({what})" for where, what in served)
             err_console().print(
-                f"simulator ({', '.join(layouts)}, firmware {firmware}, speed {speed:g}x) on "
-                f"{', '.join(served)}; connect with: galileo --port {served[0]} status · "
-                "Ctrl-C stops"
+                f"simulator (firmware {firmware}, speed {speed:g}x) on {places}; "
+                f"connect with: galileo --port {served[0][0]} status · Ctrl-C stops"
             )
             with stop_requested() as stop:
                 await stop.wait()
