@@ -1,5 +1,7 @@
 """Latency: device write → wait_until woken, and command call → bytes at the device.
 
+The same two paths over ``udp://`` are measured in the same run (latency_udp.py).
+
 A device-side TCP server on 127.0.0.1 runs in the same process and event loop as the
 host, so both sides read one clock (time.perf_counter) and every figure includes the
 same loop turns for the driver and its baseline:
@@ -26,6 +28,7 @@ from galileo_async.protocol import HEADER, LAYOUTS, encode, encode_status
 from galileo_async.protocol.commands import Forward
 
 from .common import Row, percentile
+from .latency_udp import udp_command_latency, udp_status_latency
 
 __all__ = ["run"]
 
@@ -209,10 +212,15 @@ def _rows(name: str, driver: list[float], bare: list[float]) -> list[Row]:
 
 
 def run(*, quick: bool = False) -> list[Row]:
-    """Measure both latencies."""
+    """Measure both latencies, over socket:// and over udp://."""
     samples = 300 if quick else 2000
     status_driver, status_bare = asyncio.run(_status_latency(samples))
     command_driver, command_bare = asyncio.run(_command_latency(samples // 4))
-    return _rows("status frame → wait_until woken", status_driver, status_bare) + _rows(
-        "robot.forward() call → bytes at device", command_driver, command_bare
-    )
+    udp_status_driver, udp_status_bare = asyncio.run(udp_status_latency(samples))
+    udp_command_driver, udp_command_bare = asyncio.run(udp_command_latency(samples // 4))
+    return [
+        *_rows("status frame → wait_until woken", status_driver, status_bare),
+        *_rows("robot.forward() call → bytes at device", command_driver, command_bare),
+        *_rows("udp:// status datagram → wait_until woken", udp_status_driver, udp_status_bare),
+        *_rows("udp:// robot.forward() → datagram at device", udp_command_driver, udp_command_bare),
+    ]

@@ -112,13 +112,17 @@ class AngleGoalStatus(_TolerantIntEnum):
 
 
 class StatusLayout(str, enum.Enum):
-    """Wire layout a status frame was decoded from (PROTOCOL.md §1)."""
+    """Wire layout a status frame was decoded from (PROTOCOL.md §1; udp_*: VENDOR.md §3)."""
 
     V1 = "v1"
     V1_CHARGE = "v1_charge"
     V2_TRUNCATED = "v2_truncated"
     V2 = "v2"
     ROS = "ros"
+    #: The UDP port's 44-byte status frame, without target_distance (VENDOR.md §3.3).
+    UDP_V1 = "udp_v1"
+    #: The UDP port's 48-byte status frame, with target_distance (VENDOR.md §3.2).
+    UDP_V2 = "udp_v2"
 
     def __str__(self) -> str:
         return self.value

@@ -36,7 +36,7 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.models import GalileoStatus, StatusLayout
-from galileo_async.protocol import LAYOUTS, Command
+from galileo_async.protocol import LAYOUTS, UDP_LAYOUTS, Command
 from galileo_async.sim import SimState, Simulator
 
 __all__ = [
@@ -97,7 +97,8 @@ class Mode:
 
     def has(self, field: str) -> bool:
         """Whether this layout's frames carry ``field``."""
-        return field in LAYOUTS[self.layout].fields
+        layout = LAYOUTS.get(self.layout) or UDP_LAYOUTS[self.layout]
+        return field in layout.fields
 
 
 MODES: tuple[Mode, ...] = (
@@ -109,6 +110,8 @@ MODES: tuple[Mode, ...] = (
     Mode("document", StatusLayout.V2_TRUNCATED, "tcp"),
     Mode("document", StatusLayout.V1, "pty"),
     Mode("document", StatusLayout.V1_CHARGE, "tcp"),
+    # The robot's UDP port (VENDOR.md §3): its own 48-byte layout, real firmware only.
+    Mode("real", StatusLayout.UDP_V2, "udp"),
 )
 
 
@@ -131,8 +134,15 @@ async def robot_on_sim(
     With ``navigate`` the robot has navigation open and the visual system initialised.
     """
     options: dict[str, Any] = {"speed": SPEED, "targets": TARGETS, **sim_options}
-    async with Simulator(layout=mode.layout, firmware=mode.firmware, **options) as sim:
-        if mode.transport == "tcp":
+    if mode.transport == "udp":
+        options["udp_layout"] = mode.layout
+    else:
+        options["layout"] = mode.layout
+    async with Simulator(firmware=mode.firmware, **options) as sim:
+        if mode.transport == "udp":
+            face = await sim.serve_udp()
+            url = f"udp://127.0.0.1:{face.address[1]}"
+        elif mode.transport == "tcp":
             server = await sim.serve_tcp()
             url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
         else:

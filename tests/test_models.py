@@ -44,7 +44,9 @@ def test_wire_values_of_the_enums() -> None:
     assert [int(m) for m in ChargeStatus] == [0, 1, 2, 3, 4, 5]
     assert [int(m) for m in TargetStatus] == [-1, 0, 1, 2, 3]
     assert [int(m) for m in AngleGoalStatus] == [-1, 0, 1, 2]
-    assert [str(m) for m in StatusLayout] == ["v1", "v1_charge", "v2_truncated", "v2", "ros"]
+    assert [str(m) for m in StatusLayout] == [
+        "v1", "v1_charge", "v2_truncated", "v2", "ros", "udp_v1", "udp_v2",
+    ]  # fmt: skip
 
 
 def test_defaults_are_unknown_not_zero() -> None:

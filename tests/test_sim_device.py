@@ -12,11 +12,13 @@ from typing import Any
 import pytest
 
 from galileo_async.models import GalileoStatus, StatusLayout
+from galileo_async.protocol import LAYOUTS as SERIAL_LAYOUTS
 from galileo_async.protocol import StatusDecoder, encode
 from galileo_async.protocol import commands as c
 from galileo_async.sim import SimConfig, Simulator, Ticker
 
-LAYOUTS = [lay for lay in StatusLayout if lay is not StatusLayout.ROS]
+#: The layouts a byte stream carries (the UDP face's are tested in test_sim_udp.py).
+LAYOUTS = list(SERIAL_LAYOUTS)
 FAST: dict[str, Any] = {"speed": 50.0, "visual_init_time": 0.5, "busy_on_start": 0.2}
 TIMEOUT = 5.0
 

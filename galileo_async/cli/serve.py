@@ -17,11 +17,21 @@ __all__ = ["discover", "ports", "sim"]
 DEFAULT_TCP = "127.0.0.1:7000"
 
 
-def _host_port(text: str) -> tuple[str, int]:
+def _host_port(text: str, option: str = "--tcp") -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not port.isdigit():
-        raise InvalidArgument(f"--tcp wants HOST:PORT, got {text!r}")
+        raise InvalidArgument(f"{option} wants HOST:PORT, got {text!r}")
     return host.strip("[]") or "127.0.0.1", int(port)
+
+
+def _udp_address(text: str) -> tuple[str, int]:
+    """``--udp``: a PORT (on loopback) or HOST:PORT."""
+    return ("127.0.0.1", int(text)) if text.isdigit() else _host_port(text, "--udp")
+
+
+def _url(scheme: str, address: tuple[str, int]) -> str:
+    host, port = address[:2]
+    return f"{scheme}://{f'[{host}]' if ':' in host else host}:{port}"
 
 
 def sim(
@@ -31,6 +41,16 @@ def sim(
         typer.Option(help=f"Serve on HOST:PORT (default {DEFAULT_TCP}; port 0 picks one)."),
     ] = None,
     pty: Annotated[bool, typer.Option("--pty", help="Serve on a pseudo-terminal.")] = False,
+    udp: Annotated[
+        str | None,
+        typer.Option(
+            help="Also serve the robot's UDP port on PORT or HOST:PORT (loopback by default; "
+            "alone, UDP only)."
+        ),
+    ] = None,
+    udp_layout: Annotated[
+        str, typer.Option(help="UDP status layout: udp_v2 (48 bytes) or udp_v1 (44).")
+    ] = "udp_v2",
     speed: Annotated[float, typer.Option(min=0.01, help="Time scale (20 = 20x).")] = 1.0,
     layout: Annotated[str, typer.Option(help="Status layout: v2, v2_truncated, v1, v1_charge.")] = (
         "v2"
@@ -42,13 +62,13 @@ def sim(
         typer.Option("--options", help="More simulator options, as a sim:// query: drop=0.1&…"),
     ] = None,
 ) -> None:
-    """Serve a simulated robot until Ctrl-C: over TCP (loopback default) or a pty."""
+    """Serve a simulated robot until Ctrl-C: over TCP (loopback default), a pty and/or UDP."""
     settings = settings_of(ctx)
     if tcp is not None and pty:
         fail("choose --tcp or --pty, not both", ExitCode.USAGE)
     from ..sim import Simulator
 
-    query = f"speed={speed}&layout={layout}&firmware={firmware}&seed={seed}"
+    query = f"speed={speed}&layout={layout}&udp_layout={udp_layout}&firmware={firmware}&seed={seed}"
     if options:
         query += "&" + options.lstrip("?&")
 
@@ -56,20 +76,24 @@ def sim(
         simulator = Simulator.from_url(f"sim://?{query}")
         server: Any = None
         try:
+            served: list[tuple[str, str]] = []  # (where, its status layout)
             if pty:
-                where = simulator.open_pty()
-            else:
+                served.append((simulator.open_pty(), layout))
+            elif tcp is not None or udp is None:
                 host, port = _host_port(tcp or DEFAULT_TCP)
                 server = await simulator.serve_tcp(host, port)
-                bound = server.sockets[0].getsockname()
-                name = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
-                where = f"socket://{name}:{bound[1]}"
+                served.append((_url("socket", server.sockets[0].getsockname()), layout))
+            if udp is not None:
+                face = await simulator.serve_udp(*_udp_address(udp))
+                served.append((_url("udp", face.address), udp_layout))
             console = out_console()
-            console.print(where, markup=False)
+            for where, _ in served:
+                console.print(where, markup=False)
             console.file.flush()
+            places = ", ".join(f"{where} ({what})" for where, what in served)
             err_console().print(
-                f"simulator ({layout}, firmware {firmware}, speed {speed:g}x) on {where}; "
-                f"connect with: galileo --port {where} status · Ctrl-C stops"
+                f"simulator (firmware {firmware}, speed {speed:g}x) on {places}; "
+                f"connect with: galileo --port {served[0][0]} status · Ctrl-C stops"
             )
             with stop_requested() as stop:
                 await stop.wait()

@@ -40,12 +40,14 @@ from .commands import (
 from .device import (
     CommandDecoder,
     CommandDecoderStats,
+    DatagramCommandDecoder,
     StatusEncoder,
     encode_status,
     parse_payload,
 )
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS, Layout
 from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder
+from .udp import UDP_LAYOUTS, UdpLayout, UdpStatusDecoder
 from .velocity import Velocity, speed_commands
 
 __all__ = [
@@ -56,6 +58,7 @@ __all__ = [
     "MAX_COMMAND_PAYLOAD",
     "MAX_COORDINATE",
     "MAX_COUNTED_GAP",
+    "UDP_LAYOUTS",
     "V2_DEFAULTS",
     "AddTarget",
     "Backward",
@@ -63,6 +66,7 @@ __all__ = [
     "Command",
     "CommandDecoder",
     "CommandDecoderStats",
+    "DatagramCommandDecoder",
     "DecoderStats",
     "Forward",
     "Goto",
@@ -90,6 +94,8 @@ __all__ = [
     "StopPatrol",
     "TurnLeft",
     "TurnRight",
+    "UdpLayout",
+    "UdpStatusDecoder",
     "UpdateMap",
     "Velocity",
     "encode",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
 from typing import Any
@@ -25,10 +25,12 @@ from .commands import (
     _Percent,
 )
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS
+from .udp import UDP_LAYOUTS, UDP_SOURCE_FIELDS, pack_udp_payload
 
 __all__ = [
     "CommandDecoder",
     "CommandDecoderStats",
+    "DatagramCommandDecoder",
     "StatusEncoder",
     "encode_status",
     "parse_payload",
@@ -127,8 +129,40 @@ class CommandDecoder:
         return out
 
 
+class DatagramCommandDecoder:
+    """The UDP port's command parser (system_monitor ReqParser; VENDOR.md §3.5), carry-over and all.
+
+    Splits on every header; a piece is a frame only if its length byte counts exactly the
+    bytes up to the next header or the datagram's end. The datagram's last piece, when not
+    a frame, is kept and completed by the next datagram's leading bytes; a later whole
+    frame does not clear it, a datagram ending in a bare header does. Empty frames
+    (``cd eb d7 00``) are valid and yield nothing.
+    """
+
+    def __init__(self) -> None:
+        self._carried = b""
+        self.stats = CommandDecoderStats()
+
+    def feed(self, datagram: bytes) -> list[Command]:
+        """The commands of one datagram, in order."""
+        pieces = datagram.split(HEADER)
+        pieces = (self._carried + pieces[0]).split(HEADER) + pieces[1:]
+        out: list[Command] = []
+        for piece in pieces:
+            if piece and len(piece) == piece[0] + 1:
+                if len(piece) > 1:
+                    out.append(parse_payload(piece[1:]))
+            elif piece:
+                self.stats.bad_lengths += 1
+        last = pieces[-1]
+        if not last or len(last) != last[0] + 1:
+            self._carried = last
+        self.stats.commands += len(out)
+        return out
+
+
 class StatusEncoder:
-    """Status values → frames of one layout, as the robot sends them (PROTOCOL.md §1)."""
+    """Status values → frames of one layout as the robot sends them (serial and UDP layouts)."""
 
     __slots__ = (
         "_defaults", "_extra", "_frame", "_last", "_pack", "_pick", "_prefix", "_size",
@@ -140,22 +174,33 @@ class StatusEncoder:
         name = StatusLayout(layout)
         if name is StatusLayout.ROS:  # a ROS status has the v2 fields
             name = StatusLayout.V2
-        target = LAYOUTS[name]
-        # The truncated layout is the v2 struct cut short (PROTOCOL.md §1, v2_truncated).
-        source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
+        self._stamp_at: int | None = None
+        source_fields: tuple[str, ...]
+        if name in UDP_LAYOUTS:
+            # The UDP frame packs a flags byte from five fields (VENDOR.md §3.2).
+            udp = UDP_LAYOUTS[name]
+            source_fields = UDP_SOURCE_FIELDS
+            self._pack: Callable[..., bytes] = lambda *values: pack_udp_payload(name, values)
+            self._prefix = HEADER + bytes((udp.length_byte,))
+            self._tail = b""
+            self._size = udp.struct.size
+        else:
+            target = LAYOUTS[name]
+            # The truncated layout is the v2 struct cut short (PROTOCOL.md §1, v2_truncated).
+            source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
+            source_fields = source.fields
+            self._pack = source.struct.pack
+            self._prefix = HEADER + bytes((target.length_byte,))
+            self._tail = b"\x00" if target.terminated else b""
+            self._size = target.frame_size - len(self._prefix) - len(self._tail)
+            if "time_stamp" in target.fields:
+                self._stamp_at = len(self._prefix) + 4 * target.fields.index("time_stamp")
         index = {field: i for i, field in enumerate(fields)}
-        missing = [field for field in source.fields if field not in index]
+        missing = [field for field in source_fields if field not in index]
         index |= {field: len(fields) + i for i, field in enumerate(missing)}
         self._extra = tuple(V2_DEFAULTS[field] for field in missing)
-        self._defaults = tuple(V2_DEFAULTS[field] for field in source.fields)
-        self._pick = itemgetter(*(index[field] for field in source.fields))
-        self._pack = source.struct.pack
-        self._prefix = HEADER + bytes((target.length_byte,))
-        self._tail = b"\x00" if target.terminated else b""
-        self._size = target.frame_size - len(self._prefix) - len(self._tail)
-        self._stamp_at: int | None = None
-        if "time_stamp" in target.fields:
-            self._stamp_at = len(self._prefix) + 4 * target.fields.index("time_stamp")
+        self._defaults = tuple(V2_DEFAULTS[field] for field in source_fields)
+        self._pick = itemgetter(*(index[field] for field in source_fields))
         self._last: tuple[Any, ...] | None = None
         self._frame = bytearray()
 

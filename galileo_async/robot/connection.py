@@ -98,7 +98,8 @@ async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
 def connect(url: str, **options: Any) -> Connection:
     """Connect to the robot at ``url``: ``async with connect(url) as robot`` or ``await``.
 
-    ``url``: a serial device path, ``socket://host:port``, ``sim://…`` or ``ros://…``.
+    ``url``: a serial device path, ``socket://host:port``, ``udp://host[:port]``, ``sim://…``
+    or ``ros://…``.
     Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
     ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
     ``angle_tolerance`` (degrees: rotate_to's "already facing"),

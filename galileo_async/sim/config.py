@@ -10,6 +10,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 from ..errors import InvalidArgument
 from ..models import StatusLayout
+from ..protocol import LAYOUTS, UDP_LAYOUTS
 
 __all__ = ["DEFAULT_TARGETS", "FRAME_RATE", "Faults", "SimConfig", "parse_sim_url"]
 
@@ -26,6 +27,8 @@ DEFAULT_TARGETS: tuple[tuple[float, float], ...] = (
 )
 
 Firmware = Literal["real", "document"]
+_SERIAL_LAYOUTS = tuple(LAYOUTS)
+_UDP_LAYOUTS = tuple(UDP_LAYOUTS)
 
 
 def _check_fraction(name: str, value: float) -> None:
@@ -122,15 +125,23 @@ class SimConfig:
     power_full: float = 28.0
     charge_rate: float = 0.05
     faults: Faults = field(default_factory=Faults)
+    #: The status layout of the UDP face (serve_udp): udp_v2 (48 bytes) or udp_v1 (44).
+    udp_layout: StatusLayout = StatusLayout.UDP_V2
+    #: The UDP face also sends the environment-sensor frame after every third status frame.
+    env_sensors: bool = False
 
     def __post_init__(self) -> None:
         try:
             layout = StatusLayout(self.layout)
-        except ValueError:
-            raise InvalidArgument(f"unknown layout {self.layout!r}") from None
-        if layout is StatusLayout.ROS:
-            raise InvalidArgument("the simulator speaks the serial layouts, not 'ros'")
+            udp_layout = StatusLayout(self.udp_layout)
+        except ValueError as exc:
+            raise InvalidArgument(f"unknown layout: {exc}") from None
+        if layout not in _SERIAL_LAYOUTS:
+            raise InvalidArgument(f"the simulator's stream speaks the serial layouts, not {layout}")
+        if udp_layout not in _UDP_LAYOUTS:
+            raise InvalidArgument(f"udp_layout must be udp_v2 or udp_v1, not {udp_layout}")
         object.__setattr__(self, "layout", layout)
+        object.__setattr__(self, "udp_layout", udp_layout)
         if self.firmware not in ("real", "document"):
             raise InvalidArgument(f"firmware must be 'real' or 'document', got {self.firmware!r}")
         if not (math.isfinite(self.speed) and 0.0 < self.speed <= 1000.0):
@@ -198,7 +209,7 @@ _FLOAT_OPTIONS = frozenset(
         "cmd_vel_timeout",
     }
 )  # fmt: skip
-_BOOL_OPTIONS = frozenset({"ignore_save_map", "concat_loss"})
+_BOOL_OPTIONS = frozenset({"ignore_save_map", "concat_loss", "env_sensors"})
 
 
 def _parse_pairs(name: str, text: str) -> tuple[tuple[float, float], ...]:
@@ -231,7 +242,7 @@ def _parse_value(name: str, text: str) -> Any:
             return "next" if text == "next" else float(text)
     except ValueError:
         raise InvalidArgument(f"bad value for simulator option {name}: {text!r}") from None
-    return text  # layout, firmware: validated by SimConfig
+    return text  # layout, udp_layout, firmware: validated by SimConfig
 
 
 def parse_sim_url(url: str, base: SimConfig | None = None) -> SimConfig:

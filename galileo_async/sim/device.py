@@ -7,14 +7,21 @@ import math
 import random
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from ..models import StatusLayout
-from ..protocol import CommandDecoder, StatusEncoder
+from ..protocol import Command, CommandDecoder, StatusEncoder
 from .config import FRAME_RATE, SimConfig
-from .robot_model import WIRE_FIELDS, RobotModel
+from .robot_model import WIRE_FIELDS, RobotModel, WireValues
 
-__all__ = ["DeviceConnection", "DeviceStats", "FrameEncoder", "SimDevice", "Ticker"]
+__all__ = [
+    "DeviceConnection",
+    "DeviceStats",
+    "FrameEncoder",
+    "SimDevice",
+    "StatusListener",
+    "Ticker",
+]
 
 #: Most frames one tick may emit to catch up after the loop stalled; beyond it time slips.
 MAX_CATCH_UP_FRAMES = 120
@@ -144,6 +151,16 @@ class DeviceConnection(asyncio.Protocol):
             self.transport.close()
 
 
+class StatusListener(Protocol):
+    """Takes the wire values (WIRE_FIELDS order) of every frame the robot makes (UDP faces)."""
+
+    def send_statuses(self, frames: list[WireValues]) -> None:
+        """The frames of one tick, oldest first."""
+
+    def close(self) -> None:
+        """Stop serving (the robot stopped)."""
+
+
 class SimDevice:
     """The robot model plus its connections: emits frames, takes commands, injects faults."""
 
@@ -153,6 +170,8 @@ class SimDevice:
         self.stats = DeviceStats()
         self.encoder = FrameEncoder(config.layout)
         self.connections: dict[DeviceConnection, None] = {}
+        #: Faces that encode frames themselves (the UDP port): handed each frame's values.
+        self.listeners: dict[StatusListener, None] = {}
         self._ticker = ticker
         self._on_shutdown = on_shutdown
         self._concat_loss = config.effective_concat_loss
@@ -173,6 +192,9 @@ class SimDevice:
             self._ticker.remove(self)
         for connection in list(self.connections):
             connection.close()
+        for listener in list(self.listeners):
+            listener.close()
+        self.listeners.clear()
 
     def attach(self, connection: DeviceConnection) -> None:
         """A host connected: seed its fault dice deterministically."""
@@ -200,34 +222,60 @@ class SimDevice:
             # one write (PROTOCOL.md §2, "Firmware (measured…)").
             self.stats.commands_lost += len(commands) - 2
             commands = [commands[0], commands[-1]]
+        self.execute(commands)
+
+    def execute(self, commands: list[Command]) -> None:
+        """Hand parsed commands to the model, in order; the host-shutdown command stops all."""
         for command in commands:
             self.model.submit(command)
         if self.model.shutdown:
             self._shut_down()
 
     def advance(self, frames: int) -> None:
-        """Step the model ``frames`` frames and send them to every connection."""
+        """Step the model ``frames`` frames and send them to every connection and listener."""
         model = self.model
-        if not self.connections:
+        if not self.connections and not self.listeners:
             for _ in range(frames):
                 model.tick()
             self.stats.frames += frames
             if model.shutdown:  # a queued shutdown ran when busy ended
                 self._shut_down()
             return
-        encode = self.encoder.encode
         start = model.time
-        out = []
+        listeners = self.listeners
+        count, out, values = self._tick(frames, bool(self.connections), bool(listeners))
+        self.stats.frames += count
+        if model.shutdown:
+            self._shut_down()
+            return
+        for listener in list(listeners):
+            listener.send_statuses(values)
+        if out:
+            self._send_frames(out, start)
+
+    def _tick(
+        self, frames: int, encode: bool, keep: bool
+    ) -> tuple[int, list[bytes], list[WireValues]]:
+        """Step up to ``frames`` frames (until a shutdown): their count, frames and values."""
+        model = self.model
+        encoder = self.encoder.encode
+        out: list[bytes] = []
+        values: list[WireValues] = []
+        count = 0
         for _ in range(frames):
             model.tick()
             if model.shutdown:
                 break
-            out.append(encode(model.wire_values(), model.time_stamp))
+            count += 1
+            wire = model.wire_values()
+            if encode:
+                out.append(encoder(wire, model.time_stamp))
+            if keep:
+                values.append(wire)
+        return count, out, values
+
+    def _send_frames(self, out: list[bytes], start: float) -> None:
         frames = len(out)
-        self.stats.frames += frames
-        if model.shutdown:
-            self._shut_down()
-            return
         faults = self.config.faults
         if not faults.any_stream_fault and faults.disconnect_after is None:
             data = b"".join(out) if frames > 1 else out[0]

@@ -1,4 +1,4 @@
-"""Simulator: one virtual Galileo served in-process, over TCP and over a pty."""
+"""Simulator: one virtual Galileo served in-process, over TCP, UDP and a pty."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from .device import DeviceConnection, DeviceStats, SimDevice, Ticker
 from .memory import create_transport_pair
 from .robot_model import RobotModel
 from .serve import PtyTransport
+from .udp import UdpFace
 
 __all__ = ["Connector", "SimState", "Simulator"]
 
@@ -118,6 +119,7 @@ class Simulator:
         self._device = SimDevice(config, ticker or Ticker(config.speed), self._stop_serving)
         self._servers: list[asyncio.Server] = []
         self._ptys: list[PtyTransport] = []
+        self._udp: list[UdpFace] = []
         self._closed = False
 
     @classmethod
@@ -170,6 +172,18 @@ class Simulator:
         self._device.start()
         return server
 
+    async def serve_udp(self, host: str = "127.0.0.1", port: int = 0) -> UdpFace:
+        """Serve the robot's UDP port on ``host:port`` (loopback default) to its last sender."""
+        if self._device.closed:
+            raise ConnectionRefusedError("the simulated robot is off")
+        loop = asyncio.get_running_loop()
+        face = UdpFace(self._device)
+        await loop.create_datagram_endpoint(lambda: face, local_addr=(host, port))
+        self._udp.append(face)
+        self._device.listeners[face] = None
+        self._device.start()
+        return face
+
     def open_pty(self) -> str:
         """Serve over a new pseudo-terminal; returns the path a host opens as a serial port."""
         if self._device.closed:
@@ -184,6 +198,8 @@ class Simulator:
             server.close()
         for pty in self._ptys:
             pty.close()
+        for face in self._udp:
+            face.close()
 
     async def close(self) -> None:
         """Stop the clock, drop every connection and listener; idempotent."""
@@ -197,6 +213,7 @@ class Simulator:
                 await asyncio.wait_for(server.wait_closed(), _CLOSE_TIMEOUT)
         self._servers.clear()
         self._ptys.clear()
+        self._udp.clear()
         await asyncio.sleep(0)  # let connection_lost callbacks run
 
     async def __aenter__(self) -> Simulator:

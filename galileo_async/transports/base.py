@@ -9,12 +9,13 @@ import time
 from collections import deque
 from typing import ClassVar
 
-from ..errors import ConnectionLost, GalileoConnectionError, LinkStale
+from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
 from .queue import CommandQueue, Pending
 from .stats import LinkState, LinkStats, StatusSink
+from .watchdog import StaleWatchdog
 
 __all__ = ["BaseLink", "frames_log"]
 
@@ -24,15 +25,15 @@ frames_log = logging.getLogger("galileo_async.transports.frames")
 _monotonic = time.monotonic
 
 
-class BaseLink(CommandQueue, abc.ABC):
+class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     """Transport-independent half of a link; subclasses connect, write and disconnect."""
 
     # Slots: a fleet touches every link 30 times a second, and attributes kept inside the
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_backoff", "_closed", "_closing", "_connected_at", "_last_write",
-        "_opened", "_queue", "_queue_ready", "_reconnect_task", "_room_waiters", "_state",
-        "_supersedable", "_watchdog", "_writer_task", "drain_timeout", "max_queued_commands",
+        "_opened", "_queue", "_queue_ready", "_reconnect_task", "_room_waiters",
+        "_supersedable", "_writer_task", "drain_timeout", "max_queued_commands",
         "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
         "stale_reconnect", "stale_timeout", "stats", "store",
     )  # fmt: skip
@@ -79,7 +80,7 @@ class BaseLink(CommandQueue, abc.ABC):
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
         #: The loop timer of the next stale check, if one is armed.
-        self._watchdog: asyncio.TimerHandle | None = None
+        self._watchdog = None
         self._last_write: float | None = None
         self._connected_at = 0.0
         self._opened = False
@@ -339,57 +340,3 @@ class BaseLink(CommandQueue, abc.ABC):
             self._last_write = time.monotonic()
             self.stats.commands_sent += 1
             future.set_result(True)
-
-    def _stale_deadline(self, alive_at: float) -> float | None:
-        """When a link last heard from at ``alive_at`` turns stale (None: never)."""
-        timeout = self.stale_timeout
-        return None if timeout is None else alive_at + timeout
-
-    def _arm_watchdog(self, deadline: float | None) -> None:
-        """Check for silence at ``deadline`` (time.monotonic()) on one loop timer of this link.
-
-        Frames only set last_frame_at; the check re-arms itself from it when it runs, so a
-        link moves its timer once per stale_timeout, not per frame.
-        """
-        self._cancel_watchdog()
-        if deadline is None or self.stale_timeout is None or self._closing:
-            return
-        loop = asyncio.get_running_loop()
-        # loop.time() need not be time.monotonic() (uvloop's is not): convert once.
-        when = loop.time() + (deadline - _monotonic())
-        self._watchdog = loop.call_at(when, self._check_stale)
-
-    def _cancel_watchdog(self) -> None:
-        timer = self._watchdog
-        if timer is not None:
-            self._watchdog = None
-            timer.cancel()
-
-    def _check_stale(self) -> None:
-        self._watchdog = None
-        timeout = self.stale_timeout
-        if timeout is None or self._closing or not self.stats.connected:
-            return
-        last = self.stats.last_frame_at
-        alive_since = self._connected_at if last is None else max(last, self._connected_at)
-        silent = time.monotonic() - alive_since
-        # A lost link reopened is not stale again: its outage is reported already.
-        if self._state is LinkState.UP or self._state is LinkState.CONNECTING:
-            if silent < timeout:  # a frame came since (or the timer ran early): not yet
-                self._arm_watchdog(alive_since + timeout)
-                return
-            self._state = LinkState.STALE
-            self.stats.stale = True
-            error = LinkStale(f"no valid status frame for {silent:.2f} s", silent_for=silent)
-            _log.warning("%s", error)
-            self.store.link_stale(error)
-        # A peer that froze or vanished may keep its TCP connection open: give it up.
-        if self.stale_reconnect is None:
-            return
-        limit = self.stale_reconnect * timeout
-        if silent < limit:
-            self._arm_watchdog(alive_since + limit)  # a fresh frame re-arms it (last_frame_at)
-            return
-        reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
-        _log.warning("%s", reason)
-        self._abandon(reason)

@@ -22,6 +22,7 @@ __all__ = [
     "DEFAULT_CONNECT_TIMEOUT",
     "Connector",
     "ProtocolFactory",
+    "parse_host_port",
     "parse_socket_url",
     "serial_backend",
     "serial_connector",
@@ -174,11 +175,19 @@ def set_keepalive(transport: asyncio.BaseTransport) -> None:
 
 def parse_socket_url(url: str) -> tuple[str, int]:
     """(host, port) of ``socket://host:port`` (IPv6 hosts in brackets)."""
+    return parse_host_port(url, "socket")
+
+
+def parse_host_port(url: str, scheme: str, default_port: int | None = None) -> tuple[str, int]:
+    """(host, port) of ``scheme://host:port`` (IPv6 hosts in brackets; port ``default_port``)."""
     parts = urlsplit(url)
     try:
         port = parts.port
     except ValueError as exc:
         raise InvalidArgument(f"bad port in {url!r}") from exc
-    if parts.scheme != "socket" or not parts.hostname or port is None:
-        raise InvalidArgument(f"expected socket://host:port, got {url!r}")
+    if port is None:
+        port = default_port
+    if parts.scheme != scheme or not parts.hostname or port is None:
+        form = f"{scheme}://host" + (":port" if default_port is None else "[:port]")
+        raise InvalidArgument(f"expected {form}, got {url!r}")
     return parts.hostname, port

@@ -8,7 +8,7 @@ from typing import Any
 
 from .._checks import check_bool, check_int, check_number, check_seconds, check_timeout
 from ..errors import InvalidArgument
-from ..models import StatusLayout
+from ..protocol import LAYOUTS
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -27,6 +27,7 @@ __all__ = [
     "PORTABLE_OPTIONS",
     "STREAM_LAYOUTS",
     "STREAM_OPTIONS",
+    "UDP_OPTIONS",
     "check_options",
     "check_values",
 ]
@@ -63,6 +64,9 @@ LINK_OPTIONS = (
 PORTABLE_OPTIONS = ("baudrate", "serial_options", "connect_timeout")
 #: Options of the serial, socket:// and sim:// links on top of LINK_OPTIONS.
 STREAM_OPTIONS = ("layout", *PORTABLE_OPTIONS)
+#: Options of udp:// links on top of LINK_OPTIONS: the portable ones, ignored (the layout
+#: is told by each frame's length byte).
+UDP_OPTIONS = PORTABLE_OPTIONS
 
 
 def _check_stale_reconnect(name: str, value: object) -> None:
@@ -74,8 +78,8 @@ def _check_queue(name: str, value: object) -> None:
     check_int(name, value, 1, MAX_QUEUED_COMMANDS_LIMIT)
 
 
-#: The status layouts a byte stream can carry (``"ros"`` is the ROS link's own).
-STREAM_LAYOUTS = tuple(layout.value for layout in StatusLayout if layout is not StatusLayout.ROS)
+#: The status layouts a byte stream can carry (``"ros"`` and ``"udp_*"`` are other links' own).
+STREAM_LAYOUTS = tuple(layout.value for layout in LAYOUTS)
 
 
 def _check_layout(name: str, value: object) -> None:

@@ -1,4 +1,4 @@
-"""The one URL switch: a serial path, socket://, sim:// or ros:// URL → its link or connector."""
+"""The one URL switch: a serial path, socket://, udp://, sim:// or ros:// URL → its link."""
 
 from __future__ import annotations
 
@@ -20,11 +20,14 @@ from .connectors import (
 )
 from .options import (
     LINK_OPTIONS,
+    PORTABLE_OPTIONS,
     STREAM_OPTIONS,
+    UDP_OPTIONS,
     check_values,
 )
 from .stats import StatusSink
 from .stream import StreamLink
+from .udp import UdpLink, parse_udp_url
 
 if TYPE_CHECKING:
     from ..sim import Simulator
@@ -33,9 +36,9 @@ __all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 
 
 def link_kind(url: str) -> str:
-    """``"ros"``, ``"socket"``, ``"sim"`` or ``"serial"`` (a device path or pyserial URL)."""
+    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
     scheme = urlsplit(url).scheme.lower()
-    return scheme if scheme in ("ros", "socket", "sim") else "serial"
+    return scheme if scheme in ("ros", "socket", "udp", "sim") else "serial"
 
 
 def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
@@ -47,18 +50,22 @@ def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection
     if kind == "ros":
         _ros_module(url).check_ros_options(url, options, also=also)
         return
-    accepted = {*LINK_OPTIONS, *STREAM_OPTIONS, *also}
+    accepted = {*LINK_OPTIONS, *(UDP_OPTIONS if kind == "udp" else STREAM_OPTIONS), *also}
     for name in options:
+        if name not in accepted and name in STREAM_OPTIONS:
+            raise InvalidArgument(f"{name} does not apply to udp:// links")
         if name not in accepted and name in _ros_module(url).ROS_OPTIONS:
             raise InvalidArgument(f"{name} applies to ros:// links only")
     check_names(options, accepted)
     check_values(options)
     if kind == "socket":
         parse_socket_url(url)
+    elif kind == "udp":
+        parse_udp_url(url)
 
 
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
-    """A link (not yet opened) for a serial path, ``socket://``, ``sim://`` or ``ros://`` URL."""
+    """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://`` or ``ros://``."""
     with naming(url, repr(url)):
         check_link_options(url, options)
         return _open_link(url, store, options)
@@ -79,6 +86,8 @@ def byte_connector(
     kind = link_kind(url)
     if kind == "ros":
         raise InvalidArgument(f"{url!r}: a ros:// link carries ROS messages, not a byte stream")
+    if kind == "udp":
+        raise InvalidArgument(f"{url!r}: a udp:// link carries datagrams, not a byte stream")
     if kind == "socket":
         host, port = parse_socket_url(url)
         return socket_connector(host, port, connect_timeout=connect_timeout, name=url), None
@@ -92,8 +101,13 @@ def byte_connector(
 
 
 def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
-    if link_kind(url) == "ros":
+    kind = link_kind(url)
+    if kind == "ros":
         return _ros_link(url, store, options)
+    if kind == "udp":
+        host, port = parse_udp_url(url)
+        link_options = {k: v for k, v in options.items() if k not in PORTABLE_OPTIONS}
+        return UdpLink(store, host, port, name=url, **link_options)
     connector, simulator = byte_connector(
         url,
         baudrate=options.pop("baudrate", DEFAULT_BAUDRATE),

@@ -1,0 +1,98 @@
+"""StaleWatchdog: the one loop timer per link that tells a silent link (stale, then given up)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+
+from ..errors import LinkStale
+from .stats import LinkState, LinkStats, StatusSink
+
+__all__ = ["StaleWatchdog"]
+
+_log = logging.getLogger("galileo_async.transports.base")
+_monotonic = time.monotonic
+
+
+class StaleWatchdog:
+    """The stale-link half of BaseLink (a mixin: the state is BaseLink's)."""
+
+    # Its own slots (the only mixin of BaseLink that has some: one layout per class).
+    __slots__ = ("_state", "_watchdog")
+
+    _state: LinkState
+    _watchdog: asyncio.TimerHandle | None
+
+    _closing: bool
+    _connected_at: float
+    stale_timeout: float | None
+    stale_reconnect: float | None
+    stats: LinkStats
+    store: StatusSink
+
+    def _abandon(self, reason: str) -> None:
+        """Give up a silent connection now (BaseLink's)."""
+        raise NotImplementedError
+
+    def _stale_message(self, silent: float) -> str:
+        """What LinkStale says after ``silent`` seconds without a valid frame."""
+        return f"no valid status frame for {silent:.2f} s"
+
+    def _on_stale(self) -> None:
+        """The link just turned stale (after the store was told); default: nothing."""
+
+    def _stale_deadline(self, alive_at: float) -> float | None:
+        """When a link last heard from at ``alive_at`` turns stale (None: never)."""
+        timeout = self.stale_timeout
+        return None if timeout is None else alive_at + timeout
+
+    def _arm_watchdog(self, deadline: float | None) -> None:
+        """Check for silence at ``deadline`` (time.monotonic()) on one loop timer of this link.
+
+        Frames only set last_frame_at; the check re-arms itself from it when it runs, so a
+        link moves its timer once per stale_timeout, not per frame.
+        """
+        self._cancel_watchdog()
+        if deadline is None or self.stale_timeout is None or self._closing:
+            return
+        loop = asyncio.get_running_loop()
+        # loop.time() need not be time.monotonic() (uvloop's is not): convert once.
+        when = loop.time() + (deadline - _monotonic())
+        self._watchdog = loop.call_at(when, self._check_stale)
+
+    def _cancel_watchdog(self) -> None:
+        timer = self._watchdog
+        if timer is not None:
+            self._watchdog = None
+            timer.cancel()
+
+    def _check_stale(self) -> None:
+        self._watchdog = None
+        timeout = self.stale_timeout
+        if timeout is None or self._closing or not self.stats.connected:
+            return
+        last = self.stats.last_frame_at
+        alive_since = self._connected_at if last is None else max(last, self._connected_at)
+        silent = time.monotonic() - alive_since
+        # A lost link reopened is not stale again: its outage is reported already.
+        if self._state is LinkState.UP or self._state is LinkState.CONNECTING:
+            if silent < timeout:  # a frame came since (or the timer ran early): not yet
+                self._arm_watchdog(alive_since + timeout)
+                return
+            self._state = LinkState.STALE
+            self.stats.stale = True
+            error = LinkStale(self._stale_message(silent), silent_for=silent)
+            _log.warning("%s", error)
+            self.store.link_stale(error)
+            self._on_stale()
+        # A peer that froze or vanished may keep its TCP connection open: give it up.
+        if self.stale_reconnect is None:
+            return
+        limit = self.stale_reconnect * timeout
+        if silent < limit:
+            self._arm_watchdog(alive_since + limit)  # a fresh frame re-arms it (last_frame_at)
+            return
+        reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
+        _log.warning("%s", reason)
+        self._abandon(reason)
