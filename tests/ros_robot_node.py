@@ -11,7 +11,10 @@ model following the real firmware (PROTOCOL.md §2). It publishes
 does: a string, the number of targets, dynamic ones included.
 
 Control from the test on stdin, one line each: ``busy SECONDS`` (report busy and hold
-commands), ``abort`` (the planner gives up on the goal), ``quit``.
+commands), ``abort`` (the planner gives up on the goal), ``freeze`` (the navigation stack
+dies behind a live serial node: the last status is re-published, commands reach no one),
+``thaw`` (the stack restarts and, as /galileo/cmds is latched, executes only the last
+command sent meanwhile), ``quit``.
 It prints ``READY`` once its publisher and subscriber are registered.
 """
 
@@ -323,6 +326,7 @@ def main() -> None:
     print(f"READY {os.getpid()}", flush=True)
 
     held: list[bytes] = []
+    frozen: list[object] = []  # the status the dead navigation stack left behind
     last = time.monotonic()
     period = 1.0 / RATE_HZ
     while not rospy.is_shutdown():
@@ -336,8 +340,18 @@ def main() -> None:
                 model.busy_until = now + float(line.split()[1])
             elif line == "abort":
                 model.abort_requested = True
+            elif line == "freeze":
+                frozen[:] = [status_message(status_cls, model, now)]
+            elif line == "thaw":
+                frozen.clear()
+                held[:] = held[-1:]  # a latched topic hands the new subscriber its last message
         while not incoming.empty():
             held.append(incoming.get_nowait())
+        if frozen:
+            pub.publish(frozen[0])
+            last = now
+            time.sleep(max(0.0, period - (time.monotonic() - now)))
+            continue
         while held and not model.busy(now):  # busy: commands wait (PROTOCOL.md §2)
             model.apply(held.pop(0), now)
         publish_goal_num()

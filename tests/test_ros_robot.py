@@ -17,6 +17,7 @@ from galileo_async.errors import (
     GoalAborted,
     GoalCancelled,
     GoalRejected,
+    GoalStalled,
     NotReady,
 )
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
@@ -222,6 +223,28 @@ async def test_planner_abort_is_goal_aborted(robot: Robot, node: RobotNode) -> N
             await asyncio.wait_for(goal, 5)
         assert caught.value.distance is not None
         assert caught.value.distance > 0.3
+    finally:
+        goal.cancel()
+        await asyncio.gather(goal, return_exceptions=True)
+
+
+async def test_a_dead_navigation_stack_stalls_the_goal_and_its_cancel_is_the_last_word(
+    robot: Robot, node: RobotNode
+) -> None:
+    await robot.start_navigation(timeout=10)
+    goal = asyncio.create_task(robot.goto(FAR, timeout=20, progress_timeout=0.6))
+    try:
+        await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING, timeout=5)
+        await node.control("freeze")  # the same status again and again, with a live header
+        with pytest.raises(GoalStalled) as caught:
+            await asyncio.wait_for(goal, 10)
+        assert caught.value.target_id == FAR
+        assert robot.link.connected  # the link itself stayed fresh all along
+        # The stack restarts: the latched last command is what it executes, and that is
+        # the driver's cancel (i 2), written before GoalStalled was raised.
+        await node.control("thaw")
+        ended = await robot.wait_until(lambda s: not s.goal_active, timeout=5)
+        assert ended.target_num_id == -1  # cancelled (the firmware drops the id), not arrived
     finally:
         goal.cancel()
         await asyncio.gather(goal, return_exceptions=True)
