@@ -155,6 +155,7 @@ def option_table() -> str:
             kinds = ", ".join(f"`{k}://`" if k != "serial" else "serial" for k in taken)
         type_name = getattr(option.type, "__name__", None) or str(option.type)
         type_name = type_name.replace("typing.", "").replace("collections.abc.", "")
+        type_name = type_name.replace("|", "\\|")  # a table cell's pipe (GitHub markdown)
         rows.append(
             f"| `{option.name}` | `{type_name}` | {option.default!r} | {kinds} | {option.doc} |"
         )
