@@ -13,6 +13,7 @@ from unittest import mock
 
 import anyio
 import pytest
+from ros_support import RobotNode, RosMaster
 
 import galileo_async as galileo
 from galileo_async import transports
@@ -135,6 +136,18 @@ async def test_each_option_is_checked_once_per_connect_on_a_socket() -> None:
         with anyio.fail_after(10):
             checked = await connect_counting(url, OPTIONS_GIVEN)
     assert checked == dict.fromkeys(OPTIONS_GIVEN, 1)
+
+
+async def test_each_option_is_checked_once_per_connect_on_ros(tmp_path: Path) -> None:
+    given: dict[str, Any] = {
+        "host": "127.0.0.1", "node_name": "/checked_once", "rpc_timeout": 2.0,
+        "master_check_interval": 1.0, "hosts": "xiaoqiang-desktop=127.0.0.1",
+        "layout": "ros", "stale_timeout": 5.0, "accept_timeout": 4.0, "baudrate": 9600,
+    }  # fmt: skip
+    async with RosMaster.running(tmp_path) as master, RobotNode.running(master):
+        with anyio.fail_after(20):
+            checked = await connect_counting(f"{master.url}?connect_timeout=5", given)
+    assert checked == dict.fromkeys([*given, "connect_timeout"], 1)
 
 
 MISSPELT = """\
