@@ -7,7 +7,7 @@ import logging
 import sys
 from collections.abc import Generator
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
 from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
@@ -18,10 +18,11 @@ from .options import check_connect_options
 from .robot import Robot
 from .runtime import finish_shielded, running_loop
 
-if sys.version_info >= (3, 11):
-    from typing import Unpack
-else:  # pragma: no cover - Python 3.10
-    from typing_extensions import Unpack
+if TYPE_CHECKING:  # annotations only: no runtime dependency on typing_extensions
+    if sys.version_info >= (3, 11):
+        from typing import Unpack
+    else:
+        from typing_extensions import Unpack
 
 __all__ = ["FIRST_STATUS_TIMEOUT", "Connection", "connect"]
 
