@@ -9,7 +9,7 @@ from urllib.parse import urlsplit
 
 from .._checks import naming
 from ..errors import GalileoConnectionError, InvalidArgument
-from ..options import check_options
+from ..options import LINK_KINDS, check_options
 from .base import BaseLink
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -33,7 +33,7 @@ __all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 def link_kind(url: str) -> str:
     """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
     scheme = urlsplit(url).scheme.lower()
-    return scheme if scheme in ("ros", "socket", "udp", "sim") else "serial"
+    return scheme if scheme in LINK_KINDS else "serial"  # a path or any pyserial URL
 
 
 def check_link_options(
