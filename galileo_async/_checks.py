@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import ipaddress
 import math
 import numbers
-from collections.abc import Collection, Iterable, Iterator
+import re
+from collections.abc import Collection, Iterable, Iterator, Mapping
 
 from .errors import InvalidArgument
 
@@ -20,7 +22,10 @@ __all__ = [
     "check_number",
     "check_seconds",
     "check_timeout",
+    "host_key",
+    "ip_literal",
     "naming",
+    "parse_hosts",
 ]
 
 
@@ -91,6 +96,54 @@ def check_names(given: Iterable[str], accepted: Collection[str]) -> None:
         known = ", ".join(sorted(accepted))
         hint = f"; did you mean {close[0]!r}?" if close else f" (known: {known})"
         raise InvalidArgument(f"unknown option {name!r}{hint}")
+
+
+# RFC 1123 labels; underscores too, which robots' host names do use.
+_LABEL = re.compile(r"[A-Za-z0-9_]([A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?\Z")
+
+
+def _is_host_name(name: str) -> bool:
+    labels = name[:-1].split(".") if name.endswith(".") else name.split(".")
+    return 0 < len(name) <= 253 and all(_LABEL.match(label) for label in labels)
+
+
+def host_key(name: str) -> str:
+    """The form a host name is looked up by: lower case, without a final dot."""
+    return name.lower().rstrip(".")
+
+
+def ip_literal(text: str) -> str | None:
+    """``text`` as a normalised IP address literal, or None when it is not one."""
+    try:
+        return str(ipaddress.ip_address(text.strip("[]")))
+    except ValueError:
+        return None
+
+
+def parse_hosts(hosts: str | Mapping[str, str]) -> dict[str, str]:
+    """``name=ip,name2=ip2`` (or a mapping) → {lower-case name: ip}; InvalidArgument if bad."""
+    if isinstance(hosts, str):
+        pairs: list[tuple[str, str]] = []
+        for entry in hosts.split(","):
+            name, sep, address = entry.strip().partition("=")
+            if not sep:
+                raise InvalidArgument(f"hosts: expected name=ip, got {entry.strip()!r}")
+            pairs.append((name.strip(), address.strip()))
+    elif isinstance(hosts, Mapping):
+        pairs = list(hosts.items())
+    else:
+        raise InvalidArgument(f"hosts must be 'name=ip,…' or a mapping, got {hosts!r}")
+    parsed: dict[str, str] = {}
+    for name, address in pairs:
+        if not isinstance(name, str) or not _is_host_name(name):
+            raise InvalidArgument(f"hosts: {name!r} is not a host name")
+        ip = ip_literal(address) if isinstance(address, str) else None
+        if ip is None:
+            raise InvalidArgument(f"hosts: the address of {name} must be an IP, got {address!r}")
+        if host_key(name) in parsed:
+            raise InvalidArgument(f"hosts: {name} is given twice")
+        parsed[host_key(name)] = ip
+    return parsed
 
 
 @contextlib.contextmanager

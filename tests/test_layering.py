@@ -105,6 +105,7 @@ PARTS = {
     "galileo_async.errors": "base",
     "galileo_async._checks": "base",
     "galileo_async.protocol": "protocol",
+    "galileo_async.options": "options",
     "galileo_async.sim": "sim",
     "galileo_async.events": "transitions",
     "galileo_async.transitions": "transitions",
@@ -124,11 +125,13 @@ MAY_IMPORT = {
     "protocol": {"base"},
     "sim": {"base", "protocol"},
     "transitions": {"base"},
-    "transports": {"base", "protocol"},
-    "ros": {"base", "protocol", "transports"},
+    # The option description: below every part that takes options (it owns their defaults).
+    "options": {"base", "protocol", "transitions"},
+    "transports": {"base", "protocol", "options"},
+    "ros": {"base", "protocol", "transports", "options"},
     "state": {"base", "transitions"},
-    "robot": {"base", "protocol", "transitions", "state", "transports"},
-    "fleet": {"base", "transitions", "state", "robot"},
+    "robot": {"base", "protocol", "transitions", "state", "transports", "options"},
+    "fleet": {"base", "transitions", "state", "robot", "options"},
     "vda5050": {"base", "transitions", "robot"},
 }
 #: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and

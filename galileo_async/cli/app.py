@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from .. import __version__
+from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
 from . import capture, demo, fleet_cmd, ops, serve, teleop, vda5050, watch
 from .runner import DEFAULT_PORT, PORT_ENV, Settings, resolve_port, setup_logging
 
@@ -26,8 +27,9 @@ app = typer.Typer(
 )
 
 
-#: Layouts of the serial status stream (PROTOCOL.md §1) that --layout accepts.
-_LAYOUTS = ("v2", "v2_truncated", "v1", "v1_charge")
+#: Layouts of the serial status stream (PROTOCOL.md §1) that --layout accepts: the
+#: layout option's (galileo_async.options).
+_LAYOUTS = STREAM_LAYOUTS
 
 
 def _version(value: bool) -> None:
@@ -55,7 +57,7 @@ def options(
     ] = None,
     layout: Annotated[
         str | None,
-        typer.Option(help="Pin the status layout: v2, v2_truncated, v1, v1_charge (default auto)."),
+        typer.Option(help=f"Pin the status layout: {', '.join(_LAYOUTS)} (default auto)."),
     ] = None,
     map_targets: Annotated[
         int | None,
@@ -63,7 +65,7 @@ def options(
             "--map-targets",
             envvar="GALILEO_MAP_TARGETS",
             min=0,
-            max=255,
+            max=MAX_TARGET_ID,
             help="Number of targets in the robot's map (needed by goto-point; sim:// knows "
             "it, ros:// reads /galileo/goal_num).",
         ),

@@ -22,9 +22,11 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from types import NoneType, UnionType
+from typing import Any, Union, get_args, get_origin
 
 from ..errors import InvalidArgument
+from ..options import OPTIONS
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -33,15 +35,23 @@ else:  # pragma: no cover - Python 3.10
 
 __all__ = ["OPTION_TYPES", "FleetFileError", "FleetSpec", "load_fleet_file", "parse_fleet"]
 
-#: Options a robot (or ``[defaults]``) may set, and the type each must have.
-OPTION_TYPES: dict[str, type] = {
-    "map_targets": int, "layout": str, "reconnect": bool, "baudrate": int,
-    "stale_timeout": float, "stale_reconnect": float, "reconnect_initial": float,
-    "reconnect_max": float, "connect_timeout": float, "first_status_timeout": float,
-    "accept_timeout": float, "arrive_tolerance": float, "goal_timeout": float,
-    "wait_timeout": float, "min_command_interval": float, "progress_timeout": float,
-    "angle_tolerance": float,
-}  # fmt: skip
+
+def _toml_types(hint: Any) -> tuple[type, ...]:
+    """The TOML value types an option of type ``hint`` takes (a table for a Mapping; no None)."""
+    members = get_args(hint) if get_origin(hint) in (Union, UnionType) else (hint,)
+    found: list[type] = []
+    for member in members:
+        if member is not NoneType:
+            origin = get_origin(member) or member
+            found.append(dict if issubclass(origin, Mapping) else origin)
+    return tuple(found)
+
+
+#: Options a robot (or ``[defaults]``) may set (every option of connect()), and the TOML
+#: types each takes.
+OPTION_TYPES: dict[str, tuple[type, ...]] = {
+    name: _toml_types(option.type) for name, option in OPTIONS.items()
+}
 _TOP_LEVEL = ("robots", "defaults", "targets")
 
 
@@ -72,10 +82,11 @@ def _check_option(where: str, key: str, value: object) -> Any:
     if expected is None:
         known = ", ".join(sorted(OPTION_TYPES))
         raise FleetFileError(f"{where}: unknown option {key!r} (known: port, {known})")
-    if expected is float and isinstance(value, int) and not isinstance(value, bool):
+    if float in expected and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
-    if (expected is not bool and isinstance(value, bool)) or not isinstance(value, expected):
-        raise FleetFileError(f"{where}: {key} must be {expected.__name__}, got {value!r}")
+    if (bool not in expected and isinstance(value, bool)) or not isinstance(value, expected):
+        names = " or ".join("table" if t is dict else t.__name__ for t in expected)
+        raise FleetFileError(f"{where}: {key} must be {names}, got {value!r}")
     return value
 
 

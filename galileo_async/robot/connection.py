@@ -4,35 +4,40 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sys
 from collections.abc import Generator
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
+from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import open_link
-from .options import ROBOT_OPTIONS, check_connect_options
+from .options import check_connect_options
 from .robot import Robot
 from .runtime import finish_shielded, running_loop
+
+if TYPE_CHECKING:  # annotations only: no runtime dependency on typing_extensions
+    if sys.version_info >= (3, 11):
+        from typing import Unpack
+    else:
+        from typing_extensions import Unpack
 
 __all__ = ["FIRST_STATUS_TIMEOUT", "Connection", "connect"]
 
 _log = logging.getLogger(__name__)
 
-#: Seconds ``connect`` waits for the first status frame.
-FIRST_STATUS_TIMEOUT = 3.0
-
 
 class Connection:
     """What connect() returns: ``await`` it for a Robot, or use it as ``async with``."""
 
-    def __init__(self, url: str, options: dict[str, Any]) -> None:
+    def __init__(self, url: str, options: ConnectOptions | dict[str, Any]) -> None:
         if not isinstance(url, str) or not url:
             raise InvalidArgument(f"url must be a non-empty string, got {url!r}")
         check_connect_options(url, options)
         self.url = url
-        self._options = options
+        self._options: dict[str, Any] = dict(options)
         self._robot: Robot | None = None
 
     def __await__(self) -> Generator[Any, None, Robot]:
@@ -54,14 +59,16 @@ class Connection:
     async def _open(self) -> Robot:
         running_loop(f"connect({self.url!r})")
         options = dict(self._options)
-        robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
+        robot_options = {n: options.pop(n) for n in list(options) if OPTIONS[n].owner == "robot"}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
         store = StatusStore(
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
         )
-        link = open_link(self.url, store, **options)
+        with options_checked():  # by __init__, once
+            link = open_link(self.url, store, **options)
         try:
-            robot = Robot(link, store, **robot_options)
+            with options_checked():
+                robot = Robot(link, store, **robot_options)
         except BaseException:
             closing = asyncio.get_running_loop().create_task(link.close())
             await finish_shielded(closing, "closing the link")
@@ -95,19 +102,13 @@ async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
         raise ConnectionLost(f"{url}: dropped before the first status frame: {exc}") from exc
 
 
-def connect(url: str, **options: Any) -> Connection:
+def connect(url: str, **options: Unpack[ConnectOptions]) -> Connection:
     """Connect to the robot at ``url``: ``async with connect(url) as robot`` or ``await``.
 
     ``url``: a serial device path, ``socket://host:port``, ``udp://host[:port]``, ``sim://…``
-    or ``ros://…``.
-    Robot options: ``map_targets``, ``accept_timeout``, ``arrive_tolerance``,
-    ``goal_timeout`` and ``wait_timeout`` (default timeouts of goto and wait_until),
-    ``angle_tolerance`` (degrees: rotate_to's "already facing"),
-    ``first_status_timeout`` (seconds to wait for the first frame; None: do not wait).
-    Link options: ``baudrate``, ``layout``, ``reconnect``, ``stale_timeout``,
-    ``stale_reconnect``, ``reconnect_initial``, ``reconnect_max``, ``min_command_interval``,
-    ``drain_timeout``, ``max_queued_commands``, ``connect_timeout``; ros:// links take
-    their own. All are checked here, before anything opens (InvalidArgument naming one);
-    connecting needs a running asyncio loop (AsyncioRequired otherwise).
+    or ``ros://…``. ``options``: those of galileo_async.options.ConnectOptions (OPTIONS
+    describes each: type, default, which link kinds take it). All are checked here, once,
+    before anything opens (InvalidArgument naming one); connecting needs a running asyncio
+    loop (AsyncioRequired otherwise).
     """
     return Connection(url, options)

@@ -18,6 +18,7 @@ from ..errors import (
     GalileoError,
     NotReady,
 )
+from ..options import DEFAULT_MAX_ANGULAR_SPEED, DEFAULT_MAX_LINEAR_SPEED
 from ..protocol import Backward, Command, Forward, Stop, TurnLeft, TurnRight, speed_commands
 from ..protocol.velocity import Velocity
 from .operations import CANCEL_SEND_TIMEOUT
@@ -38,10 +39,6 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: m/s at 100 % of ``f``/``b`` (the vendor's MAX_VEL, VENDOR.md §2.3).
-DEFAULT_MAX_LINEAR_SPEED = 0.8
-#: rad/s at 100 % of ``c``/``d`` (kinetic builds; noetic builds use 1.2).
-DEFAULT_MAX_ANGULAR_SPEED = 1.5
 #: Keep-alive rates in Hz: the slowest chassis watchdog stops 1 s after the last command.
 MIN_DRIVE_RATE, DEFAULT_DRIVE_RATE, MAX_DRIVE_RATE = 2.0, 5.0, 20.0
 

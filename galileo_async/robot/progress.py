@@ -6,12 +6,11 @@ import math
 
 from ..errors import GoalStalled
 from ..models import GalileoStatus, Pose, TargetStatus
+from ..options import DEFAULT_PROGRESS_TIMEOUT
 from ..transitions import valid_distance
 
 __all__ = ["DEFAULT_PROGRESS_TIMEOUT", "PROGRESS_RADIUS", "ProgressCheck"]
 
-#: Seconds of unpaused goal time without progress before a goto fails (GoalStalled).
-DEFAULT_PROGRESS_TIMEOUT = 60.0
 #: Metres the pose must move, or target_distance fall, to count as progress.
 PROGRESS_RADIUS = 0.1
 

@@ -15,6 +15,7 @@ from ..errors import (
 )
 from ..events import Event
 from ..models import GalileoStatus
+from ..options import DEFAULT_ACCEPT_TIMEOUT, DEFAULT_GOAL_TIMEOUT, DEFAULT_WAIT_TIMEOUT
 from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation, Velocity
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
@@ -67,12 +68,6 @@ __all__ = [
     "RobotDefault",
 ]
 
-#: Seconds for the robot to show a goal as working after ``g N``.
-DEFAULT_ACCEPT_TIMEOUT = 5.0
-#: Seconds a goto/goto_point may take by default (the Robot's ``goal_timeout``).
-DEFAULT_GOAL_TIMEOUT = 600.0
-#: Seconds wait_until waits by default (the Robot's ``wait_timeout``).
-DEFAULT_WAIT_TIMEOUT = 30.0
 #: Seconds for navigation to open and the visual system to initialise.
 NAVIGATION_TIMEOUT = 60.0
 

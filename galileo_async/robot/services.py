@@ -15,6 +15,7 @@ from ..errors import (
     UnconfirmedOperation,
 )
 from ..models import AngleGoalStatus, ChargeStatus, GalileoStatus, TargetStatus
+from ..options import DEFAULT_ANGLE_TOLERANCE
 from ..protocol import (
     AddTarget,
     Backward,
@@ -56,8 +57,6 @@ from .targets import DynamicTargets
 
 __all__ = ["DEFAULT_ANGLE_TOLERANCE", "RobotServices"]
 
-#: Degrees within which the robot already faces a rotate_to heading (the Robot's option).
-DEFAULT_ANGLE_TOLERANCE = 2.0
 
 _ROTATE_READY = Require(
     lambda s: s.visual_initialised and not s.goal_active,

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import GoalAborted, InvalidArgument, NotReady
 from ..models import GalileoStatus
+from ..options import MAX_TARGET_ID
 from ..protocol import AddTarget, ResetTargets
 from ..transitions import arrived
 from .operations import NAVIGATING, Operations, Require, Sent
@@ -17,9 +18,6 @@ if TYPE_CHECKING:
     from .goal import GoalResult
 
 __all__ = ["MAX_TARGET_ID", "DynamicTargets", "landed_at"]
-
-#: Highest goal id the ``g`` command can carry.
-MAX_TARGET_ID = 255
 
 
 class DynamicTargets:

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import logging
-import re
 import socket
 from collections.abc import Mapping
 from urllib.parse import urlsplit, urlunsplit
 
-from ..errors import InvalidArgument
+from .._checks import host_key as _key
+from .._checks import ip_literal as _ip
+from .._checks import parse_hosts
 from .xmlrpc import RosApiError
 
 __all__ = ["RESOLVE_TIMEOUT", "PeerAddresses", "local_address_for", "parse_hosts"]
@@ -19,51 +19,6 @@ _log = logging.getLogger(__name__)
 
 #: Longest a peer's host name may take to resolve before it counts as unresolvable.
 RESOLVE_TIMEOUT = 2.0
-# RFC 1123 labels; underscores too, which robots' host names do use.
-_LABEL = re.compile(r"[A-Za-z0-9_]([A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?\Z")
-
-
-def _is_host_name(name: str) -> bool:
-    labels = name[:-1].split(".") if name.endswith(".") else name.split(".")
-    return 0 < len(name) <= 253 and all(_LABEL.match(label) for label in labels)
-
-
-def _key(name: str) -> str:
-    return name.lower().rstrip(".")
-
-
-def _ip(text: str) -> str | None:
-    """``text`` as a normalised IP address literal, or None when it is not one."""
-    try:
-        return str(ipaddress.ip_address(text.strip("[]")))
-    except ValueError:
-        return None
-
-
-def parse_hosts(hosts: str | Mapping[str, str]) -> dict[str, str]:
-    """``name=ip,name2=ip2`` (or a mapping) → {lower-case name: ip}; InvalidArgument if bad."""
-    if isinstance(hosts, str):
-        pairs: list[tuple[str, str]] = []
-        for entry in hosts.split(","):
-            name, sep, address = entry.strip().partition("=")
-            if not sep:
-                raise InvalidArgument(f"hosts: expected name=ip, got {entry.strip()!r}")
-            pairs.append((name.strip(), address.strip()))
-    elif isinstance(hosts, Mapping):
-        pairs = list(hosts.items())
-    else:
-        raise InvalidArgument(f"hosts must be 'name=ip,…' or a mapping, got {hosts!r}")
-    parsed: dict[str, str] = {}
-    for name, address in pairs:
-        if not isinstance(name, str) or not _is_host_name(name):
-            raise InvalidArgument(f"hosts: {name!r} is not a host name")
-        ip = _ip(address) if isinstance(address, str) else None
-        if ip is None:
-            raise InvalidArgument(f"hosts: the address of {name} must be an IP, got {address!r}")
-        if _key(name) in parsed:
-            raise InvalidArgument(f"hosts: {name} is given twice")
-        parsed[_key(name)] = ip
-    return parsed
 
 
 class PeerAddresses:

@@ -5,17 +5,17 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from .._checks import check_names, check_seconds
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ..models import GalileoStatus
+from ..options import OPTIONS, check_options, check_values
 from ..protocol.commands import Command
 from ..protocol.velocity import Velocity
 from ..transports.base import BaseLink
-from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS, check_values
+from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS
 from ..transports.stats import StatusSink
 from .hosts import local_address_for, parse_hosts
 from .node import (
@@ -55,54 +55,28 @@ _QUERY_OPTIONS: dict[str, Any] = {
 # Serial-only options a generic caller may pass along; they mean nothing over ROS.
 _IGNORED_OPTIONS = ("baudrate", "serial_options")
 #: Options of a ros:// link on top of every link's (LINK_OPTIONS).
-ROS_OPTIONS = (
-    "host", "bind", "node_name", "connect_timeout", "rpc_timeout", "master_check_interval",
-    "hosts", "layout", *_IGNORED_OPTIONS,
-)  # fmt: skip
+ROS_OPTIONS = tuple(
+    name
+    for name, option in OPTIONS.items()
+    if option.owner == "link" and option.takes("ros") and name not in LINK_OPTIONS
+)
 
 
-def _check_name(name: str, value: object) -> None:
-    if value is not None and not (isinstance(value, str) and value):
-        raise InvalidArgument(f"{name} must be a non-empty string or None, got {value!r}")
-
-
-def _check_hosts(name: str, value: Any) -> None:
-    if value is not None:
-        parse_hosts(value)
-
-
-def _check_layout(name: str, value: object) -> None:
-    if value is not None and str(value) != "ros":
-        raise InvalidArgument(
-            f"{name} {value!r} does not apply to ros:// (status is decoded by name)"
-        )
-
-
-_ROS_CHECKS: dict[str, Callable[[str, Any], object]] = {
-    "host": _check_name,
-    "bind": _check_name,
-    "node_name": _check_name,
-    "connect_timeout": check_seconds,
-    "rpc_timeout": check_seconds,
-    "master_check_interval": check_seconds,
-    "hosts": _check_hosts,
-    "layout": _check_layout,
-}
-
-
-def check_ros_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
+def check_ros_options(
+    url: str,
+    options: Mapping[str, Any],
+    *,
+    also: Collection[str] = (),
+    owners: Collection[str] = ("link",),
+) -> None:
     """Raise InvalidArgument for a bad ros:// URL, an unknown option or a bad value; opens nothing.
 
-    ``also``: further option names the caller takes itself.
+    ``owners``: whose options (galileo_async.options) are taken; ``also``: further option
+    names the caller takes and checks itself.
     """
     _, url_options = parse_ros_url(url)
-    check_names(options, {*LINK_OPTIONS, *ROS_OPTIONS, *also})
-    merged = {**url_options, **options}
-    for name, value in merged.items():
-        check = _ROS_CHECKS.get(name)
-        if check is not None:
-            check(name, value)
-    check_values({name: value for name, value in merged.items() if name not in _ROS_CHECKS})
+    check_values(url_options, "ros")
+    check_options("ros", options, owners=owners, also=also)
 
 
 def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:

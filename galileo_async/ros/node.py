@@ -16,6 +16,7 @@ from urllib.parse import urlsplit
 
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import GalileoStatus
+from ..options import DEFAULT_CONNECT_TIMEOUT, DEFAULT_MASTER_CHECK_INTERVAL, DEFAULT_RPC_TIMEOUT
 from ..protocol.commands import Command
 from .hosts import PeerAddresses
 from .messages import (
@@ -50,12 +51,6 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: How long start() waits for the robot's status publisher and its cmds subscriber.
-DEFAULT_CONNECT_TIMEOUT = 5.0
-#: Bound on each XML-RPC call to the master or a peer.
-DEFAULT_RPC_TIMEOUT = 2.0
-#: How often the master is polled to notice a restart and register again.
-DEFAULT_MASTER_CHECK_INTERVAL = 1.0
 #: Bound on everything close() awaits (unregistering, servers closing): within BaseLink's.
 CLOSE_BOUND = 1.0
 

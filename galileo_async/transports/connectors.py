@@ -13,8 +13,8 @@ from types import ModuleType
 from typing import Any
 from urllib.parse import urlsplit
 
-from .._checks import check_seconds
 from ..errors import GalileoConnectionError, GalileoError, InvalidArgument, PortBusy
+from ..options import DEFAULT_BAUDRATE, DEFAULT_CONNECT_TIMEOUT
 from .options import check_values
 
 __all__ = [
@@ -33,10 +33,6 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: The navigation serial port runs at 115200 baud, 8N1 (PROTOCOL.md, introduction).
-DEFAULT_BAUDRATE = 115200
-#: Longest a TCP connect may take before it counts as failed.
-DEFAULT_CONNECT_TIMEOUT = 5.0
 #: TCP keepalive on socket:// connections: a peer whose host vanished sends no FIN; after
 #: KEEPALIVE_IDLE s of silence, KEEPALIVE_COUNT unanswered probes KEEPALIVE_INTERVAL s apart
 #: report it as a lost connection (about 11 s, instead of never).
@@ -133,7 +129,7 @@ def socket_connector(
 
     Its errors name ``name`` (the link's URL), else ``host:port``.
     """
-    check_seconds("connect_timeout", connect_timeout)
+    check_values({"connect_timeout": connect_timeout})
     what = f"cannot connect to {name or f'{host}:{port}'}"
 
     async def connect(

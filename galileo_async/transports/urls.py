@@ -7,8 +7,9 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
-from .._checks import check_names, naming
+from .._checks import naming
 from ..errors import GalileoConnectionError, InvalidArgument
+from ..options import LINK_KINDS, check_options
 from .base import BaseLink
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -18,13 +19,7 @@ from .connectors import (
     serial_connector,
     socket_connector,
 )
-from .options import (
-    LINK_OPTIONS,
-    PORTABLE_OPTIONS,
-    STREAM_OPTIONS,
-    UDP_OPTIONS,
-    check_values,
-)
+from .options import PORTABLE_OPTIONS
 from .stats import StatusSink
 from .stream import StreamLink
 from .udp import UdpLink, parse_udp_url
@@ -38,26 +33,26 @@ __all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 def link_kind(url: str) -> str:
     """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
     scheme = urlsplit(url).scheme.lower()
-    return scheme if scheme in ("ros", "socket", "udp", "sim") else "serial"
+    return scheme if scheme in LINK_KINDS else "serial"  # a path or any pyserial URL
 
 
-def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
+def check_link_options(
+    url: str,
+    options: Mapping[str, Any],
+    *,
+    also: Collection[str] = (),
+    owners: Collection[str] = ("link",),
+) -> None:
     """Raise InvalidArgument for a bad URL, an option its link does not take, or a bad value.
 
-    Opens and builds nothing. ``also``: further option names the caller takes itself.
+    Opens and builds nothing. ``owners``: whose options (galileo_async.options) are taken;
+    ``also``: further option names the caller takes and checks itself.
     """
     kind = link_kind(url)
     if kind == "ros":
-        _ros_module(url).check_ros_options(url, options, also=also)
+        _ros_module(url).check_ros_options(url, options, also=also, owners=owners)
         return
-    accepted = {*LINK_OPTIONS, *(UDP_OPTIONS if kind == "udp" else STREAM_OPTIONS), *also}
-    for name in options:
-        if name not in accepted and name in STREAM_OPTIONS:
-            raise InvalidArgument(f"{name} does not apply to udp:// links")
-        if name not in accepted and name in _ros_module(url).ROS_OPTIONS:
-            raise InvalidArgument(f"{name} applies to ros:// links only")
-    check_names(options, accepted)
-    check_values(options)
+    check_options(kind, options, owners=owners, also=also)
     if kind == "socket":
         parse_socket_url(url)
     elif kind == "udp":
