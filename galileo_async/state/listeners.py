@@ -29,21 +29,30 @@ class Listeners:
     add (adding it twice calls it twice). Tuples: the store's hot path iterates a snapshot.
     """
 
-    __slots__ = ("_event_listeners", "_legacy_event", "_legacy_update", "_update_listeners")
+    __slots__ = (
+        "_event_listeners", "_legacy_event", "_legacy_update", "_update_listeners", "_update_one",
+    )  # fmt: skip
 
     def __init__(self) -> None:
         self._update_listeners: tuple[StatusListener, ...] = ()
+        # The only status listener, when there is exactly one (a fleet's): called without
+        # a loop, per frame of every robot (BENCHMARKS.md §2).
+        self._update_one: StatusListener | None = None
         self._event_listeners: tuple[EventListener, ...] = ()
         self._legacy_update: StatusListener | None = None
         self._legacy_event: EventListener | None = None
 
     def add_update_listener(self, listener: StatusListener) -> None:
         """Call ``listener(status)`` with every later recorded status (placeholders are not)."""
-        self._update_listeners = (*self._update_listeners, listener)
+        self._set_update_listeners((*self._update_listeners, listener))
 
     def remove_update_listener(self, listener: StatusListener) -> None:
         """Stop calling ``listener`` (no-op if it is not one)."""
-        self._update_listeners = _without(self._update_listeners, listener)
+        self._set_update_listeners(_without(self._update_listeners, listener))
+
+    def _set_update_listeners(self, listeners: tuple[StatusListener, ...]) -> None:
+        self._update_listeners = listeners
+        self._update_one = listeners[0] if len(listeners) == 1 else None
 
     def add_event_listener(self, listener: EventListener) -> None:
         """Call ``listener(event)`` with every later event; events are derived while any listens."""

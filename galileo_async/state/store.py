@@ -153,9 +153,14 @@ class StatusStore(Listeners):
             offer_to_waiting(self._waiting_streams, status, updates)
         if self._watch_refs:
             offer_to_watches(self._watch_refs, status)
-        listeners = self._update_listeners
-        if listeners:
-            for listener in listeners:
+        one = self._update_one
+        if one is not None:
+            try:
+                one(status)
+            except Exception:
+                _log.exception("status listener %r failed", one)
+        elif self._update_listeners:
+            for listener in self._update_listeners:
                 try:
                     listener(status)
                 except Exception:  # one broken listener must not stop the others
