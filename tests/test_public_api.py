@@ -45,8 +45,9 @@ def test_robot_keeps_the_design_contract() -> None:
     robot = galileo.Robot
     for name in ROBOT_COROUTINES:
         assert inspect.iscoroutinefunction(getattr(robot, name)), name
-    for name in ("statuses", "events", "link_states", "add_update_listener",
-                 "remove_update_listener", "add_event_listener", "remove_event_listener"):  # fmt: skip
+    listeners = ("add_update_listener", "remove_update_listener", "add_event_listener",
+                 "remove_event_listener")  # fmt: skip
+    for name in ("statuses", "events", "link_states", *listeners):
         assert callable(getattr(robot, name)), name
     for name in ("status", "link", "link_state"):
         assert isinstance(inspect.getattr_static(robot, name), property), name
