@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -9,6 +10,8 @@ from ..events import Event
 from ..models import GalileoStatus
 
 __all__ = ["EventListener", "Listeners", "StatusListener"]
+
+_log = logging.getLogger("galileo_async.state.store")
 
 StatusListener = Callable[[GalileoStatus], None]
 EventListener = Callable[[Event], None]
@@ -62,6 +65,20 @@ class Listeners:
         """Stop calling ``listener`` (no-op if it is not one)."""
         self._event_listeners = _without(self._event_listeners, listener)
         self._listeners_changed()
+
+    def _call_update_listeners(self, status: GalileoStatus) -> None:
+        for listener in self._update_listeners:
+            try:
+                listener(status)
+            except Exception:  # one broken listener must not stop the others
+                _log.exception("status listener %r failed", listener)
+
+    def _call_event_listeners(self, event: Event) -> None:
+        for listener in self._event_listeners:
+            try:
+                listener(event)
+            except Exception:  # one broken listener must not stop the others
+                _log.exception("event listener %r failed", listener)
 
     def _listeners_changed(self) -> None:
         """An event listener went away (the store forgets its event key when none is left)."""

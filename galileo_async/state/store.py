@@ -160,11 +160,7 @@ class StatusStore(Listeners):
             except Exception:
                 _log.exception("status listener %r failed", one)
         elif self._update_listeners:
-            for listener in self._update_listeners:
-                try:
-                    listener(status)
-                except Exception:  # one broken listener must not stop the others
-                    _log.exception("status listener %r failed", listener)
+            self._call_update_listeners(status)
 
     def _placeholder(self) -> None:
         """A placeholder frame: the link is up, but the robot's state is unknown (again)."""
@@ -389,10 +385,7 @@ class StatusStore(Listeners):
     def _emit(self, event: Event) -> None:
         for stream in self._event_streams:
             stream.offer(event)
-        for listener in self._event_listeners:
-            try:
-                listener(event)
-            except Exception:  # one broken listener must not stop the others
-                _log.exception("event listener %r failed", listener)
+        if self._event_listeners:
+            self._call_event_listeners(event)
         if _log.isEnabledFor(logging.DEBUG):
             _log.debug("event %s", type(event).__name__)
