@@ -57,7 +57,7 @@ async def test_a_link_walks_connecting_up_stale_up_lost_up_closed(
     device: FakeDevice, links: list[BaseLink]
 ) -> None:
     link = open_link(
-        device.url, StatusStore(), stale_timeout=0.3, stale_reconnect=10.0,
+        device.url, StatusStore(), stale_timeout=0.5, stale_reconnect=10.0,
         reconnect_initial=0.02, reconnect_max=0.1,
     )  # fmt: skip
     links.append(link)
