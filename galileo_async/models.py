@@ -14,6 +14,7 @@ __all__ = [
     "AngleGoalStatus",
     "ChargeStatus",
     "GalileoStatus",
+    "LinkState",
     "MapStatus",
     "NavStatus",
     "Pose",
@@ -126,6 +127,25 @@ class StatusLayout(str, enum.Enum):
 
     def __str__(self) -> str:
         return self.value
+
+
+class LinkState(enum.Enum):
+    """Where a link is; one outage goes UP → STALE → LOST → UP, each step reported once.
+
+    The link keeps it (transports.BaseLink.state); read it as ``Robot.link_state``.
+    """
+
+    #: Opened the first time, or opening; no valid frame yet.
+    CONNECTING = "connecting"
+    #: Valid status frames arrive.
+    UP = "up"
+    #: Connected, but no valid frame for stale_timeout.
+    STALE = "stale"
+    #: The transport dropped or was given up; it stays lost, reopened or not, until a
+    #: valid frame arrives (a reopened port nobody answers on is still lost).
+    LOST = "lost"
+    #: close() has started.
+    CLOSED = "closed"
 
 
 class Pose(BaseModel):

@@ -249,7 +249,7 @@ async def test_close_ends_merged_streams_and_is_idempotent() -> None:
         await fleet.close()
         assert fleet.closed
         assert robot.closed
-        assert fleet.state("a") is RobotState.LOST
+        assert fleet.state("a") is RobotState.CLOSED  # its link is closed, not lost
         with anyio.fail_after(WAIT):
             remaining = [item async for item in statuses]
             assert len(remaining) <= 1  # the latest status, if not taken yet

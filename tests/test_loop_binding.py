@@ -27,6 +27,11 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "set_patrol_dwell": (5,),
     "send": (Stop(100),),
     "wait_until": (lambda _status: True,),
+    "wait_link": (galileo.LinkState.UP,),
+    "add_update_listener": (print,),
+    "remove_update_listener": (print,),
+    "add_event_listener": (print,),
+    "remove_event_listener": (print,),
 }
 KEYWORDS: dict[str, dict[str, Any]] = {"shutdown_host": {"confirm": True}}
 

@@ -17,7 +17,7 @@ PUBLIC = {
     "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
-    "GoalStalled",
+    "GoalStalled", "LinkState",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.
@@ -27,6 +27,7 @@ ROBOT_COROUTINES = {
     "turn_left", "turn_right", "stop", "start_patrol", "stop_patrol", "set_patrol_dwell",
     "start_mapping", "stop_mapping", "save_map", "update_map", "start_charging",
     "stop_charging", "save_dock", "shutdown_host", "send", "wait_until", "close",
+    "wait_link",
 }  # fmt: skip
 
 
@@ -44,9 +45,11 @@ def test_robot_keeps_the_design_contract() -> None:
     robot = galileo.Robot
     for name in ROBOT_COROUTINES:
         assert inspect.iscoroutinefunction(getattr(robot, name)), name
-    for name in ("statuses", "events"):
+    listeners = ("add_update_listener", "remove_update_listener", "add_event_listener",
+                 "remove_event_listener")  # fmt: skip
+    for name in ("statuses", "events", "link_states", *listeners):
         assert callable(getattr(robot, name)), name
-    for name in ("status", "link"):
+    for name in ("status", "link", "link_state"):
         assert isinstance(inspect.getattr_static(robot, name), property), name
 
 

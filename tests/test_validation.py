@@ -225,6 +225,9 @@ async def test_sim_url_options_are_checked_before_the_simulator_is_built(query: 
 Call = Callable[[galileo.Robot, Any], Awaitable[object]]
 
 
+LOST = galileo.LinkState.LOST
+
+
 def _always_true(status: object) -> bool:
     return True
 
@@ -232,6 +235,7 @@ def _always_true(status: object) -> bool:
 #: (argument, call with the value in that argument, the values it takes among BAD_VALUES).
 ARGUMENTS: dict[str, tuple[str, Call, tuple[Any, ...]]] = {
     "wait_until-timeout": ("timeout", lambda r, v: r.wait_until(_always_true, timeout=v), ()),
+    "wait_link-timeout": ("timeout", lambda r, v: r.wait_link(LOST, timeout=v), ()),
     "send-timeout": ("timeout", lambda r, v: r.send(Stop(), timeout=v), ()),
     "start_navigation-timeout": ("timeout", lambda r, v: r.start_navigation(timeout=v), ()),
     "stop_navigation-timeout": ("timeout", lambda r, v: r.stop_navigation(timeout=v), ()),

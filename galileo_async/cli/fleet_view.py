@@ -13,16 +13,16 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from ..fleet.fleet import Fleet, RobotState
-from ..models import GalileoStatus, TargetStatus
+from ..fleet.fleet import Fleet
+from ..models import GalileoStatus, LinkState, TargetStatus
 from .map_model import MapModel
 from .map_render import map_panel
 
 __all__ = ["SORT_KEYS", "FleetRow", "FleetView", "fleet_rows", "summary_line"]
 
 #: Link state colours of the table.
-_STATE_STYLES = {RobotState.UP: "green", RobotState.STALE: "yellow", RobotState.LOST: "red",
-                 RobotState.CONNECTING: "dim"}  # fmt: skip
+_STATE_STYLES = {LinkState.UP: "green", LinkState.STALE: "yellow", LinkState.LOST: "red",
+                 LinkState.CONNECTING: "dim", LinkState.CLOSED: "dim"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ class FleetRow:
     """One robot's line of the fleet table, as plain values."""
 
     name: str
-    state: RobotState
+    state: LinkState
     age: float | None
     nav: str
     visual: str
@@ -100,7 +100,7 @@ def _missing_last(value: float | None) -> tuple[bool, float]:
 #: Sort keys of --sort and what each sorts on.
 SORT_KEYS: dict[str, Callable[[FleetRow], Any]] = {
     "name": lambda row: row.name,
-    "state": lambda row: (list(RobotState).index(row.state), row.name),
+    "state": lambda row: (list(LinkState).index(row.state), row.name),
     "age": lambda row: _missing_last(row.age),
     "goal": lambda row: (row.goal is None, row.goal or 0, row.name),
     "distance": lambda row: _missing_last(row.distance),
@@ -109,12 +109,12 @@ SORT_KEYS: dict[str, Callable[[FleetRow], Any]] = {
 
 
 def summary_line(rows: list[FleetRow]) -> str:
-    """``N robots · up U · stale S · lost L · connecting C · goals running G``."""
-    counts = {state: 0 for state in RobotState}
+    """``N robots · connecting C · up U · stale S · lost L · closed D · goals running G``."""
+    counts = {state: 0 for state in LinkState}
     for row in rows:
         counts[row.state] += 1
     running = sum(1 for row in rows if row.goal_state == TargetStatus.WORKING.name.lower())
-    states = " · ".join(f"{state.value} {counts[state]}" for state in RobotState)
+    states = " · ".join(f"{state.value} {counts[state]}" for state in LinkState)
     return f"{len(rows)} robots · {states} · goals running {running}"
 
 
@@ -145,7 +145,7 @@ class FleetView:
 
     def __init__(
         self, fleet: Fleet, model: MapModel, *, sort: str = "name", match: str = "",
-        states: set[RobotState] | None = None, limit: int = 20, map_rows: int = 16,
+        states: set[LinkState] | None = None, limit: int = 20, map_rows: int = 16,
     ) -> None:  # fmt: skip
         self.fleet = fleet
         self.model = model

@@ -96,9 +96,10 @@ def link_dict(link: object) -> dict[str, Any]:
                 values[f.name] = value
     age = getattr(link, "last_frame_age", None)
     values["last_frame_age"] = None if age is None else round(float(age), 3)
-    layout = values.get("layout")
-    if isinstance(layout, enum.Enum):
-        values["layout"] = layout.value
+    for key in ("layout", "state"):  # StatusLayout, LinkState
+        value = values.get(key)
+        if isinstance(value, enum.Enum):
+            values[key] = value.value
     return values
 
 
@@ -224,17 +225,18 @@ _LINK_ROWS = (
 )
 
 
+#: How the monitor shows each link state (LinkState values, link_dict's "state").
+LINK_STATE_MARKUP = {
+    "connecting": "[dim]connecting[/]", "up": "up", "stale": "[bold yellow]stale[/]",
+    "lost": "[bold red]lost[/]", "closed": "[dim]closed[/]",
+}  # fmt: skip
+
+
 def _link_rows(stats: dict[str, Any]) -> list[tuple[str, str]]:
     rows = [(label, _value(stats.get(key))) for key, label in _LINK_ROWS]
-    state = (
-        "[bold yellow]stale[/]"
-        if stats.get("stale")
-        else "up"
-        if stats.get("connected")
-        else "[bold red]down[/]"
-    )
+    state = str(stats.get("state", "connecting"))
     age = stats.get("last_frame_age")
-    rows.append(("link", state))
+    rows.append(("link", LINK_STATE_MARKUP.get(state, state)))
     rows.append(("age", "—" if age is None else f"{age * 1000:.0f} ms"))
     return rows
 

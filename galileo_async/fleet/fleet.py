@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import enum
 import logging
 from collections.abc import Awaitable, Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -12,13 +11,8 @@ from typing import Any, Generic, TypeVar
 
 import anyio
 
-from ..errors import (
-    ConnectionLost,
-    GalileoConnectionError,
-    InvalidArgument,
-    LinkStale,
-    NotReady,
-)
+from ..errors import GalileoConnectionError, InvalidArgument, NotReady
+from ..models import LinkState
 from ..robot import Robot, connect
 from ..robot.runtime import finish_shielded
 from .streams import (
@@ -55,13 +49,8 @@ _RETRIED = (GalileoConnectionError, OSError, TimeoutError)
 _T = TypeVar("_T")
 
 
-class RobotState(str, enum.Enum):
-    """A fleet robot's connection state."""
-
-    CONNECTING = "connecting"  # its first connection is being made
-    UP = "up"  # connected, frames arrive
-    STALE = "stale"  # connected, but no valid frame for stale_timeout s
-    LOST = "lost"  # the connection dropped or never came up (tried again with back-off)
+#: A fleet robot's state is its link's (LinkState); the name of earlier versions.
+RobotState = LinkState
 
 
 @dataclass(frozen=True)
@@ -140,20 +129,16 @@ class Fleet:
         """The URL robot ``name`` connects to."""
         return self._members[name].url
 
-    def state(self, name: str) -> RobotState:
-        """Robot ``name``'s connection state now."""
+    def state(self, name: str) -> LinkState:
+        """Robot ``name``'s link state now (Robot.link_state); before its first connection
+        CONNECTING, and LOST once a try failed (it is tried again with back-off)."""
         member = self._members[name]
         robot = member.robot
         if robot is None:
-            return RobotState.CONNECTING if member.attempts == 0 else RobotState.LOST
-        error = robot._store.link_error
-        if robot.closed or robot._store.closed or isinstance(error, ConnectionLost):
-            return RobotState.LOST
-        if isinstance(error, LinkStale):
-            return RobotState.STALE
-        return RobotState.UP
+            return LinkState.CONNECTING if member.attempts == 0 else LinkState.LOST
+        return robot.link_state
 
-    def states(self) -> dict[str, RobotState]:
+    def states(self) -> dict[str, LinkState]:
         """Every robot's connection state."""
         return {name: self.state(name) for name in self._members}
 
@@ -246,7 +231,7 @@ class Fleet:
                 return
             member.robot, member.error = robot, None
             member.attempts += 1
-            self._hub.attach(member.name, robot._store)
+            self._hub.attach(member.name, robot)
             member.tried.set()
             return
 

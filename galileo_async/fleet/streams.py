@@ -1,6 +1,6 @@
 """A fleet's merged streams: one iterator over every robot, coalesced per robot (no I/O).
 
-The stores call their robot's listener synchronously on every status (StatusStore.on_update):
+Each robot calls the hub's listener synchronously on every status (Robot.add_update_listener):
 it marks the robot in each merged stream's dirty set and wakes that stream's consumer, if
 it waits. No task per robot runs per frame, and a slow consumer finds each robot once, with
 its newest status, however many frames came meanwhile.
@@ -11,19 +11,42 @@ from __future__ import annotations
 import asyncio
 import weakref
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from ..events import Event
 from ..models import GalileoStatus
-from ..state.streams import Subscribers, _Queue
+from ..state import BoundedQueue, Subscribers
 
-if TYPE_CHECKING:
-    from ..state.store import StatusStore
-
-__all__ = ["DEFAULT_FLEET_EVENT_QUEUE", "FleetEventStream", "FleetHub", "FleetStatusStream"]
+__all__ = [
+    "DEFAULT_FLEET_EVENT_QUEUE",
+    "FleetEventStream",
+    "FleetHub",
+    "FleetStatusStream",
+    "StatusFeed",
+]
 
 #: (name, event) pairs a fleet events() consumer keeps before it drops the oldest.
 DEFAULT_FLEET_EVENT_QUEUE = 4096
+
+
+class StatusFeed(Protocol):
+    """What the hub follows of one robot (a Robot; a StatusStore in tests): public API only."""
+
+    @property
+    def status(self) -> GalileoStatus | None:
+        """The latest status, None before the first."""
+
+    def add_update_listener(self, listener: Callable[[GalileoStatus], None]) -> None:
+        """Call ``listener`` with every later status."""
+
+    def remove_update_listener(self, listener: Callable[[GalileoStatus], None]) -> None:
+        """Stop calling ``listener``."""
+
+    def add_event_listener(self, listener: Callable[[Event], None]) -> None:
+        """Call ``listener`` with every later event."""
+
+    def remove_event_listener(self, listener: Callable[[Event], None]) -> None:
+        """Stop calling ``listener``."""
 
 
 class FleetStatusStream:
@@ -115,38 +138,52 @@ class FleetStatusStream:
         self.close()
 
 
-class FleetEventStream(_Queue[tuple[str, Event]]):
+class FleetEventStream(BoundedQueue[tuple[str, Event]]):
     """Async iterator of ``(name, event)`` over a fleet (bounded: the oldest is dropped)."""
 
     __slots__ = ()
 
 
 class FleetHub:
-    """The fleet's stores by name and its merged streams; the stores' listeners feed it."""
+    """The fleet's robots by name and its merged streams; their listeners feed it."""
 
     def __init__(self) -> None:
-        self.stores: dict[str, StatusStore] = {}
+        #: The robots (their feeds) by name.
+        self.stores: dict[str, StatusFeed] = {}
+        # The listeners given to each feed, to take back on detach.
+        self._status_listeners: dict[str, Callable[[GalileoStatus], None]] = {}
+        self._event_listeners: dict[str, Callable[[Event], None]] = {}
         self.closed = False
         self.status_streams: Subscribers[FleetStatusStream] = Subscribers(self._set_status_refs)
         self.event_streams: Subscribers[FleetEventStream] = Subscribers(self._set_event_refs)
         self._status_refs: tuple[weakref.ref[FleetStatusStream], ...] = ()
         self._listening_events = False
 
-    def attach(self, name: str, store: StatusStore) -> None:
+    def attach(self, name: str, store: StatusFeed) -> None:
         """Feed this hub from ``store`` (a robot of the fleet that connected)."""
         self.stores[name] = store
-        store.on_update = self._status_listener(name)
+        listener = self._status_listeners[name] = self._status_listener(name)
+        store.add_update_listener(listener)
         if self._listening_events:
-            store.listen_events(self._event_listener(name))
+            self._listen_events(name, store)
         if store.status is not None:
             self._mark(name)
 
     def detach(self, name: str) -> None:
-        """Stop listening to ``name``'s store."""
+        """Stop listening to ``name``'s robot."""
         store = self.stores.pop(name, None)
         if store is not None:
-            store.on_update = None
-            store.listen_events(None)
+            store.remove_update_listener(self._status_listeners.pop(name))
+            self._unlisten_events(name, store)
+
+    def _listen_events(self, name: str, store: StatusFeed) -> None:
+        listener = self._event_listeners[name] = self._event_listener(name)
+        store.add_event_listener(listener)
+
+    def _unlisten_events(self, name: str, store: StatusFeed) -> None:
+        listener = self._event_listeners.pop(name, None)
+        if listener is not None:
+            store.remove_event_listener(listener)
 
     def _status_listener(self, name: str) -> Callable[[GalileoStatus], None]:
         def on_update(_status: GalileoStatus) -> None:
@@ -210,4 +247,7 @@ class FleetHub:
             return
         self._listening_events = listening
         for name, store in self.stores.items():
-            store.listen_events(self._event_listener(name) if listening else None)
+            if listening:
+                self._listen_events(name, store)
+            else:
+                self._unlisten_events(name, store)

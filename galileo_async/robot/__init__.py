@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..models import LinkState
+from ..transports import LinkStateStream
 from .connection import FIRST_STATUS_TIMEOUT, Connection, connect
 from .drive import (
     DEFAULT_DRIVE_RATE,
@@ -46,6 +48,8 @@ __all__ = [
     "Connection",
     "DriveSession",
     "GoalResult",
+    "LinkState",
+    "LinkStateStream",
     "Robot",
     "RobotDefault",
     "SpeedLimits",

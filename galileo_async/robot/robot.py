@@ -27,6 +27,7 @@ from .drive import (
     DriveSession,
     SpeedLimits,
 )
+from .following import Following
 from .goal import GoalResult, GoalRunner
 from .operations import (
     CANCEL_SEND_TIMEOUT,
@@ -75,11 +76,12 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(RobotServices):
+class Robot(RobotServices, Following):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
     Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;
-    RobotServices holds the methods besides goto and navigation.
+    RobotServices holds the methods besides goto and navigation, Following the link state
+    and the listeners.
     """
 
     def __init__(

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 from .store import DEFAULT_EVENT_QUEUE, DEFAULT_WATCH_QUEUE, StatusStore
-from .streams import EventStream, StatusSource, StatusStream, Watch
+from .streams import BoundedQueue, EventStream, StatusSource, StatusStream, Subscribers, Watch
 
 __all__ = [
     "DEFAULT_EVENT_QUEUE",
     "DEFAULT_WATCH_QUEUE",
+    "BoundedQueue",
     "EventStream",
     "StatusSource",
     "StatusStore",
     "StatusStream",
+    "Subscribers",
     "Watch",
 ]

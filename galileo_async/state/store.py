@@ -15,6 +15,7 @@ from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, Lin
 from ..events import Event
 from ..models import GalileoStatus
 from ..transitions import ACTIVE, DEFAULT_ARRIVE_TOLERANCE, derive_events, running_distance
+from .listeners import Listeners
 from .streams import (
     EventStream,
     StatusStream,
@@ -52,7 +53,7 @@ _EVENT_KEY = attrgetter(
 _Sub = TypeVar("_Sub", bound="Subscription[Any]")
 
 
-class StatusStore:
+class StatusStore(Listeners):
     """Latest status and everything that waits on it; fed synchronously by the link."""
 
     # Slots keep the attributes update() reads 30 times a second inside the object: one
@@ -61,7 +62,6 @@ class StatusStore:
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
         "_event_streams", "_frame_waiters", "_link_error", "_measured", "_status_hooks",
         "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update",
-        "on_event", "on_update",
         "placeholder_frames", "status", "updates",
     )  # fmt: skip
 
@@ -71,6 +71,7 @@ class StatusStore:
         clock: Callable[[], float] = time.monotonic,
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     ) -> None:
+        super().__init__()
         self.status: GalileoStatus | None = None
         #: How many statuses update() has recorded.
         self.updates = 0
@@ -98,12 +99,6 @@ class StatusStore:
         self._frame_waiters: list[asyncio.Future[None]] = []
         # One-shot callbacks of call_on_next_status().
         self._status_hooks: list[Callable[[GalileoStatus], None]] = []
-        # --- listener hooks (fleet.py) ---
-        #: Called with every recorded status, synchronously; must be cheap and never raise.
-        self.on_update: Callable[[GalileoStatus], None] | None = None
-        #: Called with every event (set it with listen_events); never raises.
-        self.on_event: Callable[[Event], None] | None = None
-        # --- end of listener hooks ---
 
     @property
     def awaiting_robot(self) -> bool:
@@ -124,7 +119,7 @@ class StatusStore:
             return
         if self._frame_waiters:
             self._wake_frame_waiters()
-        if self._event_refs or self.on_event is not None:
+        if self._event_refs or self._event_listeners:
             key = _EVENT_KEY(status)
             if key != self._event_key:
                 self._event_key = key
@@ -158,9 +153,14 @@ class StatusStore:
             offer_to_waiting(self._waiting_streams, status, updates)
         if self._watch_refs:
             offer_to_watches(self._watch_refs, status)
-        on_update = self.on_update
-        if on_update is not None:
-            on_update(status)
+        one = self._update_one
+        if one is not None:
+            try:
+                one(status)
+            except Exception:
+                _log.exception("status listener %r failed", one)
+        elif self._update_listeners:
+            self._call_update_listeners(status)
 
     def _placeholder(self) -> None:
         """A placeholder frame: the link is up, but the robot's state is unknown (again)."""
@@ -322,15 +322,13 @@ class StatusStore:
     def _set_watch_refs(self, refs: tuple[weakref.ref[Watch], ...]) -> None:
         self._watch_refs = refs
 
-    def listen_events(self, on_event: Callable[[Event], None] | None) -> None:
-        """Call ``on_event`` with every later event (None: stop); events are derived for it."""
-        self.on_event = on_event
-        if on_event is None and not self._event_refs:
+    def _listeners_changed(self) -> None:
+        if not self._event_listeners and not self._event_refs:
             self._event_key = None
 
     def _set_event_refs(self, refs: tuple[weakref.ref[EventStream], ...]) -> None:
         self._event_refs = refs
-        if not refs and self.on_event is None:
+        if not refs and not self._event_listeners:
             # Nobody listens: forget the key so that the next listener compares the status
             # before its first frame with that frame.
             self._event_key = None
@@ -387,7 +385,7 @@ class StatusStore:
     def _emit(self, event: Event) -> None:
         for stream in self._event_streams:
             stream.offer(event)
-        if self.on_event is not None:
-            self.on_event(event)
+        if self._event_listeners:
+            self._call_event_listeners(event)
         if _log.isEnabledFor(logging.DEBUG):
             _log.debug("event %s", type(event).__name__)

@@ -19,6 +19,7 @@ from ..models import GalileoStatus
 from .waiters import expire
 
 __all__ = [
+    "BoundedQueue",
     "EventStream",
     "StatusSource",
     "StatusStream",
@@ -65,8 +66,12 @@ class Subscription(Protocol[_T_contra]):
         """End the subscription; buffered items stay readable."""
 
 
-class _Queue(Generic[_T]):
-    """A bounded FIFO with one wake-up future: the core of every subscription."""
+class BoundedQueue(Generic[_T]):
+    """A bounded FIFO async iterator with one wake-up future: the core of every subscription.
+
+    ``offer`` queues (the oldest is dropped when full, counted in ``dropped``), ``close``
+    ends it once drained; ``registry`` is the Subscribers it leaves on close.
+    """
 
     __slots__ = ("__weakref__", "_registry", "_wakeup", "buffer", "closed", "dropped", "error")
 
@@ -113,7 +118,7 @@ class _Queue(Generic[_T]):
             if timer is not None:
                 timer.cancel()
 
-    def __aiter__(self) -> _Queue[_T]:
+    def __aiter__(self) -> BoundedQueue[_T]:
         return self
 
     async def __anext__(self) -> _T:
@@ -185,7 +190,7 @@ class Subscribers(Generic[_T]):
                 yield item
 
 
-class Watch(_Queue[GalileoStatus]):
+class Watch(BoundedQueue[GalileoStatus]):
     """Every status after registration (bounded: oldest dropped); raises pushed link errors."""
 
     __slots__ = ("_source",)
@@ -232,7 +237,7 @@ class Watch(_Queue[GalileoStatus]):
             raise
 
 
-class EventStream(_Queue[Event]):
+class EventStream(BoundedQueue[Event]):
     """Async iterator of events (bounded queue: oldest dropped); ends when the store closes."""
 
     __slots__ = ()

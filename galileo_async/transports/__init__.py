@@ -17,6 +17,7 @@ from .connectors import (
     socket_connector,
     translate_errors,
 )
+from .follow import LinkStateStream
 from .options import (
     CLOSE_TIMEOUT,
     DEFAULT_DRAIN_TIMEOUT,
@@ -49,6 +50,7 @@ __all__ = [
     "BaseLink",
     "Connector",
     "LinkState",
+    "LinkStateStream",
     "LinkStats",
     "StatusSink",
     "StreamLink",

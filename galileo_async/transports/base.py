@@ -7,12 +7,14 @@ import asyncio
 import logging
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import ClassVar
 
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
+from .follow import LinkStateFollowers, LinkStateStream
 from .queue import CommandQueue, Pending
 from .stats import LinkState, LinkStats, StatusSink
 from .watchdog import StaleWatchdog
@@ -31,8 +33,8 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     # Slots: a fleet touches every link 30 times a second, and attributes kept inside the
     # object are one memory block less to fetch each time (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_backoff", "_closed", "_closing", "_connected_at", "_last_write",
-        "_opened", "_queue", "_queue_ready", "_reconnect_task", "_room_waiters",
+        "__weakref__", "_backoff", "_closed", "_closing", "_connected_at", "_followers",
+        "_last_write", "_opened", "_queue", "_queue_ready", "_reconnect_task", "_room_waiters",
         "_supersedable", "_writer_task", "drain_timeout", "max_queued_commands",
         "min_command_interval", "reconnect", "reconnect_initial", "reconnect_max",
         "stale_reconnect", "stale_timeout", "stats", "store",
@@ -85,6 +87,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         self._connected_at = 0.0
         self._opened = False
         self._state = LinkState.CONNECTING
+        self._followers = LinkStateFollowers()
         #: The wait before the next reopen of this outage; None: the first is reconnect_initial.
         self._backoff: float | None = None
         self._closing = False
@@ -99,6 +102,27 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     def state(self) -> LinkState:
         """Where the link is (LinkState); each change is reported once to the store."""
         return self._state
+
+    def _set_state(self, state: LinkState) -> None:
+        """The one place the link's state changes: kept, counted in stats, told to followers."""
+        self._state = self.stats.state = state
+        self._followers.publish(state)
+
+    def add_state_listener(self, listener: Callable[[LinkState], None]) -> None:
+        """Call ``listener(state)`` synchronously at each later change of ``state``."""
+        self._followers.add_listener(listener)
+
+    def remove_state_listener(self, listener: Callable[[LinkState], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._followers.remove_listener(listener)
+
+    def states(self) -> LinkStateStream:
+        """Async iterator: the state now, then each change; it ends after CLOSED."""
+        return self._followers.stream(self._state)
+
+    async def wait_state(self, *states: LinkState, timeout: float | None = None) -> LinkState:
+        """The first of ``states`` the link is in, now or later; ConnectionLost once closed."""
+        return await self._followers.wait(self._state, states, timeout)
 
     @property
     def closed(self) -> bool:
@@ -154,7 +178,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
             await self._closed.wait()
             return
         self._closing = True
-        self._state = LinkState.CLOSED
+        self._set_state(LinkState.CLOSED)
         try:
             self._cancel_watchdog()
             tasks = [t for t in (self._writer_task, self._reconnect_task) if t is not None]
@@ -194,10 +218,10 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         previous = self._state
         if previous is LinkState.CLOSED:
             return
-        self._state = LinkState.UP
+        self.stats.stale = False
+        self._set_state(LinkState.UP)
         if previous is LinkState.CONNECTING:
             return  # the watchdog runs from the connection's start
-        self.stats.stale = False
         if previous is LinkState.STALE:
             _log.info("link fresh again")
             self.store.link_fresh()
@@ -219,7 +243,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         if self._state is LinkState.LOST:  # a reopened port that never answered: same outage
             _log.info("%s (no status frame since the reopen)", reason)
         else:
-            self._state = LinkState.LOST
+            self._set_state(LinkState.LOST)
             _log.warning("%s", reason)
         self._fail_pending(error)
         self.store.connection_lost(error)  # reports an outage once, however often it drops

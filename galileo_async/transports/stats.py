@@ -2,37 +2,23 @@
 
 from __future__ import annotations
 
-import enum
 import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from ..errors import GalileoConnectionError, LinkStale
-from ..models import GalileoStatus, StatusLayout
+from ..models import GalileoStatus, LinkState, StatusLayout
 from ..protocol import DecoderStats
 
 __all__ = ["LinkState", "LinkStats", "StatusSink"]
 
 
-class LinkState(enum.Enum):
-    """Where a link is; one outage goes UP → STALE → LOST → UP, each step reported once."""
-
-    #: Opened the first time, or opening; no valid frame yet.
-    CONNECTING = "connecting"
-    #: Valid status frames arrive.
-    UP = "up"
-    #: Connected, but no valid frame for stale_timeout.
-    STALE = "stale"
-    #: The transport dropped or was given up; it stays lost, reopened or not, until a
-    #: valid frame arrives (a reopened port nobody answers on is still lost).
-    LOST = "lost"
-    #: close() has started.
-    CLOSED = "closed"
-
-
 @dataclass(slots=True, init=False)
 class LinkStats:
     """Counters and health of one link (read by users as ``robot.link``).
+
+    ``state`` is the link's LinkState (BaseLink keeps it; follow it with
+    ``Robot.link_states()``); ``connected`` tells only that the transport is open.
 
     A byte link's decoder counts frames, discards, resyncs, lost frames, counter resets
     and the layout into ``decoder``; they read through as this object's own attributes.
@@ -44,6 +30,7 @@ class LinkStats:
     commands_sent: int
     connected: bool
     stale: bool
+    state: LinkState
     last_frame_at: float | None = field(repr=False)
 
     def __init__(
@@ -55,6 +42,7 @@ class LinkStats:
         commands_sent: int = 0,
         connected: bool = False,
         stale: bool = False,
+        state: LinkState = LinkState.CONNECTING,
         last_frame_at: float | None = None,
         **decoder_counts: Any,
     ) -> None:
@@ -65,6 +53,7 @@ class LinkStats:
         self.commands_sent = commands_sent
         self.connected = connected
         self.stale = stale
+        self.state = state
         self.last_frame_at = last_frame_at
 
     @property

@@ -35,6 +35,10 @@ class StaleWatchdog:
         """Give up a silent connection now (BaseLink's)."""
         raise NotImplementedError
 
+    def _set_state(self, state: LinkState) -> None:
+        """Change the link's state (BaseLink's)."""
+        raise NotImplementedError
+
     def _stale_message(self, silent: float) -> str:
         """What LinkStale says after ``silent`` seconds without a valid frame."""
         return f"no valid status frame for {silent:.2f} s"
@@ -80,8 +84,8 @@ class StaleWatchdog:
             if silent < timeout:  # a frame came since (or the timer ran early): not yet
                 self._arm_watchdog(alive_since + timeout)
                 return
-            self._state = LinkState.STALE
             self.stats.stale = True
+            self._set_state(LinkState.STALE)
             error = LinkStale(self._stale_message(silent), silent_for=silent)
             _log.warning("%s", error)
             self.store.link_stale(error)

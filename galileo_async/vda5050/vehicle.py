@@ -12,8 +12,7 @@ import anyio
 from pydantic import BaseModel, ValidationError
 
 from ..errors import GalileoError, InvalidArgument
-from ..events import ConnectionLostEvent, ConnectionRestored, LinkRestored, LinkStaleEvent
-from ..models import TargetStatus
+from ..models import LinkState, TargetStatus
 from ..robot import Robot
 from . import report
 from .actions import ActionRunner
@@ -37,6 +36,10 @@ from .session import Session
 __all__ = ["Vehicle", "run_vehicles"]
 
 _log = logging.getLogger(__name__)
+
+#: The link states in which the robot is unreachable, each with the name of the event that
+#: reports it (the robotLinkLost error's reference).
+_LINK_DOWN = {LinkState.STALE: "LinkStale", LinkState.LOST: "ConnectionLost"}
 
 
 class Vehicle:
@@ -245,12 +248,12 @@ class Vehicle:
                 self.changed()
 
     async def _watch_link(self) -> None:
-        async for event in self.robot.events():
-            if isinstance(event, (ConnectionLostEvent, LinkStaleEvent)):
+        async for state in self.robot.link_states():
+            if state in _LINK_DOWN:
                 self._link_error = Error(
                     errorType="robotLinkLost", errorLevel="FATAL",
-                    errorDescription=f"the link to the robot is down: {event}",
-                    errorReferences=[reference("link", event.name)],
+                    errorDescription=f"the link to the robot is down: {state.value}",
+                    errorReferences=[reference("link", _LINK_DOWN[state])],
                 )  # fmt: skip
                 await self.executor.stop_driving()
                 if self.progress.active:
@@ -259,7 +262,7 @@ class Vehicle:
                         [reference("orderId", self.progress.order_id)],
                     )  # fmt: skip
                 self.changed()
-            elif isinstance(event, (ConnectionRestored, LinkRestored)):
+            elif state is LinkState.UP and self._link_error is not None:
                 self._link_error = None
                 self.changed()
 
