@@ -191,12 +191,17 @@ async def test_cli_status_says_the_navigation_system_has_not_reported() -> None:
 
 async def test_cli_status_waits_for_the_first_report() -> None:
     fake = await ScriptedRobot(**DEFAULTS).start()
-    loop = asyncio.get_running_loop()
-    report = loop.call_later(1.0, lambda: fake.set(**READY))
+
+    async def report_later() -> None:
+        await fake.frames(20)  # placeholders to the connected command first, however late
+        fake.set(**READY)
+
+    report = asyncio.create_task(report_later())
     try:
         code, out, err = await run_galileo(fake.url, "status", "--json")
     finally:
         report.cancel()
+        await asyncio.gather(report, return_exceptions=True)
         await fake.close()
     assert code == 0, err
     assert "waiting for the navigation system" in err
