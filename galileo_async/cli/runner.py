@@ -222,11 +222,18 @@ def exit_code_for(exc: BaseException) -> ExitCode:
     return ExitCode.ERROR
 
 
+#: Operations (the start of their errors) whose commands have --start-nav.
+_START_NAV_OPERATIONS = ("goto", "rotate", "start_patrol", "set_patrol_dwell")
+
+
 def _hint(exc: BaseException) -> str:
     text = str(exc).lower()
-    if isinstance(exc, NotReady) and "navigation" in text and "not reported" not in text:
-        return " (start it with `galileo nav start`, or pass --start-nav)"
-    return ""
+    if not isinstance(exc, NotReady) or "navigation" not in text or "not reported" in text:
+        return ""
+    if "must be closed" in text:
+        return " (close navigation first: `galileo nav stop`)"
+    more = ", or pass --start-nav" if text.startswith(_START_NAV_OPERATIONS) else ""
+    return f" (start it with `galileo nav start`{more})"
 
 
 def error_text(exc: BaseException) -> str:

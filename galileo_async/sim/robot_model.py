@@ -288,6 +288,10 @@ class RobotModel(ServiceCommands, Body):
             return
         self._last_start = self.time
         self.nav_status, self.visual_status = 1, 0
+        if self.config.real_firmware:
+            # A fresh navigation task shows its goal state: free, no id (system_monitor's
+            # galileo_status_service), so a first rejection (-1) is a visible change.
+            self.target_num_id, self.target_status = -1, FREE
         self._visual_ready_at = self.time + self.config.visual_init_time
         self.set_busy(self.config.busy_on_start)
 
