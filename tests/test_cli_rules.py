@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import time
 from collections.abc import Iterator
 
 import pytest
-from test_cli_served import GALILEO, WAIT, ServedSim
+from ports import refused_port
+from test_cli_served import GALILEO, WAIT, ServedSim, _read_until
 
 from galileo_async.cli import ExitCode
 
@@ -82,3 +84,24 @@ def test_map_command_with_navigation_open_says_close_it(served: ServedSim) -> No
     assert result.returncode == ExitCode.NOT_READY
     assert "close navigation first" in result.stderr
     assert "--start-nav" not in result.stderr
+
+
+def test_vda5050_without_a_broker_says_it_is_retrying_and_when() -> None:
+    with refused_port() as port:
+        proc = subprocess.Popen(
+            [*GALILEO, "--port", "sim://?speed=20", "vda5050", "--broker",
+             f"mqtt://127.0.0.1:{port}", "--manufacturer", "acme", "--serial-number", "r9"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            assert proc.stderr is not None
+            seen = _read_until(proc.stderr, "connecting to mqtt://")
+            seen += _read_until(proc.stderr, "next try at")
+            seen += _read_until(proc.stderr, "next try at")  # the same reason again: said too
+            assert seen.count("retrying: r9: cannot connect to the broker") == 2, seen
+        finally:
+            proc.send_signal(signal.SIGINT)
+            code = proc.wait(WAIT)
+            if proc.stderr is not None:
+                proc.stderr.close()
+        assert code == 0

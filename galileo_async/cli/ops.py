@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import logging
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -59,6 +60,8 @@ GoalTimeout = Annotated[
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
 
 
+_log = logging.getLogger(__name__)
+
 nav_app = typer.Typer(help="Start or stop the navigation service.", no_args_is_help=True)
 patrol_app = typer.Typer(help="Auto-patrol over every target.", no_args_is_help=True)
 map_app = typer.Typer(help="Build, save and update the map.", no_args_is_help=True)
@@ -101,7 +104,7 @@ def goto(
     settings.json = settings.json or json_output
 
     async def body(robot: Robot) -> int:
-        await _clear_goal_error(robot, show=not settings.json)
+        await _clear_goal_error(robot)
         return await follow_goal(
             settings, robot, f"goto {target_id}", lambda: robot.goto(target_id, timeout=timeout)
         )
@@ -134,7 +137,7 @@ def goto_point(
 CLEAR_ERROR_TIMEOUT = 1.0
 
 
-async def _clear_goal_error(robot: Robot, *, show: bool) -> None:
+async def _clear_goal_error(robot: Robot) -> None:
     """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
 
     Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
@@ -142,12 +145,9 @@ async def _clear_goal_error(robot: Robot, *, show: bool) -> None:
     (``i 2``) turns an error back to free.
     """
     status = robot.status
-    if status is None or not status.goal_failed:
+    if status is None or not status.goal_failed or not status.navigating:
         return
-    if show:
-        err_console().print(
-            "clearing the robot's earlier goal error (target_status -1) first", style="dim"
-        )
+    _log.debug("cancel first: target_status %s hides a rejection", status.target_status)
     await robot.cancel()
     with contextlib.suppress(GalileoTimeout):
         await robot.wait_until(lambda s: not s.goal_failed, timeout=CLEAR_ERROR_TIMEOUT)

@@ -288,10 +288,6 @@ class RobotModel(ServiceCommands, Body):
             return
         self._last_start = self.time
         self.nav_status, self.visual_status = 1, 0
-        if self.config.real_firmware:
-            # A fresh navigation task shows its goal state: free, no id (system_monitor's
-            # galileo_status_service), so a first rejection (-1) is a visible change.
-            self.target_num_id, self.target_status = -1, FREE
         self._visual_ready_at = self.time + self.config.visual_init_time
         self.set_busy(self.config.busy_on_start)
 
@@ -357,8 +353,10 @@ class RobotModel(ServiceCommands, Body):
 
     def _cancel(self, _: object) -> None:
         if self.target_status in (WORKING, PAUSED, ERROR) or (
-            self.target_status == INVALID and self._goal_issued
+            self.target_status == INVALID and (self._goal_issued or self.nav_status == 1)
         ):
+            # With navigation open the firmware's status shows an idle goal as free (0):
+            # its -1 default is gone after a cancel too (system_monitor's status service).
             self._drop_goal()
 
     def _add_target(self, command: cmd.AddTarget) -> None:
