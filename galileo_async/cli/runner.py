@@ -67,7 +67,7 @@ DEFAULT_PORT = "sim://"
 #: The environment variable that names the port when --port is not given.
 PORT_ENV = "GALILEO_PORT"
 #: Where the port of an invocation came from.
-PortSource = Literal["--port", "GALILEO_PORT", "default"]
+PortSource = Literal["--port", "GALILEO_PORT", "--robot", "GALILEO_ROBOT", "default"]
 #: The stderr line of every robot command that runs on the simulator by default.
 SIMULATOR_NOTICE = (
     f"galileo: no --port or {PORT_ENV} given: running on the built-in simulator ({DEFAULT_PORT})"
