@@ -184,6 +184,7 @@ app.command("record")(capture.record)
 app.command("ports")(serve.ports)
 app.command("discover")(serve.discover)
 app.command("sim")(serve.sim)
+app.command("replay")(serve.replay)
 app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)
