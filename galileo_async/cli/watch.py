@@ -18,7 +18,7 @@ from ..models import GalileoStatus
 from .goals import aclose
 from .map_model import MapModel, known_targets
 from .map_render import save_svg
-from .monitor_screen import MonitorView, keys_pressed
+from .monitor_screen import FULL_ROWS, MonitorView, keys_pressed
 from .render import (
     event_dict,
     event_text,
@@ -225,7 +225,7 @@ def monitor(
         def screen() -> RenderableType:
             return view.screen(
                 latest[0], robot.link, list(recent), url=settings.url, model=model,
-                rows=console.size.height,
+                rows=console.size.height if console.is_terminal else FULL_ROWS,
             )  # fmt: skip
 
         try:
