@@ -235,10 +235,13 @@ def test_new_goal_cancels_running_one(firmware: str) -> None:
 @pytest.mark.parametrize("firmware", FIRMWARES)
 def test_pause_resume_cancel_only_in_valid_states(firmware: str) -> None:
     model = navigating(firmware)
-    for command in (c.Pause(), c.Resume(), c.Cancel()):
+    for command in (c.Pause(), c.Resume()):
         model.submit(command)  # no goal yet: all ignored
         model.tick()
         assert (model.target_status, model.target_num_id) == (-1, -1)
+    model.submit(c.Cancel())  # the -1 default is not free: a cancel frees it
+    model.tick()
+    assert (model.target_status, model.target_num_id) == (0, -1)
     model.submit(c.Goto(1))
     model.submit(c.Resume())  # not paused: ignored
     run(model, 1.0)

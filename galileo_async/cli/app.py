@@ -8,9 +8,20 @@ from typing import Annotated
 import typer
 
 from .. import __version__
+from ..errors import InvalidArgument
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
 from . import capture, demo, fleet_cmd, ops, serve, teleop, vda5050, watch
-from .runner import DEFAULT_PORT, PORT_ENV, Settings, resolve_port, setup_logging
+from .profiles import ROBOT_ENV, find_profile, profile_names
+from .runner import (
+    DEFAULT_PORT,
+    PORT_ENV,
+    ExitCode,
+    PortSource,
+    Settings,
+    fail,
+    resolve_port,
+    setup_logging,
+)
 
 __all__ = ["app", "main"]
 
@@ -22,7 +33,6 @@ app = typer.Typer(
     ),
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    add_completion=False,
     rich_markup_mode=None,
 )
 
@@ -36,6 +46,12 @@ def _version(value: bool) -> None:
     if value:
         typer.echo(f"galileo {__version__}")
         raise typer.Exit()
+
+
+def _complete_robot(ctx: typer.Context, incomplete: str) -> list[str]:
+    fleet = ctx.params.get("fleet")
+    names = profile_names(fleet if isinstance(fleet, Path) else None)
+    return [name for name in names if name.startswith(incomplete)]
 
 
 @app.callback()
@@ -53,6 +69,18 @@ def options(
                 f"master), or sim://?speed=…&layout=… (simulator). Default: {DEFAULT_PORT}, "
                 "the built-in simulator (robot commands say so on stderr)."
             ),
+        ),
+    ] = None,
+    robot: Annotated[
+        str | None,
+        typer.Option(
+            "--robot",
+            "-r",
+            envvar=ROBOT_ENV,
+            show_envvar=True,
+            autocompletion=_complete_robot,
+            help="A named robot (port and connect options) of the --fleet file or of "
+            "$XDG_CONFIG_HOME/galileo/config.toml ([robots.NAME] port = …).",
         ),
     ] = None,
     layout: Annotated[
@@ -95,10 +123,22 @@ def options(
         raise typer.BadParameter(message, param_hint="--layout")
     source_name = getattr(ctx.get_parameter_source("port"), "name", None)
     from_environment = source_name == "ENVIRONMENT"
-    port, source = resolve_port(port, from_environment=from_environment)
+    extra: dict[str, object] = {}
+    source: PortSource
+    if robot is not None and _robot_wins(ctx, port, from_environment):
+        try:
+            profile = find_profile(robot, fleet)
+        except InvalidArgument as exc:
+            fail(str(exc), ExitCode.USAGE)
+        port, extra = profile.port, dict(profile.options)
+        robot_source = getattr(ctx.get_parameter_source("robot"), "name", None)
+        source = "GALILEO_ROBOT" if robot_source == "ENVIRONMENT" else "--robot"
+    else:
+        port, source = resolve_port(port, from_environment=from_environment)
     ctx.obj = Settings(
         port=port,
         port_source=source,
+        extra=extra,
         layout=layout,
         verbose=verbose,
         json=json_output,
@@ -106,6 +146,19 @@ def options(
         fleet=fleet,
     )
     setup_logging(verbose)
+
+
+def _robot_wins(ctx: typer.Context, port: str | None, port_from_environment: bool) -> bool:
+    """--robot over GALILEO_PORT, --port over GALILEO_ROBOT; the same level twice: an error."""
+    if port is None:
+        return True
+    robot_from_environment = (
+        getattr(ctx.get_parameter_source("robot"), "name", None) == "ENVIRONMENT"
+    )
+    if port_from_environment == robot_from_environment:
+        both = f"{PORT_ENV} and {ROBOT_ENV}" if robot_from_environment else "--port and --robot"
+        fail(f"{both} both name the robot: give one", ExitCode.USAGE)
+    return port_from_environment
 
 
 _NUMBERS = {"ignore_unknown_options": True}  # lets "-2.5" through as a number
@@ -133,6 +186,7 @@ app.command("record")(capture.record)
 app.command("ports")(serve.ports)
 app.command("discover")(serve.discover)
 app.command("sim")(serve.sim)
+app.command("replay")(serve.replay)
 app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)

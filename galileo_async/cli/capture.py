@@ -1,8 +1,6 @@
 """``record`` raw bytes from a link (with timestamps) and ``decode`` captures into JSON lines.
 
-Recording format (``galileo record``): the 18-byte magic ``GALILEO-CAPTURE 1\\n``, then one
-record per chunk received: a little-endian float64 (seconds since the recording started), a
-little-endian uint32 byte count, and that many bytes exactly as they came off the link.
+The recording format is described in galileo_async/sim/replay.py (which replays it).
 ``decode`` reads recordings and plain raw byte dumps (anything without the magic) alike.
 """
 
@@ -12,7 +10,6 @@ import asyncio
 import contextlib
 import json
 import signal
-import struct
 import sys
 from collections.abc import Iterator
 from dataclasses import asdict
@@ -23,6 +20,7 @@ import anyio
 import typer
 
 from ..protocol import StatusDecoder
+from ..sim.replay import MAGIC, RECORD, iter_capture
 from . import connectors
 from .render import status_dict
 from .runner import (
@@ -37,33 +35,6 @@ from .runner import (
 )
 
 __all__ = ["MAGIC", "RECORD", "decode", "iter_capture", "record", "stop_requested"]
-
-#: First bytes of a recording made by ``galileo record``.
-MAGIC = b"GALILEO-CAPTURE 1\n"
-#: Per-chunk header of a recording: seconds since start (float64), byte count (uint32).
-RECORD = struct.Struct("<dI")
-_READ_SIZE = 65536
-
-
-def iter_capture(stream: IO[bytes]) -> Iterator[tuple[float | None, bytes]]:
-    """Yield (seconds or None, bytes) chunks from a recording or a raw dump."""
-    head = stream.read(len(MAGIC))
-    if head != MAGIC:
-        if head:
-            yield None, head
-        while chunk := stream.read(_READ_SIZE):
-            yield None, chunk
-        return
-    while True:
-        prefix = stream.read(RECORD.size)
-        if len(prefix) < RECORD.size:
-            return  # end of file (a cut-off record header is ignored)
-        seconds, size = RECORD.unpack(prefix)
-        data = stream.read(size)
-        if data:
-            yield seconds, data
-        if len(data) < size:
-            return
 
 
 def decode(

@@ -15,11 +15,12 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from ..errors import GalileoError, GoalRejected
+from ..errors import GalileoError, GoalRejected, UnconfirmedOperation
 from ..models import TargetStatus
 from .goals import aclose
 from .map_model import MapModel, known_targets
 from .map_render import map_panel
+from .ops import start_patrol
 from .render import status_line
 from .runner import (
     ExitCode,
@@ -120,7 +121,7 @@ async def _patrol(robot: Robot, stops: int) -> str:
     reached: list[int | None] = []
     events = robot.events()
     try:
-        await robot.start_patrol(dwell=1)
+        await _unconfirmed_on_v1(robot, start_patrol(robot, 1))
         with anyio.fail_after(STEP_TIMEOUT):
             async for event in events:
                 if isinstance(event, GoalReached):
@@ -129,8 +130,17 @@ async def _patrol(robot: Robot, stops: int) -> str:
                         break
     finally:
         await aclose(events)
-    await robot.stop_patrol()
+    await _unconfirmed_on_v1(robot, robot.stop_patrol())
     return "visited targets " + ", ".join(str(target) for target in reached) + ", stopped"
+
+
+async def _unconfirmed_on_v1(robot: Robot, operation: Awaitable[None]) -> None:
+    """Await a patrol command; a layout without loop_status (v1) cannot confirm it: go on."""
+    try:
+        await operation
+    except UnconfirmedOperation:
+        if robot.status is None or robot.status.loop_status is not None:
+            raise  # the goals reached show whether the patrol runs
 
 
 async def _arrive(robot: Robot, target_id: int) -> str:

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import dataclasses
+import logging
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from ..errors import InvalidArgument
+from ..errors import GalileoTimeout, InvalidArgument, UnconfirmedOperation
 from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
 from .goals import follow_goal, with_progress
 from .runner import (
@@ -32,12 +35,15 @@ __all__ = [
     "goto_point",
     "map_app",
     "nav_app",
+    "nav_start",
     "parse_command",
     "patrol_app",
     "rotate",
     "send",
     "shutdown",
     "simple_command",
+    "start_navigation",
+    "start_patrol",
 ]
 
 StartNav = Annotated[
@@ -53,6 +59,8 @@ GoalTimeout = Annotated[
 ]
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
 
+
+_log = logging.getLogger(__name__)
 
 nav_app = typer.Typer(help="Start or stop the navigation service.", no_args_is_help=True)
 patrol_app = typer.Typer(help="Auto-patrol over every target.", no_args_is_help=True)
@@ -96,6 +104,7 @@ def goto(
     settings.json = settings.json or json_output
 
     async def body(robot: Robot) -> int:
+        await _clear_goal_error(robot)
         return await follow_goal(
             settings, robot, f"goto {target_id}", lambda: robot.goto(target_id, timeout=timeout)
         )
@@ -122,6 +131,26 @@ def goto_point(
         )
 
     run_robot(settings, body, navigation=start_nav)
+
+
+#: Seconds to wait for a cancel to clear an earlier goal error before sending a goal.
+CLEAR_ERROR_TIMEOUT = 1.0
+
+
+async def _clear_goal_error(robot: Robot) -> None:
+    """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
+
+    Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
+    with -1 already showing, a second rejection changes nothing on the wire. Its cancel
+    (``i 2``) turns an error back to free.
+    """
+    status = robot.status
+    if status is None or not status.goal_failed or not status.navigating:
+        return
+    _log.debug("cancel first: target_status %s hides a rejection", status.target_status)
+    await robot.cancel()
+    with contextlib.suppress(GalileoTimeout):
+        await robot.wait_until(lambda s: not s.goal_failed, timeout=CLEAR_ERROR_TIMEOUT)
 
 
 #: Default --timeout of ``rotate``: a half turn takes a few seconds, and many firmware
@@ -151,6 +180,55 @@ def rotate(
     _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav)
 
 
+# --- navigation -----------------------------------------------------------------------------
+
+#: Seconds ``nav start`` waits for nav_status to show a start before it sends it again.
+START_RETRY = 3.0
+
+
+@nav_app.command("start")
+def nav_start(
+    ctx: typer.Context,
+    timeout: Annotated[
+        float, typer.Option("--timeout", "-t", min=0.1, help="Give up after seconds.")
+    ] = 60.0,
+) -> None:
+    """Start navigation; return once it is open and the visual system is initialised.
+
+    The firmware ignores a start within 5-30 s of the previous one: a start that does not
+    show within 3 s is said at once and sent again until it shows or --timeout ends.
+    """
+
+    async def call(robot: Robot) -> None:
+        await start_navigation(robot, timeout, show=not settings_of(ctx).json)
+
+    _simple(ctx, call, "navigation open, visual initialised")
+
+
+async def start_navigation(robot: Robot, timeout: float, *, show: bool) -> None:
+    """start_navigation, sent again every START_RETRY s while the firmware's lockout drops it."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while True:
+        remaining = deadline - loop.time()
+        try:
+            await robot.start_navigation(timeout=max(0.1, min(START_RETRY, remaining)))
+            return
+        except UnconfirmedOperation:
+            status = robot.status
+            left = deadline - loop.time()
+            if left <= 0:
+                raise
+            if show and (status is None or not status.navigating):
+                err_console().print(
+                    f"nav start: the robot ignored the start (nav_status still 0); the firmware "
+                    f"ignores a start within 5-30 s of the previous one (a recent nav stop and "
+                    f"start?): sending it again, giving up in {left:.0f} s",
+                    markup=False,
+                    style="yellow",
+                )
+
+
 # --- patrol, mapping, charging -------------------------------------------------------------
 
 
@@ -163,16 +241,23 @@ def patrol_start(
     start_nav: StartNav = None,
 ) -> None:
     """Start auto-patrol (navigation must be running)."""
-    _simple(
-        ctx, lambda robot: robot.start_patrol(dwell=dwell), "patrol running", navigation=start_nav
-    )
+    _simple(ctx, lambda robot: start_patrol(robot, dwell), "patrol running", navigation=start_nav)
+
+
+async def start_patrol(robot: Robot, dwell: int | None) -> None:
+    """Set the dwell (when given), then start patrol and wait for loop_status to show it.
+
+    Firmware starts patrol on the dwell command ('m' 5 TT) alone; the document does not
+    (PROTOCOL.md §2.g), so 'm' 5 follows either way (a no-op on a running patrol).
+    """
+    if dwell is not None:
+        await robot.set_patrol_dwell(dwell)
+    await robot.start_patrol()
 
 
 #: Commands that call one Robot method without arguments:
 #: (group or None for top level, name, Robot method, line printed when done, help).
 SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
-    ("nav", "start", "start_navigation", "navigation open, visual initialised",
-     "Start navigation; return once it is open and the visual system is initialised."),
     ("nav", "stop", "stop_navigation", "navigation closed",
      "Stop navigation (also stops patrol and the goal)."),
     (None, "pause", "pause", "goal paused", "Pause the working goal."),

@@ -67,7 +67,7 @@ DEFAULT_PORT = "sim://"
 #: The environment variable that names the port when --port is not given.
 PORT_ENV = "GALILEO_PORT"
 #: Where the port of an invocation came from.
-PortSource = Literal["--port", "GALILEO_PORT", "default"]
+PortSource = Literal["--port", "GALILEO_PORT", "--robot", "GALILEO_ROBOT", "default"]
 #: The stderr line of every robot command that runs on the simulator by default.
 SIMULATOR_NOTICE = (
     f"galileo: no --port or {PORT_ENV} given: running on the built-in simulator ({DEFAULT_PORT})"
@@ -222,11 +222,18 @@ def exit_code_for(exc: BaseException) -> ExitCode:
     return ExitCode.ERROR
 
 
+#: Operations (the start of their errors) whose commands have --start-nav.
+_START_NAV_OPERATIONS = ("goto", "rotate", "start_patrol", "set_patrol_dwell")
+
+
 def _hint(exc: BaseException) -> str:
     text = str(exc).lower()
-    if isinstance(exc, NotReady) and "navigation" in text and "not reported" not in text:
-        return " (start it with `galileo nav start`, or pass --start-nav)"
-    return ""
+    if not isinstance(exc, NotReady) or "navigation" not in text or "not reported" in text:
+        return ""
+    if "must be closed" in text:
+        return " (close navigation first: `galileo nav stop`)"
+    more = ", or pass --start-nav" if text.startswith(_START_NAV_OPERATIONS) else ""
+    return f" (start it with `galileo nav start`{more})"
 
 
 def error_text(exc: BaseException) -> str:

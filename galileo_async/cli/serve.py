@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import json
+import logging
+import sys
+from pathlib import Path
 from typing import Annotated, Any
+from urllib.parse import urlencode
 
 import typer
 
@@ -11,7 +15,7 @@ from ..errors import InvalidArgument
 from .capture import stop_requested
 from .runner import ExitCode, err_console, fail, out_console, run, settings_of
 
-__all__ = ["discover", "ports", "sim"]
+__all__ = ["discover", "ports", "replay", "sim"]
 
 #: Where ``galileo sim`` listens by default: loopback only.
 DEFAULT_TCP = "127.0.0.1:7000"
@@ -98,6 +102,68 @@ def sim(
             with stop_requested() as stop:
                 await stop.wait()
         finally:
+            if server is not None:
+                server.close()
+            await simulator.close()
+        return 0
+
+    run(settings, main, interrupted=ExitCode.OK)
+
+
+def replay(
+    ctx: typer.Context,
+    capture: Annotated[
+        Path, typer.Argument(help="A recording made by galileo record.", dir_okay=False)
+    ],
+    tcp: Annotated[
+        str | None,
+        typer.Option(help=f"Serve on HOST:PORT (default {DEFAULT_TCP}; port 0 picks one)."),
+    ] = None,
+    pty: Annotated[bool, typer.Option("--pty", help="Serve on a pseudo-terminal.")] = False,
+    speed: Annotated[float, typer.Option(min=0.01, help="Pace (2 = twice as fast).")] = 1.0,
+) -> None:
+    """Serve a recording as a robot until Ctrl-C: each connection gets its bytes at their
+    recorded pace from the start; the commands it sends are printed on stderr, not acted on."""
+    settings = settings_of(ctx)
+    if tcp is not None and pty:
+        fail("choose --tcp or --pty, not both", ExitCode.USAGE)
+    from ..sim import Simulator
+
+    try:
+        simulator = Simulator.from_url(
+            "sim://?" + urlencode({"speed": speed, "replay": str(capture)})
+        )
+    except InvalidArgument as exc:
+        fail(str(exc), ExitCode.USAGE)
+
+    async def main() -> int:
+        server: Any = None
+        commands = logging.getLogger("galileo_async.sim.replay")
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        commands.addHandler(handler)
+        level = commands.level
+        commands.setLevel(logging.INFO)
+        try:
+            if pty:
+                where = simulator.open_pty()
+            else:
+                host, port = _host_port(tcp or DEFAULT_TCP)
+                server = await simulator.serve_tcp(host, port)
+                where = _url("socket", server.sockets[0].getsockname())
+            console = out_console()
+            console.print(where, markup=False)
+            console.file.flush()
+            err_console().print(
+                f"replaying {capture} (speed {speed:g}x) on {where}; connect with: "
+                f"galileo --port {where} monitor · Ctrl-C stops",
+                markup=False,
+            )
+            with stop_requested() as stop:
+                await stop.wait()
+        finally:
+            commands.removeHandler(handler)
+            commands.setLevel(level)
             if server is not None:
                 server.close()
             await simulator.close()

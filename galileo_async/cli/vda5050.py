@@ -6,6 +6,7 @@ import contextlib
 import logging
 import os
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -42,26 +43,55 @@ def _password(password_file: Path | None) -> str | None:
     return from_environment
 
 
+#: The session's log line for a failed connect (it ends with "; retry in N s").
+_CANNOT_CONNECT = "cannot connect to the broker"
+
+
+def _shown(record: logging.LogRecord) -> bool:
+    """Warnings, and every failed connect (a repeated reason is only INFO in the session)."""
+    from ..vda5050.session import MQTT_LOGGER
+
+    # The MQTT client repeats its socket errors on every retry; the session's line
+    # carries the reason (and -v shows them all).
+    if record.name.startswith(MQTT_LOGGER):
+        return False
+    return record.levelno >= logging.WARNING or _CANNOT_CONNECT in record.getMessage()
+
+
+class _RetryFormatter(logging.Formatter):
+    """A failed connect as "retrying: … (next try at HH:MM:SS)"; other records as they are."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        message = record.getMessage()
+        if _CANNOT_CONNECT not in message:
+            return super().format(record)
+        delay = record.args[-1] if isinstance(record.args, tuple) and record.args else None
+        when = ""
+        if isinstance(delay, float | int):
+            when = time.strftime(" (next try at %H:%M:%S)", time.localtime(time.time() + delay))
+        return f"retrying: {message}{when}"
+
+
 @contextlib.contextmanager
 def _warnings_on_stderr(verbose: int) -> Iterator[None]:
-    """Show the vehicle's warnings (broker refused, unreachable) on stderr even without -v."""
+    """Show the vehicle's warnings and its broker retries on stderr even without -v."""
     if verbose:  # -v already shows every log line
         yield
         return
-    from ..vda5050.session import MQTT_LOGGER
-
     handler = logging.StreamHandler(sys.stderr)
-    handler.setLevel(logging.WARNING)
-    # The MQTT client repeats its socket errors on every retry; the session's warning
-    # carries the reason once (and -v shows them all).
-    handler.addFilter(lambda record: not record.name.startswith(MQTT_LOGGER))
-    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    handler.setLevel(logging.INFO)
+    handler.addFilter(_shown)
+    handler.setFormatter(_RetryFormatter("%(levelname)s %(name)s: %(message)s"))
     logger = logging.getLogger("galileo_async.vda5050")
+    level = logger.level
+    if not logger.isEnabledFor(logging.INFO):
+        logger.setLevel(logging.INFO)
     logger.addHandler(handler)
     try:
         yield
     finally:
         logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def vda5050(
@@ -111,7 +141,7 @@ def vda5050(
     settings = settings_of(ctx)
     try:
         from ..vda5050 import Vehicle, VehicleConfig, parse_broker_url, redact_url
-        from ..vda5050.session import tls_context
+        from ..vda5050.session import CONNECT_TIMEOUT, tls_context
     except ImportError:  # pragma: no cover - depends on the installed extras
         fail("the vda5050 command needs the extra: pip install 'galileo-async[vda5050]'")
     from ..errors import InvalidArgument
@@ -140,6 +170,12 @@ def vda5050(
         vehicle = Vehicle(robot, config)
         err_console().print(
             f"VDA 5050 vehicle {config.topic('')}… on {shown} · Ctrl-C stops", markup=False
+        )
+        err_console().print(
+            f"connecting to {shown} (each try gives up after {CONNECT_TIMEOUT:g} s; "
+            "failed tries are retried with back-off)…",
+            markup=False,
+            style="dim",
         )
         with _warnings_on_stderr(settings.verbose):
             async with anyio.create_task_group() as group:

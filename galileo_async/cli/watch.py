@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import anyio
 import typer
-from rich.console import Group, RenderableType
+from rich.console import RenderableType
 from rich.live import Live
 
 from ..errors import ConnectionLost, GalileoTimeout, InvalidArgument, NotReady
@@ -17,9 +17,9 @@ from ..events import ConnectionLostEvent, Event
 from ..models import GalileoStatus
 from .goals import aclose
 from .map_model import MapModel, known_targets
-from .map_render import map_panel, save_svg
+from .map_render import save_svg
+from .monitor_screen import FULL_ROWS, MonitorView, keys_pressed
 from .render import (
-    dashboard,
     event_dict,
     event_text,
     link_dict,
@@ -186,10 +186,15 @@ def monitor(
     ] = None,
     targets: TargetsOption = None,
     svg: SvgOption = None,
+    json_output: Annotated[
+        bool, typer.Option("--json", help="JSON lines: a status a second, and every event.")
+    ] = False,
 ) -> None:
-    """Live dashboard and map: states, pose, speeds, goal and distance, link, events."""
+    """Live dashboard and map (keys: q quit, m map on/off, ? help); --json: JSON lines."""
     settings = settings_of(ctx)
+    settings.json = settings.json or json_output
     model = map_model([settings.url], targets)
+    view = MonitorView()
 
     async def body(robot: Robot) -> int:
         started = anyio.current_time()
@@ -218,8 +223,10 @@ def monitor(
                 await aclose(stream)
 
         def screen() -> RenderableType:
-            board = dashboard(latest[0], robot.link, list(recent), url=settings.url)
-            return Group(board, map_panel(model))
+            return view.screen(
+                latest[0], robot.link, list(recent), url=settings.url, model=model,
+                rows=console.size.height if console.is_terminal else FULL_ROWS,
+            )  # fmt: skip
 
         try:
             async with anyio.create_task_group() as group:
@@ -232,10 +239,11 @@ def monitor(
                             data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
                             print_json(settings, data)
                 else:
-                    with Live(
-                        screen(), console=console, refresh_per_second=MONITOR_REFRESH
-                    ) as live:
-                        while await _tick(deadline, 1 / MONITOR_REFRESH):
+                    with (
+                        keys_pressed(view.press),
+                        Live(screen(), console=console, refresh_per_second=MONITOR_REFRESH) as live,
+                    ):
+                        while not view.quit and await _tick(deadline, 1 / MONITOR_REFRESH):
                             live.update(screen())
                 group.cancel_scope.cancel()
         finally:

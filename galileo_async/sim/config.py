@@ -129,6 +129,9 @@ class SimConfig:
     udp_layout: StatusLayout = StatusLayout.UDP_V2
     #: The UDP face also sends the environment-sensor frame after every third status frame.
     env_sensors: bool = False
+    #: A ``galileo record`` capture: every connection gets its bytes (at ``speed``) instead
+    #: of the simulated robot's frames; its commands are logged, not acted on.
+    replay: str | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -242,7 +245,7 @@ def _parse_value(name: str, text: str) -> Any:
             return "next" if text == "next" else float(text)
     except ValueError:
         raise InvalidArgument(f"bad value for simulator option {name}: {text!r}") from None
-    return text  # layout, udp_layout, firmware: validated by SimConfig
+    return text  # layout, udp_layout, firmware: validated by SimConfig; replay: a path
 
 
 def parse_sim_url(url: str, base: SimConfig | None = None) -> SimConfig:

@@ -353,8 +353,10 @@ class RobotModel(ServiceCommands, Body):
 
     def _cancel(self, _: object) -> None:
         if self.target_status in (WORKING, PAUSED, ERROR) or (
-            self.target_status == INVALID and self._goal_issued
+            self.target_status == INVALID and (self._goal_issued or self.nav_status == 1)
         ):
+            # With navigation open the firmware's status shows an idle goal as free (0):
+            # its -1 default is gone after a cancel too (system_monitor's status service).
             self._drop_goal()
 
     def _add_target(self, command: cmd.AddTarget) -> None:

@@ -13,6 +13,7 @@ from ..models import GalileoStatus, Pose
 from .config import SimConfig, parse_sim_url
 from .device import DeviceConnection, DeviceStats, SimDevice, Ticker
 from .memory import create_transport_pair
+from .replay import ReplayConnection, load_capture
 from .robot_model import RobotModel
 from .serve import PtyTransport
 from .udp import UdpFace
@@ -117,6 +118,8 @@ class Simulator:
             )
         self.config = config
         self._device = SimDevice(config, ticker or Ticker(config.speed), self._stop_serving)
+        self._capture = None if config.replay is None else load_capture(config.replay)
+        self._replays: list[ReplayConnection] = []
         self._servers: list[asyncio.Server] = []
         self._ptys: list[PtyTransport] = []
         self._udp: list[UdpFace] = []
@@ -156,7 +159,7 @@ class Simulator:
                 raise ConnectionRefusedError("the simulated robot is off")
             protocol = protocol_factory()
             transport, _ = create_transport_pair(
-                protocol, DeviceConnection(self._device), loop=loop, extra_a={"sim": self}
+                protocol, self._connection(), loop=loop, extra_a={"sim": self}
             )
             return transport, protocol
 
@@ -167,9 +170,10 @@ class Simulator:
         if self._device.closed:
             raise ConnectionRefusedError("the simulated robot is off")
         loop = asyncio.get_running_loop()
-        server = await loop.create_server(lambda: DeviceConnection(self._device), host, port)
+        server = await loop.create_server(self._connection, host, port)
         self._servers.append(server)
-        self._device.start()
+        if self._capture is None:
+            self._device.start()
         return server
 
     async def serve_udp(self, host: str = "127.0.0.1", port: int = 0) -> UdpFace:
@@ -188,10 +192,18 @@ class Simulator:
         """Serve over a new pseudo-terminal; returns the path a host opens as a serial port."""
         if self._device.closed:
             raise ConnectionRefusedError("the simulated robot is off")
-        connection = DeviceConnection(self._device, disconnectable=False)
+        connection = self._connection(disconnectable=False)
         pty = PtyTransport(asyncio.get_running_loop(), connection)
         self._ptys.append(pty)
         return pty.path
+
+    def _connection(self, *, disconnectable: bool = True) -> asyncio.Protocol:
+        """The device end of a new connection: the robot, or the capture replayed."""
+        if self._capture is None:
+            return DeviceConnection(self._device, disconnectable=disconnectable)
+        replay = ReplayConnection(self._capture, self.config.speed, f"replay {self.config.replay}")
+        self._replays.append(replay)
+        return replay
 
     def _stop_serving(self) -> None:
         for server in self._servers:
@@ -208,6 +220,9 @@ class Simulator:
         self._closed = True
         self._device.stop()
         self._stop_serving()
+        for replay in self._replays:
+            replay.close()
+            await replay.wait_closed()
         for server in self._servers:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(server.wait_closed(), _CLOSE_TIMEOUT)
