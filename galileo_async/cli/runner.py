@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import asyncio
-import enum
 import datetime
+import enum
 import json
 import os
 import sys
@@ -296,7 +296,7 @@ def run(
         code = asyncio.run(_as_coroutine(main))
     except KeyboardInterrupt:
         code = int(interrupted)
-    except BaseException as exc:  # noqa: BLE001 - task groups wrap even SystemExit
+    except BaseException as exc:  # task groups wrap even SystemExit
         error = _first_leaf(exc)  # task groups wrap what their tasks raised
         if _stdout_closed(error):
             code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)

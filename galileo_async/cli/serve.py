@@ -45,7 +45,8 @@ def _listening(where: str, option: str) -> Iterator[None]:
             why = f"{where} is already in use (another `galileo sim`?): pick another {option}"
             raise GalileoConnectionError(f"{why}, or port 0 for a free one") from exc
         if isinstance(exc, socket.gaierror):
-            raise GalileoConnectionError(f"{option} {where}: unknown host ({exc.strerror})") from exc
+            unknown = f"{option} {where}: unknown host ({exc.strerror})"
+            raise GalileoConnectionError(unknown) from exc
         raise GalileoConnectionError(f"cannot listen on {where}: {exc.strerror or exc}") from exc
 
 
