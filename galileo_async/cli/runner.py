@@ -76,6 +76,10 @@ SIMULATOR_NOTICE = (
 )
 
 
+#: The Settings of the running invocation (the last made): print_error asks it for --json.
+_current: list[Settings] = []
+
+
 class ExitCode(enum.IntEnum):
     """Process exit codes of the ``galileo`` command (documented in docs/cli.md)."""
 
@@ -106,6 +110,9 @@ class Settings:
     extra: dict[str, Any] = field(default_factory=dict)
     #: The fleet file of ``--fleet`` (fleet commands).
     fleet: Path | None = None
+
+    def __post_init__(self) -> None:
+        _current[:] = [self]  # the invocation's settings: print_error asks for --json
 
     @property
     def url(self) -> str:
@@ -163,7 +170,6 @@ def settings_of(ctx: typer.Context) -> Settings:
     if not isinstance(root.obj, Settings):
         port, source = resolve_port(None)
         root.obj = Settings(port=port, port_source=source)
-    _current[:] = [root.obj]
     return root.obj
 
 
@@ -235,10 +241,6 @@ def _hint(exc: BaseException) -> str:
 def error_text(exc: BaseException) -> str:
     """``Kind: message``: the error's type name, then its message."""
     return f"{type(exc).__name__}: {str(exc) or type(exc).__name__}"
-
-
-#: The Settings of the running command (settings_of): tells print_error to speak JSON.
-_current: list[Settings] = []
 
 
 def _json_wanted() -> bool:
