@@ -211,9 +211,23 @@ def decimals(value: float) -> int:
 
 
 def test_json_status_is_rounded_as_shown() -> None:
-    result = galileo("--json", "--port", "sim://?speed=5", "goto", "3")
-    assert result.returncode == 0
-    status = json.loads(galileo("--json", "--port", "sim://?speed=5", "status").stdout)["status"]
+    # A served simulator keeps the pose and power a goal left: full-precision floats.
+    with subprocess.Popen(
+        [*GALILEO, "sim", "--tcp", "127.0.0.1:0", "--speed", "5"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    ) as server:
+        assert server.stdout is not None
+        url = server.stdout.readline().strip()
+        try:
+            # Stopped half way (timeout, exit 6): wherever it is, not on a round number.
+            moved = galileo("--port", url, "goto", "3", "--start-nav", "--timeout", "0.6")
+            assert moved.returncode == 6, moved.stderr
+            status = json.loads(galileo("--json", "--port", url, "status").stdout)["status"]
+        finally:
+            server.send_signal(signal.SIGINT)
+            assert server.wait(WAIT) == 0
     assert decimals(status["power"]) <= 2
     for key in ("current_pose_x", "current_pose_y", "current_angle", "target_distance"):
         assert decimals(status[key]) <= 3, key
