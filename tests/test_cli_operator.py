@@ -288,3 +288,14 @@ def test_cancel_without_a_goal_says_no_goal_was_running() -> None:
     result = galileo("--port", "sim://", "cancel")
     assert result.returncode == 0
     assert result.stdout.strip() == "no goal was running"
+
+
+def test_decode_raw_keeps_every_digit(tmp_path: Path) -> None:
+    capture = tmp_path / "capture.glc"
+    recorded = galileo("--port", "sim://?power=24.79", "record", str(capture), "--duration", "0.3")
+    assert recorded.returncode == 0, recorded.stderr
+    shown = json.loads(galileo("decode", str(capture)).stdout.splitlines()[-1])
+    exact = json.loads(galileo("decode", "--raw", str(capture)).stdout.splitlines()[-1])
+    assert decimals(shown["power"]) <= 2
+    assert exact["power"] != shown["power"]  # 24.79 as a float32: 24.790000915527344
+    assert round(exact["power"], 2) == shown["power"]
