@@ -299,3 +299,12 @@ def test_decode_raw_keeps_every_digit(tmp_path: Path) -> None:
     assert decimals(shown["power"]) <= 2
     assert exact["power"] != shown["power"]  # 24.79 as a float32: 24.790000915527344
     assert round(exact["power"], 2) == shown["power"]
+
+
+@pytest.mark.parametrize("port", ["socket://nosuchhost.invalid:7000", "udp://nosuchhost.invalid"])
+def test_an_unknown_host_is_named(port: str) -> None:
+    result = galileo("--port", port, "status")
+    assert result.returncode == 7
+    line = one_error_line(result)
+    assert "nosuchhost.invalid" in line
+    assert "unknown host" in line

@@ -73,6 +73,8 @@ def translate_errors(what: str) -> Iterator[None]:
 def _describe(exc: BaseException) -> str:
     """The message of ``exc``, or its kind when it has none (``str(TimeoutError())`` is empty)."""
     text = str(exc)
+    if isinstance(exc, socket.gaierror):  # "[Errno -2] Name or service not known"
+        return f"unknown host ({exc.strerror})"
     if isinstance(exc, (TimeoutError, asyncio.TimeoutError)):
         return text or "timed out"
     return text or type(exc).__name__
