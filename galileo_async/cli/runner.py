@@ -170,6 +170,7 @@ def settings_of(ctx: typer.Context) -> Settings:
     if not isinstance(root.obj, Settings):
         port, source = resolve_port(None)
         root.obj = Settings(port=port, port_source=source)
+    root.call_on_close(_current.clear)  # the invocation is over: no JSON errors after it
     return root.obj
 
 
