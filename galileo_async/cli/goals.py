@@ -95,8 +95,7 @@ async def with_progress(
     show: bool,
     line: Callable[[GalileoStatus], str] = status_line,
 ) -> T:
-    """Await ``operation`` while stderr shows the robot's progress: a live line on a
-    terminal, else a plain line per second (and on each change of state)."""
+    """Await ``operation`` with progress on stderr: a live line on a terminal, else plain lines."""
     if not show:
         return await operation
     console = err_console()
@@ -127,7 +126,7 @@ def _distance(robot: Robot, exc: BaseException | None = None) -> float | None:
 def _interrupted(settings: Settings, robot: Robot, target_id: int | None, sent: int) -> None:
     """Say what a Ctrl-C left behind: whether cancel went out, where the robot is."""
     goal = "the goal" if target_id is None else f"goal {target_id}"
-    cancel = "cancelled (i 2 sent)" if sent > 0 else "not sent yet: nothing to cancel"
+    what = f"{goal} cancelled (i 2 sent)" if sent > 0 else f"{goal} was not running, no cancel sent"
     status = robot.status
     if settings.json:
         pose = None if status is None else status.pose
@@ -148,7 +147,7 @@ def _interrupted(settings: Settings, robot: Robot, target_id: int | None, sent: 
         print_json(settings, payload)
     else:
         where = pose_text(status)
-        err_console().print(f"interrupted: {goal} {cancel}, robot at {where}", markup=False)
+        err_console().print(f"interrupted: {what}, robot at {where}", markup=False)
 
 
 async def follow_goal(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import datetime
 import enum
 import json
@@ -307,10 +308,8 @@ def run(
             code = int(interrupted)
         elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
             raise error from None
-        elif isinstance(error, Exception):
-            code = int(report(error, settings.verbose))
         else:
-            raise
+            code = int(report(error, settings.verbose))
     raise typer.Exit(int(code or 0))
 
 
@@ -322,8 +321,9 @@ def _stdout_closed(error: BaseException) -> bool:
     if broken:
         # Python's advice (library/signal.html#note-on-sigpipe): point stdout at devnull so
         # that the flush at exit does not fail once more.
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        with contextlib.suppress(OSError, ValueError):  # a stdout without a descriptor
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
     return broken
 
 
