@@ -158,7 +158,9 @@ def test_status_watch_json_reports_link_events_as_lines() -> None:
     assert lost
     assert isinstance(lost[0]["reason"], str)
     assert lost[0]["reason"]
-    assert {"port": DROPPING, "event": "ConnectionRestored"} in lines
+    assert {"port": DROPPING, "event": "ConnectionRestored"} in [
+        {key: value for key, value in line.items() if key != "time"} for line in lines
+    ]
 
 
 def test_status_watch_without_reconnect_exits_on_link_loss() -> None:
@@ -211,7 +213,8 @@ def test_goto_timeout_exit_code_and_one_line() -> None:
     result = invoke("goto", "1", "--timeout", "0.3", port="sim://?speed=2")
     assert result.exit_code == ExitCode.TIMEOUT, result.output
     assert "Traceback" not in result.output
-    assert len(result.stderr.strip().splitlines()) == 2  # "starting navigation…" + the error
+    lines = [line for line in result.stderr.splitlines() if not line.startswith("goto 1 · ")]
+    assert len(lines) == 2  # "starting navigation…" + the error (and progress lines)
 
 
 def test_goto_without_navigation_is_not_ready() -> None:
@@ -270,7 +273,7 @@ def test_goal_commands_without_a_goal_are_not_ready() -> None:
 def test_cancel_without_a_goal_is_fine() -> None:
     result = invoke("cancel")
     assert result.exit_code == 0
-    assert "goal cancelled" in result.stdout
+    assert result.stdout == "no goal was running\n"
 
 
 def test_rotate_ignored_by_real_firmware_times_out() -> None:

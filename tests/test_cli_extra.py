@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from galileo_async.cli import INSTALL_HINT, MISSING_EXIT_CODE, ExitCode
+from galileo_async.cli import INSTALL_HINT, MISSING_EXIT_CODE, ExitCode, install_hint
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -49,8 +49,15 @@ def test_galileo_without_the_cli_extra_says_how_to_get_it(blocked: str, entry: s
     lines = result.stderr.splitlines()
     assert len(lines) == 1, result.stderr  # one line, no traceback
     assert f"({blocked} is not installed)" in lines[0]
-    assert lines[0].endswith(INSTALL_HINT)
+    assert lines[0].endswith(install_hint())
     assert INSTALL_HINT == "pip install 'galileo-async[cli]'"
+
+
+def test_the_hint_from_a_checkout_installs_that_checkout() -> None:
+    # The package name is not on any index: from a checkout, pip must be given its path.
+    root = Path(__file__).resolve().parent.parent
+    assert install_hint().endswith(f"-m pip install -e '{root}[cli]'")
+    assert install_hint().startswith(sys.executable)
 
 
 def test_the_blocking_reaches_the_command_line() -> None:
@@ -71,7 +78,7 @@ def test_the_typer_application_without_typer_is_a_clear_import_error() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
     assert result.stdout.startswith("typer galileo: the command line needs typer and rich")
-    assert result.stdout.rstrip().endswith(INSTALL_HINT)
+    assert result.stdout.rstrip().endswith(install_hint())
 
 
 def test_another_missing_module_is_not_mistaken_for_the_extra() -> None:
@@ -79,7 +86,7 @@ def test_another_missing_module_is_not_mistaken_for_the_extra() -> None:
     result = run_without("galileo_async.cli.runner", CONSOLE_SCRIPT, "status")
     assert result.returncode != 0
     assert "Traceback" in result.stderr
-    assert INSTALL_HINT not in result.stderr
+    assert install_hint() not in result.stderr
 
 
 def requirement_names(requirements: list[str]) -> set[str]:

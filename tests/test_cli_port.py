@@ -54,7 +54,12 @@ def test_the_default_simulator_is_named_in_json_output() -> None:
     status = galileo("--json", "status")
     assert json.loads(status.stdout)["port"] == "sim://"
     cancelled = galileo("--json", "cancel")
-    done = {"port": "sim://", "result": "ok", "done": "goal cancelled"}
+    done = {
+        "port": "sim://",
+        "result": "ok",
+        "done": "no goal was running",
+        "goal_was_running": False,
+    }
     assert json.loads(cancelled.stdout) == done
 
 
@@ -85,8 +90,13 @@ def test_an_empty_port_is_a_usage_error(
 ) -> None:
     done = galileo(*args, port_env=port_env, cwd=tmp_path)
     assert done.returncode == ExitCode.USAGE, done.stderr
-    assert done.stdout == ""
-    assert done.stderr.startswith(f"error: {named}: name the robot's port"), done.stderr
+    if "--json" in args:  # the error is the JSON object on stdout
+        error = json.loads(done.stdout)
+        assert error["message"].startswith(f"{named}: name the robot's port")
+        assert error["exit_code"] == ExitCode.USAGE
+    else:
+        assert done.stdout == ""
+        assert done.stderr.startswith(f"error: {named}: name the robot's port"), done.stderr
     assert notices(done.stderr) == 0
     assert list(tmp_path.iterdir()) == []  # record did not even create its file
 

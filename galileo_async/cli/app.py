@@ -112,6 +112,10 @@ def options(
     json_output: Annotated[
         bool, typer.Option("--json", help="JSON output where the output is data.")
     ] = False,
+    log_file: Annotated[
+        Path | None,
+        typer.Option("--log-file", help="Write debug logs (UTC timestamps) to this file."),
+    ] = None,
     version: Annotated[
         bool | None,
         typer.Option("--version", callback=_version, is_eager=True, help="Show the version."),
@@ -145,7 +149,7 @@ def options(
         map_targets=map_targets,
         fleet=fleet,
     )
-    setup_logging(verbose)
+    setup_logging(verbose, log_file)
 
 
 def _robot_wins(ctx: typer.Context, port: str | None, port_from_environment: bool) -> bool:
@@ -174,6 +178,7 @@ _GROUPS = {
 }  # fmt: skip
 for _group, _name, _method, _done, _help in ops.SIMPLE_COMMANDS:
     _GROUPS[_group].command(_name, help=_help)(ops.simple_command(_method, _done, _help))
+app.command("cancel")(ops.cancel)
 app.command("rotate", context_settings=_NUMBERS)(ops.rotate)
 app.command("teleop")(teleop.teleop)
 app.add_typer(ops.patrol_app, name="patrol")

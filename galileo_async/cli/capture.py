@@ -44,6 +44,9 @@ def decode(
         bool, typer.Option("--summary-only", "-s", help="Print only the summary.")
     ] = False,
     json_output: Annotated[bool, typer.Option("--json", help="Summary as JSON too.")] = False,
+    raw: Annotated[
+        bool, typer.Option("--raw", help="Every digit of the floats (default: rounded as shown).")
+    ] = False,
 ) -> None:
     """Decode captured bytes: one JSON line per status, then a summary of the stream."""
     settings = settings_of(ctx)
@@ -72,7 +75,7 @@ def decode(
                 if summary_only:
                     continue
                 line: dict[str, Any] = {} if seconds is None else {"t": round(seconds, 4)}
-                line |= status_dict(status)
+                line |= status.model_dump(mode="json") if raw else status_dict(status)
                 out.write(json.dumps(line) + "\n")
     stats = asdict(decoder.stats)
     summary: dict[str, Any] = {

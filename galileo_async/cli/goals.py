@@ -12,7 +12,7 @@ from rich.text import Text
 
 from ..errors import GalileoTimeout, GoalError
 from ..models import GalileoStatus
-from .render import goal_line, status_line
+from .render import goal_line, pose_text, rounded, status_line
 from .runner import (
     ExitCode,
     Settings,
@@ -21,6 +21,7 @@ from .runner import (
     out_console,
     print_json,
     report,
+    timestamp,
 )
 
 if TYPE_CHECKING:
@@ -59,6 +60,33 @@ async def _show(robot: Robot, label: str, live: Live, line: Callable[[GalileoSta
         await aclose(stream)
 
 
+#: Seconds between plain progress lines when stderr is not a terminal (sooner on a change).
+PLAIN_PROGRESS_PERIOD = 1.0
+
+
+async def _show_plain(robot: Robot, label: str, line: Callable[[GalileoStatus], str]) -> None:
+    """One progress line on stderr per PLAIN_PROGRESS_PERIOD, or at once when a state changes."""
+    loop = asyncio.get_running_loop()
+    start = loop.time()
+    last_at = start  # a quick operation prints nothing
+    last_states: object = None
+    console = err_console()
+    stream = robot.statuses()
+    try:
+        async for status in stream:
+            now = loop.time()
+            states = (status.nav_status, status.visual_status, status.target_status)
+            changed = last_states is not None and states != last_states
+            last_states = states
+            if changed or now - last_at >= PLAIN_PROGRESS_PERIOD:
+                last_at = now
+                text = f"{label} · {now - start:5.1f} s · {line(status)}"
+                console.print(text, markup=False, highlight=False)
+                console.file.flush()
+    finally:
+        await aclose(stream)
+
+
 async def with_progress(
     robot: Robot,
     label: str,
@@ -67,11 +95,17 @@ async def with_progress(
     show: bool,
     line: Callable[[GalileoStatus], str] = status_line,
 ) -> T:
-    """Await ``operation`` while a live line on stderr shows the robot's progress."""
+    """Await ``operation`` with progress on stderr: a live line on a terminal, else plain lines."""
     if not show:
         return await operation
-    with Live(Text(label), console=err_console(), transient=True, refresh_per_second=10) as live:
-        watcher = asyncio.ensure_future(_show(robot, label, live, line))
+    console = err_console()
+    with contextlib.ExitStack() as stack:
+        if console.is_terminal:
+            live = Live(Text(label), console=console, transient=True, refresh_per_second=10)
+            stack.enter_context(live)
+            watcher = asyncio.ensure_future(_show(robot, label, live, line))
+        else:
+            watcher = asyncio.ensure_future(_show_plain(robot, label, line))
         try:
             return await operation
         finally:
@@ -80,23 +114,72 @@ async def with_progress(
                 await watcher
 
 
+def _distance(robot: Robot, exc: BaseException | None = None) -> float | None:
+    """The last distance to the target known (the error's, else the latest status's), rounded."""
+    distance = getattr(exc, "distance", None)
+    status = getattr(exc, "status", None) or robot.status
+    if distance is None and status is not None and (status.target_distance or -1.0) >= 0:
+        distance = status.target_distance
+    return None if distance is None else rounded("target_distance", distance)
+
+
+def _interrupted(settings: Settings, robot: Robot, target_id: int | None, sent: int) -> None:
+    """Say what a Ctrl-C left behind: whether cancel went out, where the robot is."""
+    goal = "the goal" if target_id is None else f"goal {target_id}"
+    what = f"{goal} cancelled (i 2 sent)" if sent > 0 else f"{goal} was not running, no cancel sent"
+    status = robot.status
+    if settings.json:
+        pose = None if status is None else status.pose
+        payload = {
+            "time": timestamp(),
+            "result": "interrupted",
+            "target_id": target_id,
+            "cancel_sent": sent > 0,
+            "distance": _distance(robot),
+            "pose": None
+            if pose is None
+            else {
+                "x": rounded("x", pose.x),
+                "y": rounded("y", pose.y),
+                "degrees": round(pose.degrees, 1),
+            },
+        }
+        print_json(settings, payload)
+    else:
+        where = pose_text(status)
+        err_console().print(f"interrupted: {what}, robot at {where}", markup=False)
+
+
 async def follow_goal(
     settings: Settings,
     robot: Robot,
     label: str,
     start: Callable[[], Awaitable[GoalResult]],
+    *,
+    target_id: int | None = None,
+    goal_commands: int = 1,
 ) -> int:
-    """Run a goal with progress; print the result (or --json); return its exit code."""
+    """Run a goal with progress; print the result (or --json); return its exit code.
+
+    ``goal_commands``: how many commands start the goal (any further one is the cancel
+    that an interruption sends).
+    """
+    sent_before = robot.link.commands_sent
     try:
         result = await with_progress(robot, label, start(), show=not settings.json, line=goal_line)
+    except asyncio.CancelledError:
+        cancels = robot.link.commands_sent - sent_before - goal_commands
+        _interrupted(settings, robot, target_id, cancels)
+        raise
     except (GoalError, GalileoTimeout) as exc:
         code = exit_code_for(exc)
         if settings.json:
             payload = {
                 "result": RESULT_NAMES.get(code, "error"),
-                "target_id": getattr(exc, "target_id", None),
-                "distance": getattr(exc, "distance", None),
+                "target_id": getattr(exc, "target_id", target_id),
+                "distance": _distance(robot, exc),
                 "error": str(exc),
+                "exit_code": int(code),
             }
             print_json(settings, payload)
         else:

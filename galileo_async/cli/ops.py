@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ROTATE_TIMEOUT",
     "SIMPLE_COMMANDS",
+    "cancel",
     "charge_app",
     "goto",
     "goto_point",
@@ -106,7 +107,11 @@ def goto(
     async def body(robot: Robot) -> int:
         await _clear_goal_error(robot)
         return await follow_goal(
-            settings, robot, f"goto {target_id}", lambda: robot.goto(target_id, timeout=timeout)
+            settings,
+            robot,
+            f"goto {target_id}",
+            lambda: robot.goto(target_id, timeout=timeout),
+            target_id=target_id,
         )
 
     run_robot(settings, body, navigation=start_nav)
@@ -126,8 +131,9 @@ def goto_point(
 
     async def body(robot: Robot) -> int:
         label = f"goto-point ({x:g}, {y:g})"
+        # goto-point writes three commands: reset the dynamic targets, add one, go there.
         return await follow_goal(
-            settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout)
+            settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout), goal_commands=3
         )
 
     run_robot(settings, body, navigation=start_nav)
@@ -262,7 +268,6 @@ SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
      "Stop navigation (also stops patrol and the goal)."),
     (None, "pause", "pause", "goal paused", "Pause the working goal."),
     (None, "resume", "resume", "goal resumed", "Resume the paused goal."),
-    (None, "cancel", "cancel", "goal cancelled", "Cancel the goal."),
     ("patrol", "stop", "stop_patrol", "patrol stopped",
      "Stop auto-patrol and keep navigation (firmware 'm' 6)."),
     ("map", "start", "start_mapping", "mapping", "Start mapping (stops navigation)."),
@@ -276,6 +281,24 @@ SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
     ("charge", "save-dock", "save_dock", "dock position saved",
      "Save the current pose as the dock position."),
 )  # fmt: skip
+
+
+def cancel(ctx: typer.Context) -> None:
+    """Cancel the goal (says so when no goal was running)."""
+    settings = settings_of(ctx)
+
+    async def body(robot: Robot) -> int:
+        status = robot.status
+        running = status is None or status.goal_active  # unknown: assume one ran
+        await with_progress(robot, "cancel", robot.cancel(), show=not settings.json)
+        done = "goal cancelled" if running else "no goal was running"
+        if settings.json:
+            print_json(settings, {"result": "ok", "done": done, "goal_was_running": running})
+        else:
+            out_console().print(done)
+        return 0
+
+    run_robot(settings, body)
 
 
 def simple_command(method: str, done: str, help_text: str) -> Callable[[typer.Context], None]:

@@ -16,30 +16,52 @@ from ..events import ConnectionLostEvent, ConnectionRestored, Event, LinkRestore
 from ..models import GalileoStatus
 
 __all__ = [
+    "DECIMALS",
     "dashboard",
     "event_dict",
     "event_text",
     "goal_line",
     "link_dict",
     "link_event_text",
+    "pose_text",
+    "rounded",
     "status_dict",
     "status_line",
     "status_table",
 ]
 
 
+#: Decimals shown of a float field: volts to 0.01; metres, m/s and radians to 0.001
+#: (1 mm; 1 mrad is finer than 0.1 degree). The models keep full precision.
+DECIMALS = {"power": 2}
+#: Decimals of every other float shown.
+DEFAULT_DECIMALS = 3
+
+
+def rounded(name: str, value: float) -> float:
+    """``value`` rounded as field ``name`` is shown (DECIMALS)."""
+    return round(value, DECIMALS.get(name, DEFAULT_DECIMALS))
+
+
 def status_dict(status: GalileoStatus) -> dict[str, Any]:
-    """A status as plain JSON values: enums as their wire integers, layout as its name."""
-    return status.model_dump(mode="json")
+    """A status as plain JSON values: enums as their wire integers, layout as its name.
+
+    Floats are rounded as shown (DECIMALS); ``decode --raw`` and the models keep them all.
+    """
+    values = status.model_dump(mode="json")
+    return {
+        key: rounded(key, value) if isinstance(value, float) else value
+        for key, value in values.items()
+    }
 
 
-def _value(value: object) -> str:
+def _value(value: object, name: str = "") -> str:
     if value is None:
         return "—"
     if isinstance(value, enum.IntEnum):
         return f"{value.name.lower()} ({int(value)})"
     if isinstance(value, float):
-        return f"{value:.3f}"
+        return f"{value:.{DECIMALS.get(name, DEFAULT_DECIMALS)}f}"
     return str(value)
 
 
@@ -49,8 +71,16 @@ def status_table(status: GalileoStatus) -> Table:
     table.add_column("field")
     table.add_column("value", justify="right")
     for name in type(status).model_fields:
-        table.add_row(name, _value(getattr(status, name)))
+        table.add_row(name, _value(getattr(status, name), name))
     return table
+
+
+def pose_text(status: GalileoStatus | None) -> str:
+    """The robot's pose to 1 mm and 0.1 degree: ``(+1.234, -0.500) +12.3°``."""
+    pose = None if status is None else status.pose
+    if pose is None:
+        return "pose unknown"
+    return f"({pose.x:+.3f}, {pose.y:+.3f}) {pose.degrees:+.1f}°"
 
 
 def _metres(value: float | None) -> str:
@@ -59,8 +89,7 @@ def _metres(value: float | None) -> str:
 
 def status_line(status: GalileoStatus) -> str:
     """A one-line summary: states, goal, distance, pose and speed."""
-    pose = status.pose
-    where = f"({pose.x:+.2f}, {pose.y:+.2f}) {pose.degrees:+.0f}°" if pose else "pose unknown"
+    where = pose_text(status)
     goal = "—" if status.target_status is None else status.target_status.name.lower()
     speed = status.current_speed_x
     return (
@@ -111,7 +140,11 @@ def event_dict(event: object) -> dict[str, Any]:
         for item in dataclasses.fields(event):
             if item.name != "status":
                 value = getattr(event, item.name)
-                values[item.name] = value.name.lower() if isinstance(value, enum.Enum) else value
+                if isinstance(value, enum.Enum):
+                    value = value.name.lower()
+                elif isinstance(value, float):
+                    value = rounded(item.name, value)
+                values[item.name] = value
     return values
 
 
@@ -178,13 +211,13 @@ def dashboard(
             ("charge", _name(status.charge_status)),
             ("patrol", _flag(status.loop_status, status.patrolling, "on", "off")),
             ("busy", _flag(status.busy_status, status.is_busy, "yes", "no")),
-            ("power", "—" if status.power is None else f"{status.power:.1f} V"),
+            ("power", "—" if status.power is None else f"{status.power:.2f} V"),
         ]
     )
     motion = _grid(
         [
-            ("x", "—" if pose is None else f"{pose.x:+.2f} m"),
-            ("y", "—" if pose is None else f"{pose.y:+.2f} m"),
+            ("x", "—" if pose is None else f"{pose.x:+.3f} m"),
+            ("y", "—" if pose is None else f"{pose.y:+.3f} m"),
             ("heading", "—" if pose is None else f"{pose.degrees:+.1f}°"),
             ("speed", _unit(status.current_speed_x, "m/s")),
             ("turn rate", _unit(status.current_speed_theta, "rad/s")),

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import datetime
 import enum
 import json
-import logging
 import os
 import sys
 from collections.abc import Awaitable, Callable
@@ -31,6 +32,7 @@ from ..errors import (
     PortBusy,
 )
 from ..transports import link_kind
+from .logs import setup_logging
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -59,6 +61,7 @@ __all__ = [
     "run_robot",
     "settings_of",
     "setup_logging",
+    "timestamp",
     "with_query",
 ]
 
@@ -72,6 +75,10 @@ PortSource = Literal["--port", "GALILEO_PORT", "--robot", "GALILEO_ROBOT", "defa
 SIMULATOR_NOTICE = (
     f"galileo: no --port or {PORT_ENV} given: running on the built-in simulator ({DEFAULT_PORT})"
 )
+
+
+#: The Settings of the running invocation (the last made): print_error asks it for --json.
+_current: list[Settings] = []
 
 
 class ExitCode(enum.IntEnum):
@@ -104,6 +111,9 @@ class Settings:
     extra: dict[str, Any] = field(default_factory=dict)
     #: The fleet file of ``--fleet`` (fleet commands).
     fleet: Path | None = None
+
+    def __post_init__(self) -> None:
+        _current[:] = [self]  # the invocation's settings: print_error asks for --json
 
     @property
     def url(self) -> str:
@@ -161,6 +171,7 @@ def settings_of(ctx: typer.Context) -> Settings:
     if not isinstance(root.obj, Settings):
         port, source = resolve_port(None)
         root.obj = Settings(port=port, port_source=source)
+    root.call_on_close(_current.clear)  # the invocation is over: no JSON errors after it
     return root.obj
 
 
@@ -237,15 +248,21 @@ def _hint(exc: BaseException) -> str:
 
 
 def error_text(exc: BaseException) -> str:
-    """``Kind: message`` for a driver error (GalileoError), the bare message otherwise."""
-    message = str(exc) or type(exc).__name__
-    if isinstance(exc, GalileoError):
-        return f"{type(exc).__name__}: {message}"
-    return message
+    """``Kind: message``: the error's type name, then its message."""
+    return f"{type(exc).__name__}: {str(exc) or type(exc).__name__}"
 
 
-def print_error(message: str) -> None:
-    """Print ``error: message`` on stderr: the one format of every error line of the CLI."""
+def _json_wanted() -> bool:
+    """True when the running command was asked for --json (errors are then JSON too)."""
+    return bool(_current) and _current[-1].json
+
+
+def print_error(message: str, *, kind: str = "error", code: ExitCode = ExitCode.ERROR) -> None:
+    """``error: message`` on stderr; with --json ``{"error": kind, "message", "exit_code"}``."""
+    if _json_wanted():
+        data = {"error": kind, "message": message, "exit_code": int(code)}
+        out_console().print(json.dumps(data), markup=False)
+        return
     err_console().print(f"[bold red]error:[/] {escape(message)}", highlight=False)
 
 
@@ -254,14 +271,25 @@ def report(exc: BaseException, verbose: int) -> ExitCode:
     code = exit_code_for(exc)
     if verbose:
         err_console().print_exception(show_locals=False)
-    print_error(error_text(exc) + _hint(exc))
+    bug = "" if isinstance(exc, _REPORTED) else " (a bug: -v shows where)"
+    if _json_wanted():
+        message = (str(exc) or type(exc).__name__) + _hint(exc) + bug
+        print_error(message, kind=type(exc).__name__, code=code)
+    else:
+        print_error(error_text(exc) + _hint(exc) + bug)
     return code
 
 
 def fail(message: str, code: ExitCode = ExitCode.ERROR) -> NoReturn:
     """Print ``message`` as an error line and exit with ``code``."""
-    print_error(message)
+    print_error(message, kind=code.name.lower(), code=code)
     raise typer.Exit(int(code))
+
+
+def timestamp() -> str:
+    """The wall-clock time now, ISO 8601 UTC with milliseconds (``2026-11-25T22:01:52.123Z``)."""
+    now = datetime.datetime.now(datetime.timezone.utc)
+    return now.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def run(
@@ -270,20 +298,43 @@ def run(
     *,
     interrupted: ExitCode = ExitCode.INTERRUPTED,
 ) -> NoReturn:
-    """Run ``main`` on a fresh event loop and exit with its code or the code of its error."""
+    """Run ``main`` on a fresh event loop and exit with its code or the code of its error.
+
+    Every error ends as one line (report); a reader that closed stdout (``| head``) ends
+    the command quietly: exit 0 for a command that Ctrl-C ends normally, else 1 (as Python).
+    """
     try:
         code = asyncio.run(_as_coroutine(main))
     except KeyboardInterrupt:
         code = int(interrupted)
-    except Exception as exc:
+    except BaseException as exc:  # task groups wrap even SystemExit
         error = _first_leaf(exc)  # task groups wrap what their tasks raised
-        if not isinstance(error, _REPORTED):
-            raise
-        code = int(report(error, settings.verbose))
+        if _stdout_closed(error):
+            code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)
+        elif isinstance(error, KeyboardInterrupt):
+            code = int(interrupted)
+        elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
+            raise error from None
+        else:
+            code = int(report(error, settings.verbose))
     raise typer.Exit(int(code or 0))
 
 
-#: Errors reported as one line; anything else is a bug and keeps its traceback.
+def _stdout_closed(error: BaseException) -> bool:
+    """True for a write to a stdout its reader closed (rich turns that into SystemExit(1))."""
+    broken = isinstance(error, BrokenPipeError) or (
+        isinstance(error, SystemExit) and isinstance(error.__context__, BrokenPipeError)
+    )
+    if broken:
+        # Python's advice (library/signal.html#note-on-sigpipe): point stdout at devnull so
+        # that the flush at exit does not fail once more.
+        with contextlib.suppress(OSError, ValueError):  # a stdout without a descriptor
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+    return broken
+
+
+#: Errors reported as one line of their own; anything else is a bug, reported as such.
 _REPORTED = (GalileoError, OSError, TimeoutError, ValueError)
 
 
@@ -337,27 +388,3 @@ async def ensure_navigation(robot: Robot, settings: Settings) -> None:
     note = " (sim:// is a fresh simulated robot on every run)" if is_sim(settings.port) else ""
     err_console().print(f"[dim]starting navigation{note}…[/]")
     await robot.start_navigation()
-
-
-_log_handler: logging.Handler | None = None
-
-
-def setup_logging(verbose: int) -> None:
-    """-v: driver debug logs on stderr; -vv: raw frames too (logger …transports.frames)."""
-    global _log_handler
-    package = logging.getLogger("galileo_async")
-    frames = logging.getLogger("galileo_async.transports.frames")
-    if _log_handler is not None:  # an earlier invocation in this process (tests) set it up
-        package.removeHandler(_log_handler)
-        package.setLevel(logging.NOTSET)
-        frames.setLevel(logging.NOTSET)
-        _log_handler = None
-    if not verbose:
-        return
-    from rich.logging import RichHandler
-
-    _log_handler = RichHandler(console=err_console(), show_path=False, rich_tracebacks=False)
-    _log_handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
-    package.addHandler(_log_handler)
-    package.setLevel(logging.DEBUG)
-    frames.setLevel(logging.DEBUG if verbose >= 2 else logging.INFO)

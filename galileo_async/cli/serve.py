@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import logging
+import socket
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 from urllib.parse import urlencode
 
 import typer
 
-from ..errors import InvalidArgument
+from ..errors import GalileoConnectionError, InvalidArgument
 from .capture import stop_requested
 from .runner import ExitCode, err_console, fail, out_console, run, settings_of
 
@@ -25,12 +29,29 @@ def _host_port(text: str, option: str = "--tcp") -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not port.isdigit():
         raise InvalidArgument(f"{option} wants HOST:PORT, got {text!r}")
+    if int(port) > 65535:
+        raise InvalidArgument(f"{option}: port {port} is out of range 0..65535")
     return host.strip("[]") or "127.0.0.1", int(port)
 
 
 def _udp_address(text: str) -> tuple[str, int]:
     """``--udp``: a PORT (on loopback) or HOST:PORT."""
-    return ("127.0.0.1", int(text)) if text.isdigit() else _host_port(text, "--udp")
+    return _host_port(f"127.0.0.1:{text}" if text.isdigit() else text, "--udp")
+
+
+@contextlib.contextmanager
+def _listening(where: str, option: str) -> Iterator[None]:
+    """Turn a failure to listen on ``where`` into one error that names it, with a hint."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE:
+            why = f"{where} is already in use (another `galileo sim`?): pick another {option}"
+            raise GalileoConnectionError(f"{why}, or port 0 for a free one") from exc
+        if isinstance(exc, socket.gaierror):
+            unknown = f"{option} {where}: unknown host ({exc.strerror})"
+            raise GalileoConnectionError(unknown) from exc
+        raise GalileoConnectionError(f"cannot listen on {where}: {exc.strerror or exc}") from exc
 
 
 def _url(scheme: str, address: tuple[str, int]) -> str:
@@ -85,10 +106,13 @@ def sim(
                 served.append((simulator.open_pty(), layout))
             elif tcp is not None or udp is None:
                 host, port = _host_port(tcp or DEFAULT_TCP)
-                server = await simulator.serve_tcp(host, port)
+                with _listening(f"{host}:{port}", "--tcp"):
+                    server = await simulator.serve_tcp(host, port)
                 served.append((_url("socket", server.sockets[0].getsockname()), layout))
             if udp is not None:
-                face = await simulator.serve_udp(*_udp_address(udp))
+                address = _udp_address(udp)
+                with _listening("{}:{}".format(*address), "--udp"):
+                    face = await simulator.serve_udp(*address)
                 served.append((_url("udp", face.address), udp_layout))
             console = out_console()
             for where, _ in served:
@@ -198,7 +222,9 @@ def ports(
 def discover(
     ctx: typer.Context,
     timeout: Annotated[float, typer.Option("--timeout", "-t", help="Seconds to listen.")] = 1.5,
-    port: Annotated[int, typer.Option("--udp-port", help="UDP port robots announce on.")] = 22002,
+    port: Annotated[
+        int, typer.Option("--udp-port", min=0, max=65535, help="UDP port robots announce on.")
+    ] = 22002,
     bind: Annotated[str, typer.Option("--bind", help="Local address to listen on.")] = "",
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:

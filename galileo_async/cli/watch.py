@@ -36,6 +36,7 @@ from .runner import (
     print_json,
     run_robot,
     settings_of,
+    timestamp,
 )
 
 if TYPE_CHECKING:
@@ -84,7 +85,8 @@ def status(
         if not watch:
             latest = robot.status or await first_report(robot)
             if settings.json:
-                print_json(settings, {"status": status_dict(latest), "link": link_dict(robot.link)})
+                data = {"status": status_dict(latest), "link": link_dict(robot.link)}
+                print_json(settings, {"time": timestamp()} | data)
             else:
                 from .render import status_table
 
@@ -135,7 +137,7 @@ async def _print_statuses(
             continue
         next_at = now + interval
         if settings.json:
-            print_json(settings, status_dict(current))
+            print_json(settings, {"time": timestamp()} | status_dict(current))
         else:
             console.print(status_line(current), markup=False)
         printed += 1
@@ -155,7 +157,7 @@ async def _report_link(
         if isinstance(event, ConnectionLostEvent):
             lost.append(event.reason)
         if settings.json:
-            print_json(settings, event_dict(event))
+            print_json(settings, {"time": timestamp()} | event_dict(event))
         else:
             err_console().print(text, markup=False, style="yellow")
 
@@ -207,7 +209,7 @@ def monitor(
             try:
                 async for event in stream:
                     if settings.json:
-                        line = {"t": round(anyio.current_time() - started, 3)}
+                        line = {"time": timestamp(), "t": round(anyio.current_time() - started, 3)}
                         print_json(settings, line | event_dict(event))
                     recent.append((anyio.current_time() - started, event_text(event)))
             finally:
@@ -236,8 +238,9 @@ def monitor(
                 if settings.json:
                     while await _tick(deadline, 1.0):
                         if latest[0] is not None:
-                            data = {"status": status_dict(latest[0]), "link": link_dict(robot.link)}
-                            print_json(settings, data)
+                            status_now = status_dict(latest[0])
+                            data = {"status": status_now, "link": link_dict(robot.link)}
+                            print_json(settings, {"time": timestamp()} | data)
                 else:
                     with (
                         keys_pressed(view.press),

@@ -241,9 +241,9 @@ def _timeout(
 ) -> GalileoTimeout:
     target_id = tracker.target_id
     if tracker.accepted:
+        last = "unknown" if tracker.distance is None else f"{tracker.distance:.3f} m"
         return OperationTimeout(
-            f"goal {target_id} did not end within {deadline.timeout} s "
-            f"(last distance {tracker.distance} m)",
+            f"goal {target_id} did not end within {deadline.timeout} s (last distance {last})",
             status,
         )
     if overall:

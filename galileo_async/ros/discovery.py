@@ -9,6 +9,7 @@ import socket
 from dataclasses import dataclass
 from typing import Any
 
+from .._checks import check_int
 from ..errors import GalileoConnectionError, InvalidArgument
 from .link import DEFAULT_MASTER_PORT
 
@@ -104,6 +105,7 @@ async def discover(
     """Listen for ``timeout`` seconds; return each robot heard (latest announcement), by id."""
     if not timeout > 0:
         raise InvalidArgument(f"timeout must be positive, got {timeout!r}")
+    check_int("port", port, 0, 65535)
     loop = asyncio.get_running_loop()
     try:
         sock = _socket(bind, port)

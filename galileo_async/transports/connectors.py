@@ -7,6 +7,8 @@ import contextlib
 import errno
 import importlib
 import logging
+import os
+import re
 import socket
 from collections.abc import Awaitable, Callable, Iterator
 from types import ModuleType
@@ -67,6 +69,8 @@ def translate_errors(what: str) -> Iterator[None]:
 def _describe(exc: BaseException) -> str:
     """The message of ``exc``, or its kind when it has none (``str(TimeoutError())`` is empty)."""
     text = str(exc)
+    if isinstance(exc, socket.gaierror):  # "[Errno -2] Name or service not known"
+        return f"unknown host ({exc.strerror})"
     if isinstance(exc, (TimeoutError, asyncio.TimeoutError)):
         return text or "timed out"
     return text or type(exc).__name__
@@ -78,6 +82,10 @@ def serial_backend() -> ModuleType:
         return importlib.import_module("serial_asyncio_fast")
     except ImportError:
         return importlib.import_module("serial_asyncio")
+
+
+#: A port that looks like HOST:PORT, which a missing device likely was meant to be.
+_HOST_PORT = re.compile(r"[\w.-]+:\d+|\[[0-9a-fA-F:.]+\]:\d+")
 
 
 def serial_connector(
@@ -110,6 +118,12 @@ def serial_connector(
                         f"serial port {port} is busy: another process or connection has it "
                         f"open ({_describe(exc)})",
                         port=port,
+                    ) from exc
+                if exc.errno:  # pyserial repeats "[Errno N] …" inside its own message
+                    tcp = exc.errno == errno.ENOENT and _HOST_PORT.fullmatch(port)
+                    hint = f" (for a TCP port write socket://{port})" if tcp else ""
+                    raise GalileoConnectionError(
+                        f"cannot open serial port {port}: {os.strerror(exc.errno)}{hint}"
                     ) from exc
                 raise
         _log.debug("opened %s at %d baud with %s", port, baudrate, backend.__name__)

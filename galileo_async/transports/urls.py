@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pkgutil
 from collections.abc import Collection, Mapping
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
@@ -27,13 +28,50 @@ from .udp import UdpLink, parse_udp_url
 if TYPE_CHECKING:
     from ..sim import Simulator
 
-__all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
+__all__ = [
+    "LINK_SCHEMES",
+    "byte_connector",
+    "check_link_options",
+    "check_serial_url",
+    "link_kind",
+    "open_link",
+    "serial_schemes",
+]
+
+
+#: The URL schemes with a link of their own; anything else goes to the serial link.
+LINK_SCHEMES = tuple(kind for kind in LINK_KINDS if kind != "serial")
 
 
 def link_kind(url: str) -> str:
     """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
     scheme = urlsplit(url).scheme.lower()
-    return scheme if scheme in LINK_KINDS else "serial"  # a path or any pyserial URL
+    return scheme if scheme in LINK_SCHEMES else "serial"
+
+
+def serial_schemes() -> tuple[str, ...]:
+    """The URL schemes pyserial opens itself (``rfc2217://``, ``loop://``, …)."""
+    import serial.urlhandler
+
+    modules = pkgutil.iter_modules(serial.urlhandler.__path__)
+    names = (m.name.removeprefix("protocol_") for m in modules if m.name.startswith("protocol_"))
+    return tuple(sorted(name for name in names if name not in LINK_SCHEMES))
+
+
+def check_serial_url(url: str) -> None:
+    """InvalidArgument for a serial-link URL whose scheme no link knows (``foo://``)."""
+    scheme, sep, rest = url.partition(":")
+    # One letter is a Windows drive (C:\…), not a scheme.
+    if not sep or len(scheme) < 2 or urlsplit(url).scheme.lower() != scheme.lower():
+        return
+    if scheme.lower() in serial_schemes():
+        return
+    known = ", ".join(f"{name}://" for name in (*LINK_SCHEMES, *serial_schemes()))
+    hint = f"; for a TCP port write socket://{url}" if rest.isdigit() else ""
+    raise InvalidArgument(
+        f"{url!r}: unknown URL scheme {scheme!r}; known: {known}, or a serial device path "
+        f"(/dev/ttyUSB0, COM3){hint}"
+    )
 
 
 def check_link_options(
@@ -57,6 +95,8 @@ def check_link_options(
         parse_socket_url(url)
     elif kind == "udp":
         parse_udp_url(url)
+    elif kind == "serial":
+        check_serial_url(url)
 
 
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
@@ -92,6 +132,7 @@ def byte_connector(
         simulator = Simulator.from_url(url)
         return simulator.connector(), simulator
     # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
+    check_serial_url(url)
     return serial_connector(url, baudrate=baudrate, **(serial_options or {})), None
 
 
