@@ -83,9 +83,7 @@ class GoalRunner:
         """Send ``command`` through Operations.send (supersedable) and follow its goal; see goto."""
         ops = self._ops
         goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance, progress_timeout)
-        left: Callable[[HostGoal], HostGoal | None] = (
-            _forget  # what the store's goal rule follows of it once goto returns
-        )
+        left = _forget  # what the store's goal rule keeps of it once goto returns
         try:
             return await ops.send(
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
@@ -101,8 +99,9 @@ class GoalRunner:
                 # A stale link may still transmit; a lost one cannot.
                 if not isinstance(exc, ConnectionLost):
                     _log.info("goal %d left before its end: sending cancel", goal.target_id)
-                    left = cancelling
-                    ops.store.revise_goal(goal, cancelling)
+                    if goal.tracker.accepted:  # its end after our cancel is that cancel
+                        left = cancelling
+                        goal.revise(cancelling)
                     await ops.send_cancel_shielded()
             if isinstance(exc, GoalStalled):
                 ops.store.emit(
@@ -124,8 +123,9 @@ class GoalRunner:
         self._ops.goal_started()
 
 
-def _forget(host: HostGoal) -> None:
+def _forget(host: HostGoal) -> HostGoal | None:
     """A goal goto no longer follows: the store's rule stops attributing frames to it."""
+    return None
 
 
 class _Goal:
