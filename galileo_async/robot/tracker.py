@@ -83,9 +83,11 @@ class GoalTracker:
             if change is GoalChange.ACCEPTED:
                 self.accepted = True
             elif change in ENDS:
-                self.distance = step.distance if change is not GoalChange.CANCELLED else None
                 if change is GoalChange.REACHED:
+                    self.distance = step.distance
                     return True
+                if change is GoalChange.ABORTED:
+                    self.distance = step.distance
                 raise self._error(change, status)
         if self.host is not None and self.host.pending:
             self.accepted = False  # the restart's own cancel: the goal must show working again
