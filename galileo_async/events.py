@@ -20,9 +20,9 @@ __all__ = [
     "GoalAccepted",
     "GoalCancelledEvent",
     "GoalEvent",
-    "GoalFailed",
     "GoalPaused",
     "GoalReached",
+    "GoalRejectedEvent",
     "GoalResumed",
     "GoalStalledEvent",
     "LinkRestored",
@@ -112,8 +112,8 @@ class GoalAbortedEvent(GoalEvent):
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class GoalFailed(GoalEvent):
-    """The goal state became an error (3 in the document, -1 on real firmware)."""
+class GoalRejectedEvent(GoalEvent):
+    """The robot reported an error for the goal (3 in the document, -1 on real firmware)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -207,13 +207,15 @@ class ConnectionRestored(Event):
     """The transport is connected again after a drop."""
 
 
-#: The events' former names, the same as errors' names (GoalAborted, …): importable from
-#: this module for one release, with a DeprecationWarning.
-_RENAMED = {
+#: The events' former names, the same as errors' names (GoalAborted, …) or another name for
+#: the same end (GoalFailed): importable from this module for one release, with a
+#: DeprecationWarning.
+_RENAMED: dict[str, type[Event]] = {
     "GoalAborted": GoalAbortedEvent,
     "GoalCancelled": GoalCancelledEvent,
     "LinkStale": LinkStaleEvent,
     "ConnectionLost": ConnectionLostEvent,
+    "GoalFailed": GoalRejectedEvent,
 }
 
 
@@ -222,9 +224,11 @@ def __getattr__(name: str) -> type[Event]:
     event = _RENAMED.get(name)
     if event is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    why = f"galileo_async.{event.name} is the error of the same end"
+    if event.name == name:
+        why = f"galileo_async.{name} is the error of the same name"
     warnings.warn(
-        f"galileo_async.events.{name} is deprecated, use {event.__name__}: "
-        f"galileo_async.{name} is the error of the same name",
+        f"galileo_async.events.{name} is deprecated, use {event.__name__}: {why}",
         DeprecationWarning,
         stacklevel=2,
     )

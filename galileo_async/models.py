@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 import math
+import warnings
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
@@ -23,7 +24,8 @@ __all__ = [
     "VisualStatus",
 ]
 
-#: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11).
+#: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11): the
+#: deprecated GalileoStatus.arrived only; goals end by transitions.goal_step.
 ARRIVED_DISTANCE = 0.01
 
 #: What the vendor's serial node sends, with a counting time_stamp, until the navigation
@@ -233,7 +235,14 @@ class GalileoStatus(BaseModel):
 
     @property
     def arrived(self) -> bool:
-        """Goal free and within ARRIVED_DISTANCE of its target."""
+        """Deprecated: goal free within ARRIVED_DISTANCE; goto() and events() use goal_step."""
+        warnings.warn(
+            "GalileoStatus.arrived is deprecated: a goal's end is decided by "
+            "galileo_async.transitions.goal_step (GoalReached, within arrive_tolerance of its "
+            "last valid distance); transitions.at_target(status, tolerance) tests one status",
+            DeprecationWarning,
+            stacklevel=2,
+        )
         return (
             self.target_status == TargetStatus.FREE
             and self.target_distance is not None

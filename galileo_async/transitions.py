@@ -1,8 +1,8 @@
 """Transitions, pure (no I/O): two statuses in, events out; the goal rule, written once.
 
-derive_events (the events() stream) and the goal follower of goto/rotate_to both decide a
-goal's end with goal_transition, so a goal that goto() reports reached is the goal that
-events() reports reached.
+goal_step is the goal state machine: (prev, cur, what this host sent) → how goals changed.
+derive_events (the events() stream) and GoalTracker (goto, goto_point) are its two users, so
+every goal ends by one verdict with one name: GoalRejected ~ GoalRejectedEvent, …
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from .events import (
     GoalAccepted,
     GoalCancelledEvent,
     GoalEvent,
-    GoalFailed,
     GoalPaused,
     GoalReached,
+    GoalRejectedEvent,
     GoalResumed,
     MappingStarted,
     MappingStopped,
@@ -38,13 +38,22 @@ from .models import GalileoStatus, TargetStatus, VisualStatus
 __all__ = [
     "ACTIVE",
     "DEFAULT_ARRIVE_TOLERANCE",
+    "ENDS",
     "FAILED",
+    "KNOWN",
     "GoalChange",
+    "GoalStep",
     "GoalTransition",
+    "HostGoal",
     "arrived",
+    "at_target",
     "derive_events",
+    "derive_step",
     "end_distance",
+    "failed_newly",
+    "goal_step",
     "goal_transition",
+    "run_starts",
     "running_distance",
     "valid_distance",
 ]
@@ -56,19 +65,25 @@ DEFAULT_ARRIVE_TOLERANCE = 0.3
 ACTIVE = (TargetStatus.WORKING, TargetStatus.PAUSED)
 #: target_status values of an error: 3 in the document, -1 on real firmware (PROTOCOL.md §1).
 FAILED = (TargetStatus.ERROR, TargetStatus.INVALID)
+#: The target_status values the goal rule knows; another (newer firmware) is no change.
+KNOWN = frozenset(TargetStatus)
 
 
 class GoalChange(Enum):
-    """What happened to the goal between two statuses."""
+    """What happened to a goal between two statuses (ENDS end it); one name per end, as errors."""
 
     ACCEPTED = "accepted"
     PAUSED = "paused"
     RESUMED = "resumed"
-    REACHED = "reached"
-    ABORTED = "aborted"
-    FAILED = "failed"
-    CANCELLED = "cancelled"
-    PREEMPTED = "preempted"  # cancelled because a new goal replaced it (ACCEPTED follows)
+    REACHED = "reached"  # goto returns a GoalResult; events() GoalReached
+    ABORTED = "aborted"  # GoalAborted; GoalAbortedEvent
+    REJECTED = "rejected"  # GoalRejected; GoalRejectedEvent
+    CANCELLED = "cancelled"  # GoalCancelled; GoalCancelledEvent
+    PREEMPTED = "preempted"  # GoalCancelled(preempted=True); GoalCancelledEvent(preempted=True)
+    FAILED = "rejected"  # deprecated alias of REJECTED (its former name)
+
+
+ENDS = frozenset(GoalChange) - {GoalChange.ACCEPTED, GoalChange.PAUSED, GoalChange.RESUMED}
 
 
 class GoalTransition(NamedTuple):
@@ -78,7 +93,30 @@ class GoalTransition(NamedTuple):
     distance: float | None = None
 
 
-_NONE = GoalTransition(())
+class HostGoal(NamedTuple):
+    """What this host sent about one goal (HostGoal.sent at ``g N``): goal_step's third input."""
+
+    target_id: int
+    before_id: int | None  # target_num_id at the write: only a change to ours proves an end
+    pending: bool  # written, not yet seen working
+    restarting: bool  # sent while it ran: its first end may be the restart's cancel (§2.b)
+    cancelled: bool = False  # this host sent cancel (i 2): free far away is that cancel
+    origin: object = None  # the sender's own object: tells two sends of one id apart
+
+    @classmethod
+    def sent(cls, target_id: int, before: GalileoStatus | None, origin: object = None) -> HostGoal:
+        """``g target_id`` is written now; ``before`` is the latest status at the write."""
+        restarting = before is not None and _running(before) and before.target_num_id == target_id
+        before_id = None if before is None else before.target_num_id
+        return cls(target_id, before_id, not restarting, restarting, origin=origin)
+
+
+class GoalStep(NamedTuple):
+    """goal_step's verdict: (change, goal id) pairs in order, the end's distance, the next host."""
+
+    changes: tuple[tuple[GoalChange, int | None], ...]
+    distance: float | None
+    host: HostGoal | None
 
 
 def valid_distance(value: float | None) -> float | None:
@@ -98,6 +136,148 @@ def arrived(distance: float | None, arrive_tolerance: float) -> bool:
     return distance is not None and distance <= arrive_tolerance
 
 
+def at_target(status: GalileoStatus, arrive_tolerance: float) -> bool:
+    """``status`` shows its goal free within ``arrive_tolerance`` (its own valid distance)."""
+    return status.target_status == TargetStatus.FREE and arrived(
+        valid_distance(status.target_distance), arrive_tolerance
+    )
+
+
+def failed_newly(prev: GalileoStatus, cur: GalileoStatus) -> bool:
+    """``cur`` shows a goal error that ``prev`` did not already show (for that goal id)."""
+    if cur.target_status not in FAILED:
+        return False
+    return prev.target_status not in FAILED or prev.target_num_id != cur.target_num_id
+
+
+def _closed(status: GalileoStatus) -> bool:
+    return status.nav_status is not None and status.nav_status != 1
+
+
+def _running(status: GalileoStatus) -> bool:
+    return status.target_status in ACTIVE
+
+
+def goal_step(
+    prev: GalileoStatus,
+    cur: GalileoStatus,
+    *,
+    host: HostGoal | None = None,
+    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    last_distance: float | None = None,
+) -> GoalStep:
+    """THE goal state machine: how goals changed from prev to cur, given ``host`` (what this host
+    sent and follows; None: a watcher). An unknown target_status on either side is no change.
+    ``last_distance``: the last valid distance of prev's goal before prev (running_distance)."""
+    if host is not None and _closed(cur):  # closed navigation ends every goal, known or not
+        gone = prev.target_num_id
+        dropped = (
+            ((GoalChange.CANCELLED, gone),) if _running(prev) and gone != host.target_id else ()
+        )
+        return GoalStep((*dropped, (GoalChange.CANCELLED, host.target_id)), None, None)
+    if prev.target_status not in KNOWN or cur.target_status not in KNOWN:
+        return GoalStep((), None, host)
+    if host is not None and host.pending:
+        if prev.target_num_id == host.target_id and _running(prev):
+            host = host._replace(pending=False)  # seen working already (a late listener)
+        else:
+            return _host_result(_pending(prev, cur, host, arrive_tolerance, last_distance), host)
+    if host is not None and host.restarting and _restart_cancel(prev, cur, host, arrive_tolerance):
+        return GoalStep((), None, host._replace(pending=True, restarting=False))
+    return _host_result(_observed(prev, cur, arrive_tolerance, last_distance), host)
+
+
+def _restart_cancel(
+    prev: GalileoStatus, cur: GalileoStatus, host: HostGoal, tolerance: float
+) -> bool:
+    """``cur`` is the restart's own cancel: ours ran, and now it neither runs nor arrived."""
+    tid = host.target_id
+    if prev.target_num_id != tid or not _running(prev) or _closed(cur) or failed_newly(prev, cur):
+        return False
+    return cur.target_num_id != tid or not (_running(cur) or at_target(cur, tolerance))
+
+
+_Changes = tuple[tuple[GoalChange, int | None], ...]
+
+
+def _accepted(status: GalileoStatus, target_id: int | None) -> _Changes:
+    paused = status.target_status == TargetStatus.PAUSED
+    return ((GoalChange.ACCEPTED, target_id),) + (
+        ((GoalChange.PAUSED, target_id),) if paused else ()
+    )
+
+
+def _end(distance: float | None, tolerance: float) -> GoalChange:
+    return GoalChange.REACHED if arrived(distance, tolerance) else GoalChange.ABORTED
+
+
+def _pending(
+    prev: GalileoStatus, cur: GalileoStatus, host: HostGoal, tol: float, last: float | None
+) -> GoalStep:
+    """A written goal not yet seen working: the frames that accept, refuse or end it."""
+    tid = host.target_id
+    ours = cur.target_num_id == tid
+    # The goal before ours, when ours (or its refusal) shows: a goal this host wrote replaced it.
+    before = ((GoalChange.PREEMPTED, prev.target_num_id),) if _running(prev) else ()
+    if ours and _running(cur):
+        return GoalStep(before + _accepted(cur, tid), None, host._replace(pending=False))
+    if failed_newly(prev, cur):
+        # The document reports a bad goal as 3; the firmware as -1, leaving target_num_id
+        # unchanged (PROTOCOL.md §2.b): an id check cannot be used.
+        return GoalStep((*before, (GoalChange.REJECTED, tid)), None, None)
+    if ours and host.before_id != tid and cur.target_status == TargetStatus.FREE:
+        # Accepted and finished between two frames: the id changing to ours is the proof.
+        distance = valid_distance(cur.target_distance)
+        changes = (*before, (GoalChange.ACCEPTED, tid), (_end(distance, tol), tid))
+        return GoalStep(changes, distance, None)
+    return _observed(prev, cur, tol, last)._replace(host=host)  # other goals; ours not yet
+
+
+def _observed(prev: GalileoStatus, cur: GalileoStatus, tol: float, last: float | None) -> GoalStep:
+    """What a watcher that sent nothing sees: the goal ``prev`` shows, the goal ``cur`` shows."""
+    old_id, new_id, new = prev.target_num_id, cur.target_num_id, cur.target_status
+    # No goal id (-1): a robot that (re)started, not a goal that failed.
+    has_id = new_id is not None and new_id >= 0
+    if not _running(prev):
+        if _running(cur):
+            return GoalStep(_accepted(cur, new_id), None, None)
+        if failed_newly(prev, cur) and has_id:
+            return GoalStep(((GoalChange.REJECTED, new_id),), None, None)
+        return GoalStep((), None, None)
+    if _closed(cur) and not _closed(prev):  # navigation closed under the goal: it is gone
+        return GoalStep(((GoalChange.CANCELLED, old_id),), None, None)
+    if old_id != new_id:
+        if _running(cur):
+            return GoalStep(((GoalChange.PREEMPTED, old_id), *_accepted(cur, new_id)), None, None)
+        rejected = ((GoalChange.REJECTED, new_id),) if new in FAILED and has_id else ()
+        return GoalStep(((GoalChange.CANCELLED, old_id), *rejected), None, None)
+    if new in ACTIVE:
+        if new == prev.target_status:
+            return GoalStep((), None, None)
+        resumed = GoalChange.PAUSED if new == TargetStatus.PAUSED else GoalChange.RESUMED
+        return GoalStep(((resumed, old_id),), None, None)
+    if new in FAILED:
+        return GoalStep(((GoalChange.REJECTED, old_id),), None, None)
+    distance = end_distance(cur, end_distance(prev, last))
+    return GoalStep(((_end(distance, tol), old_id),), distance, None)
+
+
+def _host_result(step: GoalStep, host: HostGoal | None) -> GoalStep:
+    """``step`` with the end of ``host``'s goal told as this host's: its cancel, its end."""
+    if host is None:
+        return step
+    for change, target_id in step.changes:
+        if target_id == host.target_id and change in ENDS:
+            if change is GoalChange.ABORTED and host.cancelled:
+                # The document's cancel leaves target_num_id alone (only real firmware sets
+                # -1, PROTOCOL.md §2.c): free far away after our cancel is that cancel.
+                step = step._replace(changes=tuple(
+                    (GoalChange.CANCELLED if c is change else c, t) for c, t in step.changes
+                ))  # fmt: skip
+            return step._replace(host=None)
+    return step if step.host is not None else step._replace(host=host)
+
+
 def goal_transition(
     prev: GalileoStatus,
     cur: GalileoStatus,
@@ -105,45 +285,20 @@ def goal_transition(
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     last_distance: float | None = None,
 ) -> GoalTransition:
-    """How the goal changed from ``prev`` to ``cur``; unknown target_status on either side: none.
+    """goal_step for a watcher (nothing sent), without the goal ids."""
+    step = goal_step(prev, cur, arrive_tolerance=arrive_tolerance, last_distance=last_distance)
+    return GoalTransition(tuple(c for c, _ in step.changes), step.distance)
 
-    ``last_distance``: the last valid distance of the goal ``prev`` shows, seen before
-    ``prev`` (running_distance); prev's own valid distance is newer and wins over it.
-    """
-    old, new = prev.target_status, cur.target_status
-    if old is None or new is None:
-        return _NONE
-    same_id = prev.target_num_id == cur.target_num_id
-    if old in ACTIVE:
-        if new in ACTIVE and same_id:
-            if old == new:
-                return _NONE
-            paused = new == TargetStatus.PAUSED
-            return GoalTransition((GoalChange.PAUSED if paused else GoalChange.RESUMED,))
-        if new in FAILED:
-            return GoalTransition((GoalChange.FAILED,))
-        if not same_id:
-            if new in ACTIVE:
-                return GoalTransition((GoalChange.PREEMPTED, GoalChange.ACCEPTED))
-            return GoalTransition((GoalChange.CANCELLED,))
-        distance = end_distance(cur, end_distance(prev, last_distance))
-        end = GoalChange.REACHED if arrived(distance, arrive_tolerance) else GoalChange.ABORTED
-        return GoalTransition((end,), distance)
-    if new in ACTIVE:
-        if new == TargetStatus.PAUSED:
-            return GoalTransition((GoalChange.ACCEPTED, GoalChange.PAUSED))
-        return GoalTransition((GoalChange.ACCEPTED,))
-    if new in FAILED and (old not in FAILED or not same_id):
-        return GoalTransition((GoalChange.FAILED,))
-    return _NONE
+
+def run_starts(prev: GalileoStatus, cur: GalileoStatus) -> bool:
+    """``cur`` starts a run of its goal: the distances seen before belong to another run."""
+    return cur.target_status in ACTIVE and (
+        prev.target_status not in ACTIVE or prev.target_num_id != cur.target_num_id
+    )
 
 
 def running_distance(measured: GalileoStatus | None, prev: GalileoStatus) -> float | None:
-    """The valid distance ``measured`` shows if it shows ``prev``'s goal running, else None.
-
-    ``measured``: the last status with a valid distance before ``prev``'s successor; a
-    feeder that keeps it (one comparison a frame) gives goal_transition its last_distance.
-    """
+    """The valid distance of ``measured`` (the last status with one) if it shows prev's goal run."""
     if measured is None or measured.target_status not in ACTIVE:
         return None
     if measured.target_num_id != prev.target_num_id:
@@ -160,25 +315,42 @@ def derive_events(
     *,
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     last_distance: float | None = None,
+    host: HostGoal | None = None,
 ) -> list[Event]:
-    """Events for the transition prev → cur; a field unknown (None) on either side is no change.
-
-    The goal's events follow transitions.goal_transition (the goal rule); ``last_distance``
-    is the running goal's last valid distance seen before ``prev`` (running_distance), if known.
-    """
+    """Events for prev → cur (a field unknown on either side: no change); goals by goal_step."""
     if prev is None:
         return []
+    tolerance, last = arrive_tolerance, last_distance
+    return derive_step(prev, cur, arrive_tolerance=tolerance, last_distance=last, host=host)[0]
+
+
+def derive_step(
+    prev: GalileoStatus,
+    cur: GalileoStatus,
+    *,
+    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
+    last_distance: float | None = None,
+    host: HostGoal | None = None,
+    measured: GalileoStatus | None = None,
+) -> tuple[list[Event], HostGoal | None]:
+    """derive_events, and the HostGoal after cur to keep; ``measured`` gives last_distance."""
+    if last_distance is None:
+        last_distance = running_distance(measured, prev)
     out: list[Event] = []
     _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
     _visual(out, prev.visual_status, cur.visual_status, cur)
-    _goal(out, prev, cur, arrive_tolerance, last_distance)
+    step = goal_step(
+        prev, cur, host=host, arrive_tolerance=arrive_tolerance, last_distance=last_distance
+    )
+    for change, target_id in step.changes:
+        out.append(_goal_event(change, target_id, step.distance, cur))
     _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
     old, new = prev.charge_status, cur.charge_status
     if old is not None and new is not None and old != new:
         out.append(ChargeStateChanged(status=cur, old=old, new=new))
     _two_state(out, prev.loop_status, cur.loop_status, cur, PatrolStarted, PatrolStopped)
     _two_state(out, prev.map_status, cur.map_status, cur, MappingStarted, MappingStopped)
-    return out
+    return out, step.host
 
 
 def _two_state(
@@ -212,33 +384,17 @@ _SIMPLE_GOAL_EVENTS: dict[GoalChange, type[GoalEvent]] = {
     GoalChange.ACCEPTED: GoalAccepted,
     GoalChange.PAUSED: GoalPaused,
     GoalChange.RESUMED: GoalResumed,
-    GoalChange.FAILED: GoalFailed,
+    GoalChange.REJECTED: GoalRejectedEvent,
 }
 
 
-def _goal(
-    out: list[Event],
-    prev: GalileoStatus,
-    cur: GalileoStatus,
-    tolerance: float,
-    last_distance: float | None,
-) -> None:
-    transition = goal_transition(prev, cur, arrive_tolerance=tolerance, last_distance=last_distance)
-    for change in transition.changes:
-        if change is GoalChange.REACHED:
-            out.append(
-                GoalReached(status=cur, target_id=cur.target_num_id, distance=transition.distance)
-            )
-        elif change is GoalChange.ABORTED:
-            out.append(
-                GoalAbortedEvent(
-                    status=cur, target_id=cur.target_num_id, distance=transition.distance
-                )
-            )
-        elif change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
-            preempted = change is GoalChange.PREEMPTED
-            out.append(
-                GoalCancelledEvent(status=cur, target_id=prev.target_num_id, preempted=preempted)
-            )
-        else:
-            out.append(_SIMPLE_GOAL_EVENTS[change](status=cur, target_id=cur.target_num_id))
+def _goal_event(
+    change: GoalChange, target_id: int | None, distance: float | None, cur: GalileoStatus
+) -> GoalEvent:
+    if change is GoalChange.REACHED or change is GoalChange.ABORTED:
+        end = GoalReached if change is GoalChange.REACHED else GoalAbortedEvent
+        return end(status=cur, target_id=target_id, distance=distance)
+    if change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
+        preempted = change is GoalChange.PREEMPTED
+        return GoalCancelledEvent(status=cur, target_id=target_id, preempted=preempted)
+    return _SIMPLE_GOAL_EVENTS[change](status=cur, target_id=target_id)

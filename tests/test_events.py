@@ -116,17 +116,17 @@ def test_goal_aborted_far_from_target() -> None:
     assert kinds(derive_events(prev, cur, arrive_tolerance=3.0)) == [ev.GoalReached]
 
 
-def test_goal_failed_document_and_firmware_codes() -> None:
+def test_goal_rejected_document_and_firmware_codes() -> None:
     # Document: error = 3. Firmware: -1 and target_num_id left unchanged (PROTOCOL.md §2.b).
     for code in (3, -1):
         (event,) = derive_events(
             st(target_num_id=2, target_status=0), st(target_num_id=2, target_status=code)
         )
-        assert isinstance(event, ev.GoalFailed)
+        assert isinstance(event, ev.GoalRejectedEvent)
         assert event.target_id == 2
     assert kinds(
         derive_events(st(target_num_id=3, target_status=1), st(target_num_id=3, target_status=3))
-    ) == [ev.GoalFailed]
+    ) == [ev.GoalRejectedEvent]
 
 
 def test_repeated_error_is_not_a_new_failure() -> None:

@@ -85,6 +85,24 @@ def test_targets_learned_on_arrival_and_sources_ranked() -> None:
         model.add_target(1, 0, 0, "guess")
 
 
+def test_the_map_learns_the_arrivals_goto_and_events_report() -> None:
+    # One rule (transitions.goal_step): free within arrive_tolerance of the last valid
+    # distance; -1 at the end keeps the last valid one (PROTOCOL.md §1).
+    model = MapModel()
+    for target_id, end in ((1, 0.2), (2, -1.0)):
+        model.update("a", at(1.0, 1.0, target_num_id=target_id, target_status=1, target_distance=1))
+        model.update(
+            "a", at(2.0, 2.0, target_num_id=target_id, target_status=1, target_distance=0.1)
+        )
+        model.update(
+            "a", at(2.0, 2.0, target_num_id=target_id, target_status=0, target_distance=end)
+        )
+    assert sorted(model.targets) == [1, 2]
+    # Free near a target without having driven there is no arrival seen.
+    model.update("b", at(5.0, 5.0, target_num_id=3, target_status=0, target_distance=0.0))
+    assert 3 not in model.targets
+
+
 def test_targets_csv(tmp_path: Path) -> None:
     path = tmp_path / "targets.csv"
     path.write_text("id,x,y\n0, 1.5, -2\n# a comment\n\n7,3,4\n")

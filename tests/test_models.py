@@ -207,8 +207,10 @@ def test_flag_properties(
     ],
 )
 def test_arrived(target_status: int | None, distance: float | None, expected: bool) -> None:
-    assert status(target_status=target_status, target_distance=distance).arrived is expected
-    assert v.V1_STATUS.arrived is True  # the golden v1 frame: free at 5 mm
+    with pytest.warns(DeprecationWarning, match="goal_step"):
+        assert status(target_status=target_status, target_distance=distance).arrived is expected
+    with pytest.warns(DeprecationWarning, match="arrived"):
+        assert v.V1_STATUS.arrived is True  # the golden v1 frame: free at 5 mm
 
 
 def test_pose() -> None:

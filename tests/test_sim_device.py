@@ -11,16 +11,22 @@ from typing import Any
 
 import pytest
 
-from galileo_async.models import GalileoStatus, StatusLayout
+from galileo_async.models import ARRIVED_DISTANCE, GalileoStatus, StatusLayout
 from galileo_async.protocol import LAYOUTS as SERIAL_LAYOUTS
 from galileo_async.protocol import StatusDecoder, encode
 from galileo_async.protocol import commands as c
 from galileo_async.sim import SimConfig, Simulator, Ticker
+from galileo_async.transitions import at_target
 
 #: The layouts a byte stream carries (the UDP face's are tested in test_sim_udp.py).
 LAYOUTS = list(SERIAL_LAYOUTS)
 FAST: dict[str, Any] = {"speed": 50.0, "visual_init_time": 0.5, "busy_on_start": 0.2}
 TIMEOUT = 5.0
+
+
+def arrived(status: GalileoStatus) -> bool:
+    """Free within 1 cm of the target: where the simulator ends a goal it drove."""
+    return at_target(status, ARRIVED_DISTANCE)
 
 
 class Host(asyncio.Protocol):
@@ -124,7 +130,7 @@ async def test_connector_stream_in_every_layout(layout: StatusLayout) -> None:
         host.send(c.Goto(0))
         await host.wait_for(lambda s: s.target_num_id == 0 and s.target_status == 1)
         done = await host.wait_for(lambda s: s.target_status == 0)
-        assert done.arrived
+        assert arrived(done)
 
 
 async def test_speed_scales_frame_rate(sim: Simulator) -> None:
@@ -157,7 +163,7 @@ async def test_reconnect_gets_fresh_stream_from_same_robot(sim: Simulator) -> No
     assert status.time_stamp > last_stamp  # the robot's counter kept running
     assert len(sim.state.targets) == len(SimConfig().targets) + 1
     second.send(c.Goto(len(SimConfig().targets)))
-    await second.wait_for(lambda s: s.arrived and s.target_num_id == 6, timeout=10)
+    await second.wait_for(lambda s: arrived(s) and s.target_num_id == 6, timeout=10)
 
 
 async def test_concatenated_commands_lose_the_middle_ones(sim: Simulator) -> None:
@@ -327,7 +333,7 @@ async def test_tcp_serves_several_clients(sim: Simulator) -> None:
     await second.wait_for(lambda s: s.visual_initialised and not s.is_busy)
     second.send(c.Goto(2))
     await first.wait_for(lambda s: s.target_num_id == 2 and s.target_status == 1)
-    assert (await first.wait_for(lambda s: s.target_status == 0, timeout=10)).arrived
+    assert arrived(await first.wait_for(lambda s: s.target_status == 0, timeout=10))
     await sim.close()
     await asyncio.wait_for(first.lost, TIMEOUT)
     await asyncio.wait_for(second.lost, TIMEOUT)
@@ -458,7 +464,8 @@ async def test_pty_stream_and_commands(layout: StatusLayout) -> None:
                 os.write(fd, encode(c.StartNavigation()))
                 await host.wait_for(lambda s: s.visual_initialised and not s.is_busy)
                 os.write(fd, encode(c.Goto(0)))
-                assert (await host.wait_for(lambda s: s.arrived and s.target_num_id == 0)).arrived
+                done = await host.wait_for(lambda s: arrived(s) and s.target_num_id == 0)
+                assert arrived(done)
             finally:
                 loop.remove_reader(fd)
 

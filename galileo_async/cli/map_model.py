@@ -12,9 +12,9 @@ from pathlib import Path
 
 from ..errors import InvalidArgument
 from ..models import GalileoStatus, TargetStatus
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalChange, goal_step
 
 __all__ = [
-    "ARRIVED_DISTANCE",
     "MIN_SPAN",
     "TRAIL_SECONDS",
     "Bounds",
@@ -31,8 +31,6 @@ TRAIL_SECONDS = 60.0
 TRAIL_STEP = 0.05
 #: Smallest width and height of the map, metres (a lone robot is not one huge dot).
 MIN_SPAN = 4.0
-#: |target_distance| below which a free goal counts as reached (PROTOCOL.md §1, field 11).
-ARRIVED_DISTANCE = 0.01
 #: Where a target's position came from, in the order one source overrides another.
 SOURCES = ("learned", "map", "dynamic", "file")
 
@@ -83,10 +81,16 @@ class MapModel:
     """Robots, trails and targets of a map view; fed statuses, asked for what to draw."""
 
     def __init__(
-        self, *, trail_seconds: float = TRAIL_SECONDS, clock: Callable[[], float] = time.monotonic
+        self,
+        *,
+        trail_seconds: float = TRAIL_SECONDS,
+        clock: Callable[[], float] = time.monotonic,
+        arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     ) -> None:
         self.trail_seconds = trail_seconds
         self.clock = clock
+        self.arrive_tolerance = arrive_tolerance
+        self._last: dict[str, GalileoStatus] = {}  # each robot's previous status
         self.robots: dict[str, RobotTrack] = {}
         self.targets: dict[int, MapTarget] = {}
 
@@ -104,7 +108,12 @@ class MapModel:
             self.add_target(target_id, x, y, source)
 
     def update(self, name: str, status: GalileoStatus, now: float | None = None) -> None:
-        """Move robot ``name`` to the status's pose; learn a target it is seen to arrive at."""
+        """Move robot ``name`` to the status's pose; learn a target it is seen to arrive at.
+
+        Arrived means what goto() and events() mean (transitions.goal_step): a goal that ends
+        free within ``arrive_tolerance``.
+        """
+        prev, self._last[name] = self._last.get(name), status
         pose = status.pose
         if pose is None:
             return
@@ -123,19 +132,17 @@ class MapModel:
         goal = status.target_num_id
         working = status.target_status in (TargetStatus.WORKING, TargetStatus.PAUSED)
         track.goal = goal if goal is not None and goal >= 0 and working else None
-        distance = status.target_distance
-        if (
-            goal is not None
-            and goal >= 0
-            and status.target_status == TargetStatus.FREE
-            and distance is not None
-            and 0 <= abs(distance) < ARRIVED_DISTANCE
-        ):
-            self.add_target(goal, x, y, "learned")
+        if prev is None:
+            return
+        step = goal_step(prev, status, arrive_tolerance=self.arrive_tolerance)
+        for change, target_id in step.changes:
+            if change is GoalChange.REACHED and target_id is not None and target_id >= 0:
+                self.add_target(target_id, x, y, "learned")
 
     def forget(self, name: str) -> None:
         """Take robot ``name`` off the map."""
         self.robots.pop(name, None)
+        self._last.pop(name, None)
 
     def goals(self) -> set[int]:
         """Target ids some robot is driving to (or paused on the way to)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -11,7 +12,6 @@ from ..errors import (
     AcceptTimeout,
     ConnectionLost,
     GalileoTimeout,
-    GoalAborted,
     GoalCancelled,
     GoalStalled,
     LinkStale,
@@ -20,10 +20,11 @@ from ..errors import (
 from ..events import GoalStalledEvent
 from ..models import GalileoStatus
 from ..protocol import Goto
+from ..transitions import HostGoal
 from .operations import GOAL_READY, LEAVING, Operations, Sent
 from .progress import ProgressCheck
 from .runtime import Deadline
-from .tracker import ALREADY_THERE_FRAMES, ALREADY_THERE_TIME, GoalTracker
+from .tracker import ALREADY_THERE_FRAMES, ALREADY_THERE_TIME, GoalTracker, cancelling, settled
 
 if TYPE_CHECKING:
     from ..state.streams import Watch
@@ -66,7 +67,7 @@ class GoalRunner:
     def cancelling(self) -> None:
         """Robot.cancel() was called: the running goal's end is a cancel, not a planner abort."""
         if self._running is not None:
-            self._running.cancelled = True
+            self._running.revise(cancelling)
 
     async def run(
         self,
@@ -82,6 +83,7 @@ class GoalRunner:
         """Send ``command`` through Operations.send (supersedable) and follow its goal; see goto."""
         ops = self._ops
         goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance, progress_timeout)
+        left = _forget  # what the store's goal rule keeps of it once goto returns
         try:
             return await ops.send(
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
@@ -97,6 +99,9 @@ class GoalRunner:
                 # A stale link may still transmit; a lost one cannot.
                 if not isinstance(exc, ConnectionLost):
                     _log.info("goal %d left before its end: sending cancel", goal.target_id)
+                    if goal.tracker.accepted:  # its end after our cancel is that cancel
+                        left = cancelling
+                        goal.revise(cancelling)
                     await ops.send_cancel_shielded()
             if isinstance(exc, GoalStalled):
                 ops.store.emit(
@@ -106,6 +111,7 @@ class GoalRunner:
                 )
             raise
         finally:
+            ops.store.revise_goal(goal, left)
             if self._running is goal:
                 self._running = None
 
@@ -117,11 +123,16 @@ class GoalRunner:
         self._ops.goal_started()
 
 
+def _forget(host: HostGoal) -> HostGoal | None:
+    """A goal goto no longer follows: the store's rule stops attributing frames to it."""
+    return None
+
+
 class _Goal:
     """One goto of a Robot: the Follower of its ``g N``."""
 
     __slots__ = (
-        "_runner", "accept_timeout", "arrive_tolerance", "cancelled", "preempted",
+        "_runner", "accept_timeout", "arrive_tolerance", "preempted",
         "progress_timeout", "target_id", "tracker", "written",
     )  # fmt: skip
 
@@ -142,15 +153,22 @@ class _Goal:
         self.written = False
         #: A newer goal of this Robot was started.
         self.preempted = False
-        #: Robot.cancel() was called while this goal ran.
-        self.cancelled = False
 
     def sending(self, before: GalileoStatus | None) -> None:
         """The goal starts now; ``before`` is the latest status as ``g N`` is written."""
         self._runner._start(self)
-        self.tracker = GoalTracker(
-            self.target_id, before=before, arrive_tolerance=self.arrive_tolerance
+        self.tracker = tracker = GoalTracker(
+            self.target_id, before=before, arrive_tolerance=self.arrive_tolerance, origin=self
         )
+        assert tracker.host is not None
+        # events() follows the goal by the same rule, told what this host sends.
+        self._runner._ops.store.follow_goal(tracker.host)
+
+    def revise(self, revise: Callable[[HostGoal], HostGoal | None]) -> None:
+        """Change what this host is known to have sent for the goal (tracker and store alike)."""
+        if self.tracker is not None and self.tracker.host is not None:
+            self.tracker.host = revise(self.tracker.host)
+        self._runner._ops.store.revise_goal(self, revise)
 
     async def follow(self, watch: Watch, sent: Sent) -> GoalResult:
         """Follow the goal from its write to its end: a GoalResult, or GoalError / timeout."""
@@ -167,8 +185,8 @@ class _Goal:
             now = loop.time()
             stall_at = None if progress is None else progress.deadline()
             if tracker.accepted:
-                if now >= accept_by:
-                    tracker.settle()
+                if now >= accept_by and tracker.host is not None and tracker.host.restarting:
+                    self.revise(settled)
                 wait = deadline.remaining()
                 if stall_at is not None and (deadline.at is None or stall_at < deadline.at):
                     wait = max(0.0, stall_at - now)
@@ -194,7 +212,7 @@ class _Goal:
             was_accepted = tracker.accepted
             now = loop.time()
             elapsed = now - sent_at
-            if self._feed(tracker, status) or tracker.stood_there(status, elapsed):
+            if tracker.feed(status) or tracker.stood_there(status, elapsed):
                 _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)
                 return GoalResult(
                     target_id, tracker.distance, elapsed, status, tracker.already_there
@@ -216,19 +234,6 @@ class _Goal:
                 preempted=True,
                 status=status,
             )
-
-    def _feed(self, tracker: GoalTracker, status: GalileoStatus) -> bool:
-        """tracker.feed, where an end after Robot.cancel() is a cancel, not a planner abort."""
-        try:
-            return tracker.feed(status)
-        except GoalAborted:
-            if not self.cancelled:
-                raise
-            # The document's cancel leaves target_num_id alone (only real firmware sets -1,
-            # PROTOCOL.md §2.c): free far from the target is then our own cancel.
-            raise GoalCancelled(
-                f"goal {self.target_id} was cancelled", target_id=self.target_id, status=status
-            ) from None
 
 
 def _timeout(

@@ -1,12 +1,21 @@
-"""GoalTracker: the statuses after ``g N`` in, a verdict out (no I/O)."""
+"""GoalTracker: the statuses after ``g N`` in, a verdict out (no I/O), by transitions.goal_step."""
 
 from __future__ import annotations
 
-from typing import NoReturn
-
-from ..errors import GoalAborted, GoalCancelled, GoalRejected
+from ..errors import GoalAborted, GoalCancelled, GoalError, GoalRejected
 from ..models import GalileoStatus, TargetStatus
-from ..transitions import ACTIVE, arrived, end_distance, valid_distance
+from ..transitions import (
+    ENDS,
+    KNOWN,
+    GoalChange,
+    HostGoal,
+    at_target,
+    end_distance,
+    goal_step,
+    run_starts,
+    running_distance,
+    valid_distance,
+)
 
 __all__ = ["ALREADY_THERE_FRAMES", "ALREADY_THERE_TIME", "GoalTracker"]
 
@@ -18,83 +27,73 @@ ALREADY_THERE_FRAMES = 10
 ALREADY_THERE_TIME = ALREADY_THERE_FRAMES / 30
 
 
-def _failed_transition(previous: GalileoStatus | None, status: GalileoStatus) -> bool:
-    """True when ``status`` shows a goal error that ``previous`` did not already show."""
-    if previous is None or not status.goal_failed:
-        return False
-    if not previous.goal_failed:
-        return True
-    return (previous.target_num_id, previous.target_status) != (
-        status.target_num_id,
-        status.target_status,
-    )
-
-
 class GoalTracker:
     """Decide acceptance and the end of goal ``target_id`` from the statuses after the send.
 
     ``before`` is the latest status when the command was sent: the first frames after
     ``g N`` may still show it (a cached status re-sent with a new counter, PROTOCOL.md §1),
-    so only transitions away from it count, never levels that it already showed.
+    so only transitions away from it count, never levels that it already showed. The
+    verdicts are transitions.goal_step's, fed the same inputs as the store's events().
     """
 
     def __init__(
-        self, target_id: int, *, before: GalileoStatus | None, arrive_tolerance: float
+        self,
+        target_id: int,
+        *,
+        before: GalileoStatus | None,
+        arrive_tolerance: float,
+        origin: object = None,
     ) -> None:
         self.target_id = target_id
         self.arrive_tolerance = arrive_tolerance
-        self.accepted = False
+        #: What this host sent, as goal_step follows it (None once the goal ended).
+        self.host: HostGoal | None = HostGoal.sent(target_id, before, origin)
+        # A goal sent again while it runs is running from the write (HostGoal.restarting).
+        self.accepted = not self.host.pending
         self.distance: float | None = None
         #: The goal ended because the robot already stood at the target (no working frame).
         self.already_there = False
         self._there_frames = 0  # frames in a row at the target since the send, none working
         self._previous = before
-        self._before_id = before.target_num_id if before is not None else None
-        # Re-sending the goal that is already running: the firmware cancels and restarts it
-        # (PROTOCOL.md §2.b), which may show one cancelled frame before it works again.
-        self._restarting = (
-            before is not None and before.target_num_id == target_id and before.goal_active
-        )
+        # The last status with a valid distance, as the store keeps it (running_distance).
+        self._measured = before if before is not None and _measures(before) else None
 
     def feed(self, status: GalileoStatus) -> bool:
         """Consume one status; True when the goal arrived, GoalError when it ended otherwise."""
-        try:
-            if status.nav_status is not None and not status.navigating:
-                raise GoalCancelled(
-                    f"goal {self.target_id} ended: navigation was stopped",
-                    target_id=self.target_id,
-                    status=status,
-                )
-            if self.accepted:
-                return self._track(status)
-            return self._accept(status)
-        finally:
+        prev = status if self._previous is None else self._previous
+        step = goal_step(
+            prev,
+            status,
+            host=self.host,
+            arrive_tolerance=self.arrive_tolerance,
+            last_distance=running_distance(self._measured, prev),
+        )
+        if status.target_status in KNOWN:
+            # An unknown value (newer firmware) is no change: the next compares with prev.
             self._previous = status
-
-    def _accept(self, status: GalileoStatus) -> bool:
+            if run_starts(prev, status):
+                self._measured = None
+            if _measures(status):
+                self._measured = status
+        self.host = step.host
         ours = status.target_num_id == self.target_id
-        if ours and status.target_status == TargetStatus.WORKING:
-            self.accepted = True
-            self._note_distance(status)
-            return False
-        if _failed_transition(self._previous, status):
-            # The document reports a bad goal as 3; the firmware as -1, leaving
-            # target_num_id unchanged (PROTOCOL.md §2.b): an id check cannot be used.
-            raise GoalRejected(
-                f"the robot rejected goal {self.target_id} "
-                f"(target_status {_name(status.target_status)}): no such target, "
-                "or it cannot be reached",
-                target_id=self.target_id,
-                status=status,
-            )
-        if ours and self._before_id != self.target_id and status.target_status == TargetStatus.FREE:
-            # Accepted and finished between two frames: the id changing to ours is the proof.
-            self.accepted = True
-            return self._track(status)
-        if ours and self._near(status):
-            self._there_frames += 1
-        else:
-            self._there_frames = 0
+        for change, target_id in step.changes:
+            if target_id != self.target_id:
+                continue
+            if change is GoalChange.ACCEPTED:
+                self.accepted = True
+            elif change in ENDS:
+                if change is GoalChange.REACHED:
+                    self.distance = step.distance
+                    return True
+                if change is GoalChange.ABORTED:
+                    self.distance = step.distance
+                raise self._error(change, status)
+        if self.host is not None and self.host.pending:
+            self.accepted = False  # the restart's own cancel: the goal must show working again
+            self._there_frames = self._there_frames + 1 if ours and self._near(status) else 0
+        elif ours and self.accepted:
+            self.distance = end_distance(status, self.distance)
         return False
 
     def stood_there(self, status: GalileoStatus, since_send: float) -> bool:
@@ -111,67 +110,61 @@ class GoalTracker:
         if since_send < ALREADY_THERE_TIME:
             return False
         self.accepted = self.already_there = True
-        self._note_distance(status)
+        self.host = None
+        self.distance = end_distance(status, self.distance)
         return True
 
-    def _track(self, status: GalileoStatus) -> bool:
-        state = status.target_status
-        ours = status.target_num_id == self.target_id
-        if self._restarting and not (ours and (status.goal_active or self._near(status))):
-            # The first end seen is the restart's own cancel, not the end of the new goal;
-            # free at the target is an arrival either way (the restart may show no cancel).
-            self._restarting = False
-            self.accepted = False
-            return self._accept(status)
-        if not ours:
-            return self._id_changed(status)
-        if state in ACTIVE:
-            self._note_distance(status)
-            return False
-        if state == TargetStatus.FREE:
-            self._note_distance(status)
-            if arrived(self.distance, self.arrive_tolerance):
-                return True
-            where = (
-                "at an unknown distance" if self.distance is None else (f"{self.distance:.2f} m")
+    def _near(self, status: GalileoStatus) -> bool:
+        return at_target(status, self.arrive_tolerance)
+
+    def _error(self, change: GoalChange, status: GalileoStatus) -> GoalError:
+        target_id = self.target_id
+        if change is GoalChange.REJECTED:
+            state = _name(status.target_status)
+            if self.accepted:
+                message = f"the robot reported an error for goal {target_id} while moving"
+                return GoalRejected(
+                    f"{message} (target_status {state})", target_id=target_id, status=status
+                )
+            return GoalRejected(
+                f"the robot rejected goal {target_id} (target_status {state}): no such target, "
+                "or it cannot be reached",
+                target_id=target_id,
+                status=status,
             )
-            raise GoalAborted(
-                f"goal {self.target_id} stopped short, {where} from the target "
+        if change is GoalChange.ABORTED:
+            where = "at an unknown distance" if self.distance is None else f"{self.distance:.2f} m"
+            return GoalAborted(
+                f"goal {target_id} stopped short, {where} from the target "
                 f"(arrive_tolerance {self.arrive_tolerance} m): the planner gave up",
-                target_id=self.target_id,
+                target_id=target_id,
                 distance=self.distance,
                 status=status,
             )
-        if status.goal_failed:
-            raise GoalRejected(
-                f"the robot reported an error for goal {self.target_id} while moving "
-                f"(target_status {_name(state)})",
-                target_id=self.target_id,
-                status=status,
-            )
-        return False  # an unknown target_status value from newer firmware: not an end
-
-    def _id_changed(self, status: GalileoStatus) -> NoReturn:
-        preempted = status.goal_active
-        what = f"preempted by goal {status.target_num_id}" if preempted else "cancelled"
-        raise GoalCancelled(
-            f"goal {self.target_id} was {what}",
-            target_id=self.target_id,
-            preempted=preempted,
-            status=status,
+        preempted = change is GoalChange.PREEMPTED
+        if status.nav_status is not None and not status.navigating:
+            what = "ended: navigation was stopped"
+        elif preempted:
+            what = f"was preempted by goal {status.target_num_id}"
+        else:
+            what = "was cancelled"
+        return GoalCancelled(
+            f"goal {target_id} {what}", target_id=target_id, preempted=preempted, status=status
         )
 
-    def settle(self) -> None:
-        """Stop treating the first end as a restart's cancel (the restart window is over)."""
-        self._restarting = False
 
-    def _near(self, status: GalileoStatus) -> bool:
-        return status.target_status == TargetStatus.FREE and arrived(
-            valid_distance(status.target_distance), self.arrive_tolerance
-        )
+def settled(host: HostGoal) -> HostGoal:
+    """``host`` once its restart window is over: its first end is its own."""
+    return host._replace(restarting=False)
 
-    def _note_distance(self, status: GalileoStatus) -> None:
-        self.distance = end_distance(status, self.distance)
+
+def cancelling(host: HostGoal) -> HostGoal:
+    """``host`` once this host sent cancel (``i 2``) for it."""
+    return host._replace(cancelled=True)
+
+
+def _measures(status: GalileoStatus) -> bool:
+    return valid_distance(status.target_distance) is not None
 
 
 def _name(value: TargetStatus | None) -> str:

@@ -14,7 +14,7 @@ from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
 from ..models import GalileoStatus
-from ..transitions import ACTIVE, DEFAULT_ARRIVE_TOLERANCE, derive_events, running_distance
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, HostGoal, derive_step, run_starts
 from .listeners import Listeners
 from .streams import (
     EventStream,
@@ -60,9 +60,9 @@ class StatusStore(Listeners):
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
         "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_link_error", "_measured", "_status_hooks",
-        "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed", "last_update",
-        "placeholder_frames", "status", "updates",
+        "_event_streams", "_frame_waiters", "_host_goal", "_link_error", "_measured",
+        "_status_hooks", "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed",
+        "last_update", "placeholder_frames", "status", "updates",
     )  # fmt: skip
 
     def __init__(
@@ -84,6 +84,8 @@ class StatusStore(Listeners):
         self._event_key: tuple[Any, ...] | None = None
         # The last status with a valid distance: the goal rule's memory (transitions.py).
         self._measured: GalileoStatus | None = None
+        # What this host sent and the goal rule still follows (follow_goal).
+        self._host_goal: HostGoal | None = None
         self._waiters: list[Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         # update() reads the registries' snapshots from the store's own slots: at 1000
@@ -125,17 +127,13 @@ class StatusStore(Listeners):
                 self._event_key = key
                 prev = self.status
                 if prev is not None:
-                    for event in derive_events(
-                        prev,
-                        status,
-                        arrive_tolerance=self._arrive_tolerance,
-                        last_distance=running_distance(self._measured, prev),
-                    ):
+                    events, self._host_goal = derive_step(
+                        prev, status, arrive_tolerance=self._arrive_tolerance,
+                        measured=self._measured, host=self._host_goal,
+                    )  # fmt: skip
+                    for event in events:
                         self._emit(event)
-                    if status.target_status in ACTIVE and (
-                        prev.target_status not in ACTIVE
-                        or prev.target_num_id != status.target_num_id
-                    ):
+                    if run_starts(prev, status):
                         # A goal run starts: its end must not borrow a distance of an
                         # earlier run of the same goal.
                         self._measured = None
@@ -179,6 +177,16 @@ class StatusStore(Listeners):
         """Call ``callback`` once with the next robot status (placeholders are not one)."""
         if not self.closed:
             self._status_hooks.append(callback)
+
+    def follow_goal(self, host: HostGoal) -> None:
+        """This host writes ``g N`` now: events() attributes what follows by the goal rule."""
+        self._host_goal = host
+
+    def revise_goal(self, origin: object, revise: Callable[[HostGoal], HostGoal | None]) -> None:
+        """Apply ``revise`` to the followed goal if ``origin`` sent it (None: follow nothing)."""
+        host = self._host_goal
+        if host is not None and host.origin is origin:
+            self._host_goal = revise(host)
 
     def emit(self, event: Event) -> None:
         """Hand ``event``, one the driver itself caused, to every events() consumer."""

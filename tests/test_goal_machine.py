@@ -1,0 +1,126 @@
+"""One goal state machine: goto's verdict and events()' first goal end agree on every sequence.
+
+The same frames (and the same "what this host sent") go to GoalTracker, goto's follower,
+and to a StatusStore's events(); both decide by transitions.goal_step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from galileo_async import GalileoStatus, GoalAborted, GoalCancelled, GoalRejected
+from galileo_async import events as ev
+from galileo_async.events import Event
+from galileo_async.robot.tracker import GoalTracker, cancelling
+from galileo_async.state import StatusStore
+from galileo_async.transitions import GoalChange, HostGoal, derive_events, goal_step
+
+TARGET = 3
+TOLERANCE = 0.3
+
+Verdict = tuple[int, str, Any] | None
+
+
+def frame(nav: int, target_id: int, target_status: int, distance: float) -> GalileoStatus:
+    return GalileoStatus(
+        nav_status=nav,
+        visual_status=1,
+        power=24.0,
+        target_num_id=target_id,
+        target_status=target_status,
+        target_distance=distance,
+    )
+
+
+ids = st.sampled_from([-1, 1, TARGET, 5])
+states = st.sampled_from([-1, 0, 1, 2, 3])
+distances = st.sampled_from([-1.0, 0.0, 0.2, 0.5, 2.0])
+frames = st.builds(frame, st.sampled_from([0, 1, 1, 1]), ids, states, distances)
+# goto refuses to send unless navigation is open: the status at the write shows it open.
+befores = st.builds(frame, st.just(1), ids, states, distances)
+
+
+def by_goto(before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None) -> Verdict:
+    """GoalTracker's verdict on goal TARGET: (frame index, end, detail), None: not ended."""
+    tracker = GoalTracker(TARGET, before=before, arrive_tolerance=TOLERANCE)
+    for index, status in enumerate(sequence):
+        if index == cancel_at and tracker.host is not None:
+            tracker.host = cancelling(tracker.host)
+        try:
+            if tracker.feed(status):
+                return index, "reached", tracker.distance
+        except GoalAborted as exc:
+            return index, "aborted", exc.distance
+        except GoalRejected:
+            return index, "rejected", None
+        except GoalCancelled as exc:
+            return index, "cancelled", exc.preempted
+    return None
+
+
+def by_events(
+    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None
+) -> Verdict:
+    """The first end of goal TARGET that events() reports, told what this host sent."""
+    store = StatusStore(arrive_tolerance=TOLERANCE)
+    seen: list[Event] = []
+    store.listen_events(seen.append)
+    store.update(before)
+    origin = object()
+    store.follow_goal(HostGoal.sent(TARGET, before, origin))
+    for index, status in enumerate(sequence):
+        if index == cancel_at:
+            store.revise_goal(origin, cancelling)
+        store.update(status)
+        for event in seen:
+            if not isinstance(event, ev.GoalEvent) or event.target_id != TARGET:
+                continue
+            if isinstance(event, ev.GoalReached):
+                return index, "reached", event.distance
+            if isinstance(event, ev.GoalAbortedEvent):
+                return index, "aborted", event.distance
+            if isinstance(event, ev.GoalRejectedEvent):
+                return index, "rejected", None
+            if isinstance(event, ev.GoalCancelledEvent):
+                return index, "cancelled", event.preempted
+        seen.clear()
+    return None
+
+
+@settings(max_examples=1500, deadline=None)
+@given(
+    before=befores,
+    sequence=st.lists(frames, min_size=1, max_size=8),
+    cancel_at=st.none() | st.integers(0, 7),
+)
+def test_goto_and_events_agree_on_every_frame_sequence(
+    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None
+) -> None:
+    assert by_goto(before, sequence, cancel_at) == by_events(before, sequence, cancel_at)
+
+
+@settings(max_examples=500, deadline=None)
+@given(prev=frames, cur=frames)
+def test_every_goal_end_is_one_event_of_the_same_name(
+    prev: GalileoStatus, cur: GalileoStatus
+) -> None:
+    step = goal_step(prev, cur, arrive_tolerance=TOLERANCE)
+    names = {
+        GoalChange.REACHED: "GoalReached",
+        GoalChange.ABORTED: "GoalAborted",
+        GoalChange.REJECTED: "GoalRejected",
+        GoalChange.CANCELLED: "GoalCancelled",
+        GoalChange.PREEMPTED: "GoalCancelled",
+        GoalChange.ACCEPTED: "GoalAccepted",
+        GoalChange.PAUSED: "GoalPaused",
+        GoalChange.RESUMED: "GoalResumed",
+    }
+    goal_events = [
+        (e.name, e.target_id)
+        for e in derive_events(prev, cur, arrive_tolerance=TOLERANCE)
+        if isinstance(e, ev.GoalEvent)
+    ]
+    assert goal_events == [(names[change], target_id) for change, target_id in step.changes]
