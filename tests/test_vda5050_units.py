@@ -165,7 +165,8 @@ def test_status_report() -> None:
 
 
 def test_factsheet_follows_the_schema() -> None:
-    sections = report.factsheet_sections(0.8, list(report.INSTANT_ACTIONS), "map")
+    config = VehicleConfig(broker="mqtt://127.0.0.1", manufacturer="m", serial_number="s")
+    sections = report.factsheet_sections(config, list(report.INSTANT_ACTIONS))
     header = {"headerId": 0, "timestamp": report.timestamp(), "version": "2.0.0",
               "manufacturer": "acme", "serialNumber": "r1"}  # fmt: skip
     VALIDATORS["factsheet"].validate({**header, **sections})

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
     "VERSION",
@@ -147,10 +147,22 @@ class Order(Header):
 
 
 class InstantActions(Header):
-    """Actions to run at once."""
+    """Actions to run at once, under ``actions`` (§6.9) or ``instantActions`` (vda-5050-lib)."""
 
     model_config = _STRICT_IN
     actions: list[Action]
+    #: True when the actions came under the key ``instantActions`` instead of ``actions``.
+    other_key: bool = Field(default=False, exclude=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _either_key(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        other = "actions" not in data and "instantActions" in data
+        return {**data, "actions": data["instantActions"], "other_key": True} if other else {
+            **data, "other_key": False
+        }
 
 
 # --- vehicle → master control -------------------------------------------------------------

@@ -7,7 +7,7 @@ from collections.abc import Hashable, Sequence
 from datetime import datetime, timezone
 
 from ..models import GalileoStatus, TargetStatus, VisualStatus
-from .config import MAX_VISUALIZATION_RATE
+from .config import VehicleConfig
 from .models import AgvPosition, BatteryState, Error, ErrorReference, Velocity
 
 __all__ = [
@@ -147,9 +147,12 @@ def significant(status: GalileoStatus | None) -> Hashable:
 
 
 def factsheet_sections(
-    max_speed: float | None, action_types: Sequence[str], map_id: str
+    config: VehicleConfig, action_types: Sequence[str], *, theta: bool = True
 ) -> dict[str, dict[str, object]]:
-    """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot."""
+    """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot.
+
+    ``theta``: node orientations are honoured (listed in optionalParameters).
+    """
     # No blockingTypes: the 2.0 schema puts its enum on the array itself, so no list validates.
     actions = [
         {
@@ -159,10 +162,23 @@ def factsheet_sections(
         }
         for name in action_types
     ]
+    rate = config.visualization_rate
+    timing: dict[str, float] = {"minOrderInterval": 0.0, "minStateInterval": 0.0}
+    if rate > 0:
+        timing["visualizationInterval"] = 1.0 / rate  # the interval actually published
+    optional = [
+        {
+            "parameter": "order.nodes.nodePosition",
+            "support": "SUPPORTED",
+            "description": 'without it, a nodeId that is a map target number ("3")',
+        },
+    ]
+    if theta:
+        optional.append({"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"})
     return {
         "typeSpecification": {
             "seriesName": "Galileo",
-            "seriesDescription": f"Galileo visual navigation robot (map {map_id})",
+            "seriesDescription": f"Galileo visual navigation robot (map {config.map_id})",
             "agvKinematic": "DIFF",
             "agvClass": "CARRIER",
             "maxLoadMass": 0.0,
@@ -171,37 +187,23 @@ def factsheet_sections(
         },
         "physicalParameters": {
             "speedMin": 0.0,
-            "speedMax": max_speed if max_speed is not None else 0.0,
-            "accelerationMax": 0.0,
-            "decelerationMax": 0.0,
-            "heightMin": 0.0,
-            "heightMax": 0.0,
-            "width": 0.0,
-            "length": 0.0,
+            "speedMax": config.max_speed,
+            "accelerationMax": config.acceleration_max,
+            "decelerationMax": config.deceleration_max,
+            "heightMin": config.height_min,
+            "heightMax": config.height_max,
+            "width": config.width,
+            "length": config.length,
         },
         "protocolLimits": {
             "maxStringLens": {"idNumericalOnly": False},
-            "maxArrayLens": {
-                "node.actions": 0,
-                "edge.actions": 0,
-                "trajectory.knotVector": 0,
-                "trajectory.controlPoints": 0,
-            },
-            "timing": {
-                "minOrderInterval": 0.0,
-                "minStateInterval": 0.0,
-                "visualizationInterval": 1.0 / MAX_VISUALIZATION_RATE,
-            },
+            # Node and edge actions and trajectories are refused outright: no length is
+            # declared for them, since 0 would mean "no limit".
+            "maxArrayLens": {},
+            "timing": timing,
         },
         "protocolFeatures": {
-            "optionalParameters": [
-                {
-                    "parameter": "order.nodes.nodePosition",
-                    "support": "SUPPORTED",
-                    "description": 'without it, a nodeId that is a map target number ("3")',
-                },
-                {"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"},
-            ],
+            "optionalParameters": optional,
             "agvActions": actions,
         },
         "agvGeometry": {},

@@ -34,9 +34,11 @@ from .models import (
 from .order import OrderProgress, Rejection, check_order
 from .session import Session
 
-__all__ = ["Vehicle", "run_vehicles"]
+__all__ = ["MAX_ORDER_ERRORS", "Vehicle", "can_limit_speed", "run_vehicles"]
 
 _log = logging.getLogger(__name__)
+#: Order rejections kept in state.errors (the newest) until an order is accepted.
+MAX_ORDER_ERRORS = 10
 
 
 class Vehicle:
@@ -57,6 +59,7 @@ class Vehicle:
         self._dirty = anyio.Event()
         self._order_errors: list[Error] = []
         self._link_error: Error | None = None
+        self._other_key_logged = False
 
     # --- what the vehicle reports ------------------------------------------------------
 
@@ -116,9 +119,7 @@ class Vehicle:
 
     def factsheet(self) -> Factsheet:
         """The factsheet message (the header is counted)."""
-        sections = report.factsheet_sections(
-            self.config.max_speed, list(report.INSTANT_ACTIONS), self.config.map_id
-        )
+        sections = report.factsheet_sections(self.config, list(report.INSTANT_ACTIONS))
         return Factsheet(**self._header("factsheet"), **sections)
 
     # --- publishing ----------------------------------------------------------------------
@@ -160,7 +161,10 @@ class Vehicle:
             self._reject(Rejection("validationError", _first_problem(exc), [("topic", "order")]))
             return
         try:
-            check_order(order, map_id=self.config.map_id)
+            check_order(
+                order, map_id=self.config.map_id, max_speed=self.config.max_speed,
+                can_limit_speed=can_limit_speed(self.robot),
+            )  # fmt: skip
             status = self.robot.status
             if self._link_error is not None or status is None or not status.navigating:
                 raise Rejection(
@@ -190,7 +194,8 @@ class Vehicle:
 
     def _reject(self, rejection: Rejection) -> None:
         _log.info("%s: order rejected: %s", self.config.serial_number, rejection)
-        self._order_errors = [rejection.error]
+        # Kept until an order is accepted (§6.6.4.1): a later rejection does not hide one.
+        self._order_errors = [*self._order_errors, rejection.error][-MAX_ORDER_ERRORS:]
         self.changed()
 
     def on_instant_actions(self, payload: bytes, group: anyio.abc.TaskGroup) -> None:
@@ -203,6 +208,12 @@ class Vehicle:
             )
             self.changed()
             return
+        if message.other_key and not self._other_key_logged:
+            self._other_key_logged = True
+            _log.warning(
+                "%s: instant actions came under the key 'instantActions' (VDA 5050 2.0 §6.9 "
+                "says 'actions'); accepted", self.config.serial_number,
+            )  # fmt: skip
         self.actions.queue(message.actions)
         group.start_soon(self.actions.run, message.actions)
 
@@ -215,7 +226,8 @@ class Vehicle:
             group.start_soon(self._watch_status)
             group.start_soon(self._watch_link)
             group.start_soon(self._publish_states)
-            group.start_soon(self._broker_watchdog)
+            if self.config.broker_loss_stop_delay is not None:
+                group.start_soon(self._broker_watchdog, self.config.broker_loss_stop_delay)
             if self.config.visualization_rate > 0:
                 group.start_soon(self._visualize)
             if self.config.start_navigation:
@@ -287,10 +299,10 @@ class Vehicle:
                 )
                 await self.publish("visualization", message)
 
-    async def _broker_watchdog(self) -> None:
+    async def _broker_watchdog(self, delay: float) -> None:
         while True:
             await self.session.wait_offline()
-            with anyio.move_on_after(self.config.broker_loss_stop_delay):
+            with anyio.move_on_after(delay):
                 await self.session.wait_online()
                 continue
             if self.progress.active or self.executor.moving:
@@ -299,13 +311,19 @@ class Vehicle:
                     Error(
                         errorType="brokerLost", errorLevel="WARNING",
                         errorDescription=f"the broker was unreachable for "
-                        f"{self.config.broker_loss_stop_delay:g} s: the order was cancelled",
+                        f"{delay:g} s: the order was cancelled",
                         errorReferences=[reference("orderId", self.progress.order_id)],
                     )
                 )  # fmt: skip
                 with contextlib.suppress(GalileoError):
                     await self.executor.cancel_order()
             await self.session.wait_online()
+
+
+def can_limit_speed(robot: Robot) -> bool:
+    """True when ``robot``'s link can set a navigation speed (an edge maxSpeed is honoured)."""
+    # The hook for links that can: a Robot offering set_navigation_speed(m/s).
+    return callable(getattr(robot, "set_navigation_speed", None))
 
 
 def _first_problem(exc: ValidationError) -> str:
