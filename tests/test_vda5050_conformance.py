@@ -172,3 +172,14 @@ async def test_the_factsheet_tells_the_truth(broker: Broker) -> None:
         assert 0 not in factsheet["protocolLimits"]["maxArrayLens"].values()
         physical = factsheet["physicalParameters"]
         assert (physical["width"], physical["length"], physical["heightMax"]) == (0.5, 0.6, 0.4)
+
+
+async def test_theta_is_reached_on_firmware_that_ignores_the_rotate_command(
+    broker: Broker,
+) -> None:
+    async with driven_vehicle(broker, "sim://?speed=5") as (robot, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("a", 0.5, 0.0, theta=1.55)])
+        done = await master.next_state(lambda s: s["lastNodeId"] == "a")
+        assert done["errors"] == []
+        assert not done.get("information")
+        assert abs(done["agvPosition"]["theta"] - 1.55) <= math.radians(robot.angle_tolerance)

@@ -160,9 +160,11 @@ class InstantActions(Header):
         if not isinstance(data, dict):
             return data
         other = "actions" not in data and "instantActions" in data
-        return {**data, "actions": data["instantActions"], "other_key": True} if other else {
-            **data, "other_key": False
-        }
+        return (
+            {**data, "actions": data["instantActions"], "other_key": True}
+            if other
+            else {**data, "other_key": False}
+        )
 
 
 # --- vehicle → master control -------------------------------------------------------------
