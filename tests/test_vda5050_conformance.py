@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import math
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import anyio
+import pytest
 from test_vda5050_vehicle import FAST_SIM, action_status, driven_vehicle
 from vda5050_support import (
     WAIT,
@@ -17,6 +20,13 @@ from vda5050_support import (
     make_order,
     node,
 )
+
+import galileo_async as galileo
+from galileo_async.errors import DuplicateVehicle
+from galileo_async.vda5050 import Vehicle, VehicleConfig
+from galileo_async.vda5050.session import YOUNG_SESSION
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def references(state: dict[str, Any], error_type: str) -> set[tuple[str, str]]:
@@ -183,3 +193,40 @@ async def test_theta_is_reached_on_firmware_that_ignores_the_rotate_command(
         assert done["errors"] == []
         assert not done.get("information")
         assert abs(done["agvPosition"]["theta"] - 1.55) <= math.radians(robot.angle_tolerance)
+
+
+async def established(master: Master) -> None:
+    """Return once the vehicle has been connected longer than YOUNG_SESSION (10 Hz)."""
+    count = int(YOUNG_SESSION * 10) + 5
+    await master.wait_for("visualization", lambda m: m["headerId"] >= count)
+
+
+async def test_a_duplicate_vehicle_stops_and_leaves_the_first_connected(broker: Broker) -> None:
+    async with driven_vehicle(broker, FAST_SIM) as (_, first, master):
+        await established(master)
+        async with galileo.connect(FAST_SIM) as other:
+            config = VehicleConfig(broker=broker.url, manufacturer="acme", serial_number="r1")
+            second = Vehicle(other, config)
+            with anyio.fail_after(WAIT), pytest.raises(DuplicateVehicle, match="acme/r1"):
+                await second.run()
+        await first.wait_online()
+        await master.instant(("s", "stateRequest"))
+        await master.next_state(lambda s: action_status(s, "s") == "FINISHED")
+        connections = [m["connectionState"] for m in master.received["connection"]]
+        assert connections[-1] == "ONLINE"
+        assert connections.count("CONNECTIONBROKEN") <= 2, connections  # one takeover each
+        assert first.connected
+
+
+async def test_the_cli_of_a_duplicate_vehicle_exits_10(broker: Broker, tmp_path: Path) -> None:
+    async with driven_vehicle(broker, FAST_SIM) as (_, first, master):
+        await established(master)
+        with anyio.fail_after(WAIT):
+            proc = await anyio.run_process(
+                [sys.executable, "-m", "galileo_async", "--port", FAST_SIM, "vda5050",
+                 "--broker", broker.url, "--manufacturer", "acme", "--serial-number", "r1"],
+                check=False, cwd=ROOT,
+            )  # fmt: skip
+        assert proc.returncode == 10, proc.stderr
+        assert b"DuplicateVehicle" in proc.stderr
+        await first.wait_online()

@@ -19,6 +19,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from ..errors import (
+    DuplicateVehicle,
     GalileoConnectionError,
     GalileoError,
     GalileoTimeout,
@@ -87,6 +88,7 @@ class ExitCode(enum.IntEnum):
     CONNECTION = 7  # the link could not be opened, dropped or went stale
     NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
     PORT_BUSY = 9  # the serial port is open in another process or connection
+    DUPLICATE_VEHICLE = 10  # vda5050: another vehicle with this identity is on the broker
     INTERRUPTED = 130  # Ctrl-C
 
 
@@ -206,6 +208,7 @@ _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     (GoalStalled, ExitCode.ABORTED),
     (GoalCancelled, ExitCode.CANCELLED),
     (PortBusy, ExitCode.PORT_BUSY),
+    (DuplicateVehicle, ExitCode.DUPLICATE_VEHICLE),
     (GalileoConnectionError, ExitCode.CONNECTION),
     (NotReady, ExitCode.NOT_READY),
     (InvalidArgument, ExitCode.USAGE),

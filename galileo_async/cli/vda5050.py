@@ -114,7 +114,7 @@ def vda5050(
         from ..vda5050.session import tls_context
     except ImportError:  # pragma: no cover - depends on the installed extras
         fail("the vda5050 command needs the extra: pip install 'galileo-async[vda5050]'")
-    from ..errors import InvalidArgument
+    from ..errors import DuplicateVehicle, InvalidArgument
 
     try:
         in_url = parse_broker_url(broker).password is not None
@@ -141,12 +141,23 @@ def vda5050(
         err_console().print(
             f"VDA 5050 vehicle {config.topic('')}… on {shown} · Ctrl-C stops", markup=False
         )
+        duplicate: list[DuplicateVehicle] = []
+
+        async def run_vehicle(group: anyio.abc.TaskGroup) -> None:
+            try:
+                await vehicle.run()
+            except DuplicateVehicle as exc:  # exit code DUPLICATE_VEHICLE (docs/cli.md)
+                duplicate.append(exc)
+                group.cancel_scope.cancel()
+
         with _warnings_on_stderr(settings.verbose):
             async with anyio.create_task_group() as group:
-                group.start_soon(vehicle.run)
+                group.start_soon(run_vehicle, group)
                 with stop_requested() as stop:
                     await stop.wait()
                 group.cancel_scope.cancel()
+        if duplicate:
+            raise duplicate[0]
         return 0
 
     run_robot(settings, body, long_running=True, interrupted=ExitCode.OK)

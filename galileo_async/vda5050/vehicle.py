@@ -11,7 +11,7 @@ from typing import Any
 import anyio
 from pydantic import BaseModel, ValidationError
 
-from ..errors import GalileoError, InvalidArgument
+from ..errors import DuplicateVehicle, GalileoError, InvalidArgument
 from ..events import ConnectionLostEvent, ConnectionRestored, LinkRestored, LinkStaleEvent
 from ..models import TargetStatus
 from ..robot import Robot
@@ -220,7 +220,12 @@ class Vehicle:
     # --- tasks ----------------------------------------------------------------------------
 
     async def run(self) -> None:
-        """Be the vehicle until cancelled; then OFFLINE is published and the session closed."""
+        """Be the vehicle until cancelled; then OFFLINE is published and the session closed.
+
+        DuplicateVehicle (everything stopped) when another vehicle with this identity was
+        on the broker first: that one stays connected.
+        """
+        duplicate: DuplicateVehicle | None = None
         async with anyio.create_task_group() as group:
             group.start_soon(self.executor.run)
             group.start_soon(self._watch_status)
@@ -235,8 +240,14 @@ class Vehicle:
             self._group = group
             try:
                 await self.session.run()
+            except DuplicateVehicle as exc:
+                _log.error("%s: %s", self.config.serial_number, exc)
+                duplicate = exc
+                group.cancel_scope.cancel()
             finally:
                 self._group = None
+        if duplicate is not None:
+            raise duplicate
 
     async def _start_navigation(self) -> None:
         status = self.robot.status
