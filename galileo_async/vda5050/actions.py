@@ -15,6 +15,7 @@ from .order import OrderProgress, Rejection
 
 __all__ = [
     "CHARGE_TIMEOUT",
+    "MAP_ACTIONS",
     "MAX_ACTION_ERRORS",
     "MAX_ENDED_ACTIONS",
     "ActionRunner",
@@ -25,6 +26,8 @@ _log = logging.getLogger(__name__)
 
 #: Errors of failed actions kept in state.errors (the newest); a new order clears them.
 MAX_ACTION_ERRORS = 10
+#: The map actions of VDA 5050 2.1 (they need the robot's HTTP API: FAILED on this link).
+MAP_ACTIONS = ("downloadMap", "enableMap", "deleteMap")
 #: Seconds startCharging may take from the command to charging (docking included).
 CHARGE_TIMEOUT = 120.0
 #: Ended actions kept in state.actionStates (the newest) when no order clears them.
@@ -157,6 +160,13 @@ class ActionRunner:
                 raise Rejection("noOrderToCancel", "there is no order to cancel", refs)
             await executor.cancel_order()
             return
+        if action.actionType in MAP_ACTIONS:
+            raise Rejection(
+                "unsupportedAction",
+                f"{action.actionType}: this vehicle cannot manage the robot's maps (the robot's "
+                "HTTP API can; this link does not reach it)",
+                refs,
+            )  # fmt: skip
         handler = self._handlers.get(action.actionType)
         if handler is None:
             raise Rejection(

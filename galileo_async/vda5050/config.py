@@ -144,6 +144,8 @@ class VehicleConfig:
     max_speed: float = 0.8
     #: Open navigation when the vehicle starts.
     start_navigation: bool = False
+    #: The VDA 5050 version spoken: "2.0" or "2.1" (topics stay ``…/v2/…``).
+    vda_version: str = "2.0"
     #: The factsheet's physicalParameters: metres and m/s² of this robot (the link cannot
     #: read them); 0 where not given.
     width: float = 0.0
@@ -174,6 +176,8 @@ class VehicleConfig:
             _check_seconds("broker_loss_stop_delay", self.broker_loss_stop_delay)
         _check_seconds("default_deviation_xy", self.default_deviation_xy, allow_zero=True)
         _check_seconds("reconnect_max", self.reconnect_max)
+        if self.vda_version not in ("2.0", "2.1"):
+            raise InvalidArgument(f"vda_version must be '2.0' or '2.1', got {self.vda_version!r}")
         for name in _PHYSICAL:
             _check_physical(name, getattr(self, name))
         if self.height_max < self.height_min:

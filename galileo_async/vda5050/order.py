@@ -116,6 +116,12 @@ def _check_capabilities(order: Order, map_id: str) -> None:
                  ("actionType", action.actionType)],
             )  # fmt: skip
     for edge in order.edges:
+        if edge.corridor is not None:
+            raise Rejection(
+                "orderError",
+                f"edge {edge.edgeId}: corridors are not supported (the robot plans its path)",
+                [*refs, ("edgeId", edge.edgeId), ("field", "corridor")],
+            )
         if edge.trajectory is not None:
             raise Rejection(
                 "orderError",

@@ -12,6 +12,7 @@ from .models import AgvPosition, BatteryState, Error, ErrorReference, Velocity
 
 __all__ = [
     "BATTERY_CURVE",
+    "ERROR_HINTS",
     "INSTANT_ACTIONS",
     "agv_position",
     "battery_charge",
@@ -23,6 +24,7 @@ __all__ = [
     "status_errors",
     "timestamp",
     "velocity",
+    "with_hints",
 ]
 
 #: Volts → percent of a 24 V pack at rest, linear between the points. The robot reports
@@ -48,6 +50,28 @@ INSTANT_ACTIONS: dict[str, str] = {
     "startNavigation": "Open navigation (custom): the vehicle becomes AUTOMATIC.",
     "stopNavigation": "Close navigation (custom): the vehicle becomes MANUAL.",
 }
+
+
+#: VDA 5050 2.1 errorHint by errorType: how the master control can resolve the error.
+ERROR_HINTS: dict[str, str] = {
+    "validationError": "send a message that follows the JSON schema of this version",
+    "orderError": "leave out what the factsheet does not list (actions, fields, maps)",
+    "orderUpdateError": "start the update at the end of the current base, or cancel first",
+    "noRouteError": "start the order where the vehicle stands (within allowedDeviationXY)",
+    "unsupportedAction": "use an action the factsheet lists in agvActions",
+    "noOrderToCancel": "nothing to do: the vehicle has no order",
+    "robotLinkLost": "check the robot's serial, network or ROS link",
+    "visualLost": "drive the robot back into the mapped area or restart navigation",
+}
+
+
+def with_hints(errors: list[Error]) -> list[Error]:
+    """``errors`` with an errorHint (2.1) where ERROR_HINTS has one."""
+    return [
+        e.model_copy(update={"errorHint": ERROR_HINTS[e.errorType]})
+        if e.errorHint is None and e.errorType in ERROR_HINTS else e
+        for e in errors
+    ]  # fmt: skip
 
 
 def timestamp() -> str:

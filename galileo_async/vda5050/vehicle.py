@@ -20,12 +20,13 @@ from .actions import ActionRunner
 from .config import VehicleConfig
 from .execution import Executor
 from .models import (
-    VERSION,
+    VERSIONS,
     Connection,
     ConnectionState,
     Error,
     Factsheet,
     InstantActions,
+    MapState,
     Order,
     State,
     Visualization,
@@ -84,7 +85,8 @@ class Vehicle:
         header_id = self._headers.get(topic, -1) + 1
         self._headers[topic] = header_id
         return {
-            "headerId": header_id, "timestamp": report.timestamp(), "version": VERSION,
+            "headerId": header_id, "timestamp": report.timestamp(),
+            "version": VERSIONS[self.config.vda_version],
             "manufacturer": self.config.manufacturer, "serialNumber": self.config.serial_number,
         }  # fmt: skip
 
@@ -103,6 +105,8 @@ class Vehicle:
         paused = self.executor.paused or (
             status is not None and status.target_status == TargetStatus.PAUSED
         )
+        v21 = self.config.vda_version == "2.1"
+        maps = [MapState(mapId=self.config.map_id, mapVersion="current", mapStatus="ENABLED")]
         return State(
             **self._header("state"),
             orderId=progress.order_id, orderUpdateId=progress.order_update_id,
@@ -113,8 +117,9 @@ class Vehicle:
             newBaseRequest=progress.new_base_request, actionStates=self.actions.states(),
             batteryState=report.battery_state(status),
             operatingMode=report.operating_mode(status),
-            errors=self.errors(), information=list(self.executor.information),
-            safetyState={"eStop": "NONE", "fieldViolation": False},
+            errors=report.with_hints(self.errors()) if v21 else self.errors(),
+            information=list(self.executor.information),
+            safetyState={"eStop": "NONE", "fieldViolation": False}, maps=maps if v21 else None,
         )  # fmt: skip
 
     def factsheet(self) -> Factsheet:
