@@ -344,6 +344,7 @@ class Robot(RobotServices):
 
     async def turn_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
         """Turn in place to ``degrees`` by drive() (every firmware), within angle_tolerance."""
+        self._ops.ensure_loop()
         await turn_in_place(self, degrees, limit=timeout)
 
     # --- lifecycle -----------------------------------------------------------------------
