@@ -12,6 +12,7 @@ __all__ = [
     "AsyncioRequired",
     "CommandSuperseded",
     "ConnectionLost",
+    "DuplicateVehicle",
     "GalileoConnectionError",
     "GalileoError",
     "GalileoTimeout",
@@ -51,6 +52,10 @@ class AsyncioRequired(GalileoError, RuntimeError):
 
 class WrongEventLoop(GalileoError, RuntimeError):
     """A Robot was called from another event loop or thread than the one that connected it."""
+
+
+class DuplicateVehicle(GalileoError):
+    """Another VDA 5050 vehicle with this manufacturer and serial number holds the broker."""
 
 
 # --- link --------------------------------------------------------------------

@@ -20,6 +20,7 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "goto_point": (1.0, 2.0),
     "add_target": (1.0, 2.0),
     "rotate_to": (90.0,),
+    "turn_to": (90.0,),
     "forward": (50,),
     "backward": (50,),
     "turn_left": (50,),

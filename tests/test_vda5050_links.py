@@ -453,6 +453,8 @@ LINK_EVENTS = {"LinkStale", "LinkRestored", "ConnectionLost", "ConnectionRestore
         (["--broker", "http://127.0.0.1"], "mqtt:// or mqtts://"),
         (["--broker", "mqtt://127.0.0.1", "--visualization-rate", "60"], "at most 30"),
         (["--broker", "mqtt://127.0.0.1", "--interface-name", "a/b"], "interface_name"),
+        (["--broker", "mqtt://127.0.0.1", "--vda-version", "3.0"], "vda_version"),
+        (["--broker", "mqtt://127.0.0.1", "--width", "-1"], "width"),
     ],
 )
 def test_cli_refuses_bad_options_before_connecting(args: list[str], message: str) -> None:

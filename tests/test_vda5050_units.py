@@ -117,8 +117,9 @@ def test_progress_new_order_resent_lower_and_stitch() -> None:
         progress.decide(order("o", [node("b", 1, 0)], update=0, seq=2), None, 0.5)
     assert lower.value.error.errorType == "orderUpdateError"
     other = order("p", [node("z", 9, 9)])
-    with pytest.raises(Rejection, match="end of the current base"):
+    with pytest.raises(Rejection, match="still running") as running:
         progress.decide(other, (2.0, 0.0), 0.5)
+    assert running.value.error.errorType == "orderError"
     progress.clear()
     with pytest.raises(Rejection) as far:
         progress.decide(other, (2.0, 0.0), 0.5)
@@ -165,7 +166,8 @@ def test_status_report() -> None:
 
 
 def test_factsheet_follows_the_schema() -> None:
-    sections = report.factsheet_sections(0.8, list(report.INSTANT_ACTIONS), "map")
+    config = VehicleConfig(broker="mqtt://127.0.0.1", manufacturer="m", serial_number="s")
+    sections = report.factsheet_sections(config, list(report.INSTANT_ACTIONS))
     header = {"headerId": 0, "timestamp": report.timestamp(), "version": "2.0.0",
               "manufacturer": "acme", "serialNumber": "r1"}  # fmt: skip
     VALIDATORS["factsheet"].validate({**header, **sections})

@@ -39,16 +39,18 @@ def require_mosquitto() -> str:
     return found
 
 
-def validators() -> dict[str, jsonschema.Draft202012Validator]:
-    """One validator per topic, from the official schemas."""
+def validators(directory: Path = SCHEMAS) -> dict[str, jsonschema.Draft202012Validator]:
+    """One validator per topic, from the official schemas in ``directory``."""
     result = {}
     for topic in TOPICS:
-        schema = json.loads((SCHEMAS / f"{topic}.schema").read_text())
+        schema = json.loads((directory / f"{topic}.schema").read_text())
         result[topic] = jsonschema.Draft202012Validator(schema)
     return result
 
 
 VALIDATORS = validators()
+#: The validators of each protocol version (a message's ``version`` field picks them).
+VERSIONS = {"2.0.0": VALIDATORS, "2.1.0": validators(SCHEMAS / "2.1.0")}
 
 
 def make_certificate(directory: Path) -> tuple[Path, Path]:
@@ -212,9 +214,11 @@ async def broker_fixture(tmp_path: Path) -> AsyncIterator[Broker]:
 class Master:
     """A master control: sends orders and instant actions, validates all it receives."""
 
-    def __init__(self, client: aiomqtt.Client, prefix: str) -> None:
+    def __init__(self, client: aiomqtt.Client, prefix: str, version: str = "2.0.0") -> None:
         self.client = client
         self.prefix = prefix
+        #: The protocol version this master speaks and expects every message in.
+        self.version = version
         self.received: dict[str, list[dict[str, Any]]] = {topic: [] for topic in TOPICS}
         self._arrived = anyio.Event()
         self._header = 0
@@ -222,8 +226,9 @@ class Master:
     @classmethod
     @contextlib.asynccontextmanager
     async def connected(
-        cls, broker: Broker, manufacturer: str = "acme", serial: str = "r1"
-    ) -> AsyncIterator[Master]:
+        cls, broker: Broker, manufacturer: str = "acme", serial: str = "r1",
+        version: str = "2.0.0",
+    ) -> AsyncIterator[Master]:  # fmt: skip
         """A master subscribed to the vehicle's topics."""
         tls = None
         if broker.mutual is not None:
@@ -235,7 +240,7 @@ class Master:
             "127.0.0.1", broker.port, identifier=f"master-{serial}", tls_context=tls,
             username=user, password=password,
         ) as client:  # fmt: skip
-            master = cls(client, f"uagv/v2/{manufacturer}/{serial}")
+            master = cls(client, f"uagv/v2/{manufacturer}/{serial}", version)
             await client.subscribe(f"{master.prefix}/+", qos=1)
             async with anyio.create_task_group() as group:
                 group.start_soon(master._receive)
@@ -252,7 +257,9 @@ class Master:
                 body = json.loads(message.payload)
                 if topic in ("order", "instantActions"):
                     continue
-                VALIDATORS[topic].validate(body)  # every published message follows the schema
+                assert body["version"] == self.version, body
+                # Every published message follows the schema of its version.
+                VERSIONS[self.version][topic].validate(body)
                 self.received[topic].append(body)
                 self._arrived.set()
                 self._arrived = anyio.Event()
@@ -294,14 +301,14 @@ class Master:
         manufacturer, serial = self.prefix.split("/")[2:4]
         return {
             "headerId": self._header, "timestamp": "2026-01-01T00:00:00.000Z",
-            "version": "2.0.0", "manufacturer": manufacturer, "serialNumber": serial,
+            "version": self.version, "manufacturer": manufacturer, "serialNumber": serial,
         }  # fmt: skip
 
     async def send(self, topic: str, body: dict[str, Any], *, validate: bool = True) -> None:
         """Publish ``body`` (with a header) on the vehicle's ``topic``."""
         message = {**self._stamp(), **body}
         if validate:
-            VALIDATORS[topic].validate(message)
+            VERSIONS[self.version][topic].validate(message)
         await self.client.publish(f"{self.prefix}/{topic}", json.dumps(message), qos=1)
 
     async def order(self, order_id: str, nodes: list[dict[str, Any]], update: int = 0) -> None:

@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from ..errors import (
+    DuplicateVehicle,
     GalileoConnectionError,
     GalileoError,
     GalileoTimeout,
@@ -94,6 +95,7 @@ class ExitCode(enum.IntEnum):
     CONNECTION = 7  # the link could not be opened, dropped or went stale
     NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
     PORT_BUSY = 9  # the serial port is open in another process or connection
+    DUPLICATE_VEHICLE = 10  # vda5050: another vehicle with this identity is on the broker
     INTERRUPTED = 130  # Ctrl-C
 
 
@@ -217,6 +219,7 @@ _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     (GoalStalled, ExitCode.ABORTED),
     (GoalCancelled, ExitCode.CANCELLED),
     (PortBusy, ExitCode.PORT_BUSY),
+    (DuplicateVehicle, ExitCode.DUPLICATE_VEHICLE),
     (GalileoConnectionError, ExitCode.CONNECTION),
     (NotReady, ExitCode.NOT_READY),
     (InvalidArgument, ExitCode.USAGE),

@@ -1,4 +1,4 @@
-"""``galileo vda5050``: the robot as a VDA 5050 2.0 vehicle on an MQTT broker until Ctrl-C."""
+"""``galileo vda5050``: the robot as a VDA 5050 2.0/2.1 vehicle on an MQTT broker until Ctrl-C."""
 
 from __future__ import annotations
 
@@ -136,15 +136,29 @@ def vda5050(
             "--password-file", help=f"File holding the broker password (else {PASSWORD_ENV})."
         ),
     ] = None,
+    vda_version: Annotated[
+        str, typer.Option("--vda-version", help="VDA 5050 version spoken: 2.0 or 2.1.")
+    ] = "2.0",
+    broker_loss_stop: Annotated[
+        float | None,
+        typer.Option(
+            "--broker-loss-stop",
+            help="Cancel a running order after this many seconds without the broker "
+            "(default: the order goes on, VDA 5050 §6.2).",
+        ),
+    ] = None,
+    width: Annotated[float, typer.Option(help="Factsheet: the robot's width, m.")] = 0.0,
+    length: Annotated[float, typer.Option(help="Factsheet: the robot's length, m.")] = 0.0,
+    height: Annotated[float, typer.Option(help="Factsheet: the robot's height, m.")] = 0.0,
 ) -> None:
-    """Be a VDA 5050 2.0 vehicle: orders and instant actions from a master control over MQTT."""
+    """Be a VDA 5050 2.0 or 2.1 vehicle: orders and instant actions from a master over MQTT."""
     settings = settings_of(ctx)
     try:
         from ..vda5050 import Vehicle, VehicleConfig, parse_broker_url, redact_url
         from ..vda5050.session import CONNECT_TIMEOUT, tls_context
     except ImportError:  # pragma: no cover - depends on the installed extras
         fail("the vda5050 command needs the extra: pip install 'galileo-async[vda5050]'")
-    from ..errors import InvalidArgument
+    from ..errors import DuplicateVehicle, InvalidArgument
 
     try:
         in_url = parse_broker_url(broker).password is not None
@@ -153,7 +167,9 @@ def vda5050(
             broker=broker, manufacturer=manufacturer, serial_number=serial_number,
             interface_name=interface_name, map_id=map_id, start_navigation=start_navigation,
             visualization_rate=visualization_rate, tls_ca_file=ca_file, tls_cert_file=tls_cert,
-            tls_key_file=tls_key, password=password,
+            tls_key_file=tls_key, password=password, vda_version=vda_version,
+            broker_loss_stop_delay=broker_loss_stop, width=width, length=length,
+            height_max=height,
         )  # fmt: skip
         tls_context(config)  # unreadable certificate files: a usage error before connecting
     except InvalidArgument as exc:
@@ -177,12 +193,23 @@ def vda5050(
             markup=False,
             style="dim",
         )
+        duplicate: list[DuplicateVehicle] = []
+
+        async def run_vehicle(group: anyio.abc.TaskGroup) -> None:
+            try:
+                await vehicle.run()
+            except DuplicateVehicle as exc:  # exit code DUPLICATE_VEHICLE (docs/cli.md)
+                duplicate.append(exc)
+                group.cancel_scope.cancel()
+
         with _warnings_on_stderr(settings.verbose):
             async with anyio.create_task_group() as group:
-                group.start_soon(vehicle.run)
+                group.start_soon(run_vehicle, group)
                 with stop_requested() as stop:
                     await stop.wait()
                 group.cancel_scope.cancel()
+        if duplicate:
+            raise duplicate[0]
         return 0
 
     run_robot(settings, body, long_running=True, interrupted=ExitCode.OK)

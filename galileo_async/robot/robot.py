@@ -52,6 +52,7 @@ from .runtime import (
 from .services import DEFAULT_ANGLE_TOLERANCE, RobotServices
 from .supersede import goal_superseded
 from .targets import DynamicTargets, landed_at
+from .turn import turn_in_place
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -326,6 +327,22 @@ class Robot(RobotServices, Following):
         except CommandSuperseded as exc:  # a user stop came before the last step was written
             raise goal_superseded(exc, first_id) from exc
         return landed_at(result, x, y, self.arrive_tolerance)
+
+    async def rotate_to(
+        self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT, fallback: bool = False
+    ) -> None:
+        """RobotServices.rotate_to; ``fallback``: when ``a`` is unconfirmed, turn_to() after."""
+        try:
+            await super().rotate_to(degrees, timeout=timeout)
+        except UnconfirmedOperation:
+            if not fallback:
+                raise
+            await self.turn_to(degrees, timeout=timeout)
+
+    async def turn_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
+        """Turn in place to ``degrees`` by drive() (every firmware), within angle_tolerance."""
+        self._ops.ensure_loop()
+        await turn_in_place(self, degrees, limit=timeout)
 
     # --- lifecycle -----------------------------------------------------------------------
 

@@ -7,17 +7,29 @@ from collections.abc import Awaitable, Callable
 from typing import Protocol
 
 from ..errors import GalileoError
+from ..models import ChargeStatus
 from ..robot import Robot
 from .execution import Executor
 from .models import Action, ActionState, ActionStatus, Error
 from .order import OrderProgress, Rejection
 
-__all__ = ["MAX_ACTION_ERRORS", "MAX_ENDED_ACTIONS", "ActionRunner", "VehicleHost"]
+__all__ = [
+    "CHARGE_TIMEOUT",
+    "MAP_ACTIONS",
+    "MAX_ACTION_ERRORS",
+    "MAX_ENDED_ACTIONS",
+    "ActionRunner",
+    "VehicleHost",
+]
 
 _log = logging.getLogger(__name__)
 
 #: Errors of failed actions kept in state.errors (the newest); a new order clears them.
 MAX_ACTION_ERRORS = 10
+#: The map actions of VDA 5050 2.1 (they need the robot's HTTP API: FAILED on this link).
+MAP_ACTIONS = ("downloadMap", "enableMap", "deleteMap")
+#: Seconds startCharging may take from the command to charging (docking included).
+CHARGE_TIMEOUT = 120.0
 #: Ended actions kept in state.actionStates (the newest) when no order clears them.
 MAX_ENDED_ACTIONS = 50
 
@@ -60,11 +72,24 @@ class ActionRunner:
             "stopPause": executor.resume,
             "stateRequest": vehicle.publish_state,
             "factsheetRequest": vehicle.publish_factsheet,
-            "startCharging": robot.start_charging,
+            "startCharging": self._start_charging,
             "stopCharging": robot.stop_charging,
             "startNavigation": robot.start_navigation,
             "stopNavigation": robot.stop_navigation,
         }
+
+    async def _start_charging(self) -> None:
+        """Dock and charge: FINISHED only once the robot charges (RUNNING while it docks)."""
+        robot = self._vehicle.robot
+        await robot.start_charging()
+        status = await robot.wait_until(
+            lambda s: s.charging or s.charge_status == ChargeStatus.ERROR, timeout=CHARGE_TIMEOUT
+        )
+        if not status.charging:
+            raise Rejection(
+                "chargingFailed", "the robot reported a charging error while docking",
+                [("charge_status", str(int(ChargeStatus.ERROR)))],
+            )  # fmt: skip
 
     def states(self) -> list[ActionState]:
         """state.actionStates."""
@@ -135,6 +160,13 @@ class ActionRunner:
                 raise Rejection("noOrderToCancel", "there is no order to cancel", refs)
             await executor.cancel_order()
             return
+        if action.actionType in MAP_ACTIONS:
+            raise Rejection(
+                "unsupportedAction",
+                f"{action.actionType}: this vehicle cannot manage the robot's maps (the robot's "
+                "HTTP API can; this link does not reach it)",
+                refs,
+            )  # fmt: skip
         handler = self._handlers.get(action.actionType)
         if handler is None:
             raise Rejection(

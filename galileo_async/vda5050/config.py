@@ -96,6 +96,15 @@ def _check_file(name: str, value: str | None) -> None:
         raise InvalidArgument(f"{name} must be a file path (str) or None, got {value!r}")
 
 
+_PHYSICAL = ("width", "length", "height_min", "height_max", "acceleration_max", "deceleration_max")
+
+
+def _check_physical(name: str, value: float) -> None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or value < 0:
+        raise InvalidArgument(f"{name} must be a finite number >= 0, got {value!r}")
+
+
 @dataclass(frozen=True, repr=False)
 class VehicleConfig:
     """One VDA 5050 vehicle: broker, identity, rates and limits (validated on creation).
@@ -113,13 +122,14 @@ class VehicleConfig:
     visualization_rate: float = 10.0
     #: state is published on every change that matters and at least this often.
     state_interval: float = 30.0
-    #: An order still running after the broker has been gone this long is cancelled.
-    broker_loss_stop_delay: float = 5.0
+    #: None (VDA 5050 §6.2): without a broker the order goes on to its last released node.
+    #: Seconds: an order still running after the broker has been gone this long is cancelled.
+    broker_loss_stop_delay: float | None = None
     #: Metres: the first node's default allowedDeviationXY.
     default_deviation_xy: float = 0.5
     #: Reconnect back-off to the broker: first and largest delay in seconds.
     reconnect_initial: float = 0.5
-    reconnect_max: float = 10.0
+    reconnect_max: float = 0.8
     #: MQTT keep-alive in seconds (the broker declares the vehicle lost after 1.5 x this).
     keepalive: int = 10
     #: CA certificate file for mqtts:// (None: the system's trust store).
@@ -134,6 +144,16 @@ class VehicleConfig:
     max_speed: float = 0.8
     #: Open navigation when the vehicle starts.
     start_navigation: bool = False
+    #: The VDA 5050 version spoken: "2.0" or "2.1" (topics stay ``…/v2/…``).
+    vda_version: str = "2.0"
+    #: The factsheet's physicalParameters: metres and m/s² of this robot (the link cannot
+    #: read them); 0 where not given.
+    width: float = 0.0
+    length: float = 0.0
+    height_min: float = 0.0
+    height_max: float = 0.0
+    acceleration_max: float = 0.0
+    deceleration_max: float = 0.0
 
     def __post_init__(self) -> None:
         url = parse_broker_url(self.broker)
@@ -150,10 +170,18 @@ class VehicleConfig:
                 f"visualization_rate must be at most {MAX_VISUALIZATION_RATE:g} Hz "
                 f"(the robot's status rate), got {rate!r}"
             )
-        for name in ("state_interval", "broker_loss_stop_delay", "reconnect_initial"):
+        for name in ("state_interval", "reconnect_initial"):
             _check_seconds(name, getattr(self, name))
+        if self.broker_loss_stop_delay is not None:
+            _check_seconds("broker_loss_stop_delay", self.broker_loss_stop_delay)
         _check_seconds("default_deviation_xy", self.default_deviation_xy, allow_zero=True)
         _check_seconds("reconnect_max", self.reconnect_max)
+        if self.vda_version not in ("2.0", "2.1"):
+            raise InvalidArgument(f"vda_version must be '2.0' or '2.1', got {self.vda_version!r}")
+        for name in _PHYSICAL:
+            _check_physical(name, getattr(self, name))
+        if self.height_max < self.height_min:
+            raise InvalidArgument("height_max must be >= height_min")
         if self.reconnect_max < self.reconnect_initial:
             raise InvalidArgument("reconnect_max must be >= reconnect_initial")
         if isinstance(self.keepalive, bool) or not isinstance(self.keepalive, int):

@@ -19,8 +19,7 @@ __all__ = ["ROTATE_TIMEOUT", "Executor"]
 
 _log = logging.getLogger(__name__)
 
-#: Seconds a node's theta may take; many firmware versions ignore the rotate command
-#: (PROTOCOL.md §2.g), and then the node counts as reached without it.
+#: Seconds the turn to a node's theta may take (then the order fails: navigationTimeout).
 ROTATE_TIMEOUT = 10.0
 
 
@@ -91,16 +90,8 @@ class Executor:
             return
         await self.robot.goto_point(position.x, position.y)
         if position.theta is not None:
-            try:
-                await self.robot.rotate_to(math.degrees(position.theta), timeout=ROTATE_TIMEOUT)
-            except GalileoTimeout as exc:
-                self.information.append(
-                    Info(
-                        infoType="rotationIgnored", infoLevel="INFO",
-                        infoDescription=f"node {node.nodeId}: theta not reached: {exc}",
-                        infoReferences=[reference("nodeId", node.nodeId)],
-                    )
-                )  # fmt: skip
+            # By velocity, not 'a': most firmware ignores the rotate command (PROTOCOL.md §2.g).
+            await self.robot.turn_to(math.degrees(position.theta), timeout=ROTATE_TIMEOUT)
 
     def fail(self, error_type: str, description: str, refs: list[ErrorReference]) -> None:
         """End the order short with a WARNING error naming why."""

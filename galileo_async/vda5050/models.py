@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
     "VERSION",
+    "VERSIONS",
     "Action",
     "ActionParameter",
     "ActionState",
@@ -30,6 +31,7 @@ __all__ = [
     "Header",
     "Info",
     "InstantActions",
+    "MapState",
     "Node",
     "NodePosition",
     "NodeState",
@@ -42,8 +44,10 @@ __all__ = [
     "reference",
 ]
 
-#: The protocol version the vehicle speaks (the ``version`` field of every message).
+#: The protocol version the vehicle speaks by default (the ``version`` field of every message).
 VERSION = "2.0.0"
+#: ``vda_version`` → the ``version`` field: the versions this vehicle speaks.
+VERSIONS = {"2.0": "2.0.0", "2.1": "2.1.0"}
 
 BlockingType = Literal["NONE", "SOFT", "HARD"]
 ActionStatus = Literal["WAITING", "INITIALIZING", "RUNNING", "PAUSED", "FINISHED", "FAILED"]
@@ -132,6 +136,7 @@ class Edge(BaseModel):
     maxRotationSpeed: float | None = None
     length: float | None = None
     trajectory: dict[str, Any] | None = None
+    corridor: dict[str, Any] | None = None  # 2.1
     actions: list[Action]
 
 
@@ -147,10 +152,24 @@ class Order(Header):
 
 
 class InstantActions(Header):
-    """Actions to run at once."""
+    """Actions to run at once, under ``actions`` (§6.9) or ``instantActions`` (vda-5050-lib)."""
 
     model_config = _STRICT_IN
     actions: list[Action]
+    #: True when the actions came under the key ``instantActions`` instead of ``actions``.
+    other_key: bool = Field(default=False, exclude=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _either_key(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        other = "actions" not in data and "instantActions" in data
+        return (
+            {**data, "actions": data["instantActions"], "other_key": True}
+            if other
+            else {**data, "other_key": False}
+        )
 
 
 # --- vehicle → master control -------------------------------------------------------------
@@ -230,6 +249,7 @@ class Error(BaseModel):
     errorType: str
     errorReferences: list[ErrorReference] = Field(default_factory=list)
     errorDescription: str | None = None
+    errorHint: str | None = None  # 2.1
     errorLevel: ErrorLevel
 
 
@@ -240,6 +260,15 @@ class Info(BaseModel):
     infoReferences: list[ErrorReference] = Field(default_factory=list)
     infoDescription: str | None = None
     infoLevel: Literal["INFO", "DEBUG"]
+
+
+class MapState(BaseModel):
+    """A map stored on the vehicle (2.1 state.maps)."""
+
+    mapId: str
+    mapVersion: str
+    mapDescription: str | None = None
+    mapStatus: Literal["ENABLED", "DISABLED"]
 
 
 class SafetyState(BaseModel):
@@ -269,6 +298,7 @@ class State(Header):
     errors: list[Error]
     information: list[Info] | None = None
     safetyState: SafetyState
+    maps: list[MapState] | None = None  # 2.1
 
 
 class Visualization(Header):

@@ -116,6 +116,12 @@ def _check_capabilities(order: Order, map_id: str) -> None:
                  ("actionType", action.actionType)],
             )  # fmt: skip
     for edge in order.edges:
+        if edge.corridor is not None:
+            raise Rejection(
+                "orderError",
+                f"edge {edge.edgeId}: corridors are not supported (the robot plans its path)",
+                [*refs, ("edgeId", edge.edgeId), ("field", "corridor")],
+            )
         if edge.trajectory is not None:
             raise Rejection(
                 "orderError",
@@ -140,10 +146,36 @@ def _check_capabilities(order: Order, map_id: str) -> None:
             )
 
 
-def check_order(order: Order, *, map_id: str) -> None:
-    """Raise Rejection (validationError, then orderError) unless this vehicle can drive it."""
+def _check_optional_fields(order: Order, max_speed: float, can_limit_speed: bool) -> None:
+    """Optional fields the vehicle cannot honour (§6.6.4.2: orderError naming the field)."""
+    refs = _order_refs(order)
+    if order.zoneSetId is not None:
+        raise Rejection(
+            "orderError", "zones are not supported: zoneSetId cannot be honoured",
+            [*refs, ("field", "zoneSetId")],
+        )  # fmt: skip
+    for edge in order.edges:
+        speed = edge.maxSpeed
+        if speed is not None and speed < max_speed and not can_limit_speed:
+            raise Rejection(
+                "orderError",
+                f"edge {edge.edgeId}: maxSpeed {speed:g} m/s is below the robot's "
+                f"{max_speed:g} m/s and this link cannot set the navigation speed",
+                [*refs, ("edgeId", edge.edgeId), ("field", "maxSpeed")],
+            )
+
+
+def check_order(
+    order: Order, *, map_id: str, max_speed: float = math.inf, can_limit_speed: bool = False
+) -> None:
+    """Raise Rejection (validationError, then orderError) unless this vehicle can drive it.
+
+    An edge maxSpeed below ``max_speed`` needs ``can_limit_speed`` (a link that sets the
+    navigation speed); a zoneSetId is always refused.
+    """
     _check_structure(order)
     _check_capabilities(order, map_id)
+    _check_optional_fields(order, max_speed, can_limit_speed)
 
 
 @dataclass
@@ -189,6 +221,14 @@ class OrderProgress:
                 )
             if order.orderUpdateId == self.order_update_id:
                 return "ignore"
+        if self.active and order.orderId != self.order_id:
+            # Figure 8, step 3: a new order waits until this one is done or cancelled.
+            raise Rejection(
+                "orderError",
+                f"order {self.order_id} is still running or waits for an update: cancel it "
+                f"first (cancelOrder) or update it",
+                [*refs, ("activeOrderId", self.order_id)],
+            )
         if self.active or order.orderId == self.order_id:
             base_end = self._base_end()
             if (first.nodeId, first.sequenceId) == base_end:
@@ -199,14 +239,15 @@ class OrderProgress:
                 f"(sequenceId {base_end[1]}), of order {self.order_id}",
                 [*refs, ("nodeId", first.nodeId)],
             )
-        if first.nodeId == self.last_node_id and self.last_node_id:
-            return "new"
         start = first.nodePosition
         if start is not None and position is not None:
+            # Figure 8, step 4: within the first node's deviation range, whatever its name.
             allowed = start.allowedDeviationXY
             allowed = default_deviation if allowed is None else allowed
             if math.hypot(start.x - position[0], start.y - position[1]) <= allowed:
                 return "new"
+        elif first.nodeId == self.last_node_id and self.last_node_id:
+            return "new"
         raise Rejection(
             "noRouteError",
             f"the first node {first.nodeId} is not where the vehicle stands",

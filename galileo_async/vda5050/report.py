@@ -7,11 +7,12 @@ from collections.abc import Hashable, Sequence
 from datetime import datetime, timezone
 
 from ..models import GalileoStatus, TargetStatus, VisualStatus
-from .config import MAX_VISUALIZATION_RATE
+from .config import VehicleConfig
 from .models import AgvPosition, BatteryState, Error, ErrorReference, Velocity
 
 __all__ = [
     "BATTERY_CURVE",
+    "ERROR_HINTS",
     "INSTANT_ACTIONS",
     "agv_position",
     "battery_charge",
@@ -23,6 +24,7 @@ __all__ = [
     "status_errors",
     "timestamp",
     "velocity",
+    "with_hints",
 ]
 
 #: Volts → percent of a 24 V pack at rest, linear between the points. The robot reports
@@ -48,6 +50,28 @@ INSTANT_ACTIONS: dict[str, str] = {
     "startNavigation": "Open navigation (custom): the vehicle becomes AUTOMATIC.",
     "stopNavigation": "Close navigation (custom): the vehicle becomes MANUAL.",
 }
+
+
+#: VDA 5050 2.1 errorHint by errorType: how the master control can resolve the error.
+ERROR_HINTS: dict[str, str] = {
+    "validationError": "send a message that follows the JSON schema of this version",
+    "orderError": "leave out what the factsheet does not list (actions, fields, maps)",
+    "orderUpdateError": "start the update at the end of the current base, or cancel first",
+    "noRouteError": "start the order where the vehicle stands (within allowedDeviationXY)",
+    "unsupportedAction": "use an action the factsheet lists in agvActions",
+    "noOrderToCancel": "nothing to do: the vehicle has no order",
+    "robotLinkLost": "check the robot's serial, network or ROS link",
+    "visualLost": "drive the robot back into the mapped area or restart navigation",
+}
+
+
+def with_hints(errors: list[Error]) -> list[Error]:
+    """``errors`` with an errorHint (2.1) where ERROR_HINTS has one."""
+    return [
+        e.model_copy(update={"errorHint": ERROR_HINTS[e.errorType]})
+        if e.errorHint is None and e.errorType in ERROR_HINTS else e
+        for e in errors
+    ]  # fmt: skip
 
 
 def timestamp() -> str:
@@ -147,9 +171,12 @@ def significant(status: GalileoStatus | None) -> Hashable:
 
 
 def factsheet_sections(
-    max_speed: float | None, action_types: Sequence[str], map_id: str
+    config: VehicleConfig, action_types: Sequence[str], *, theta: bool = True
 ) -> dict[str, dict[str, object]]:
-    """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot."""
+    """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot.
+
+    ``theta``: node orientations are honoured (listed in optionalParameters).
+    """
     # No blockingTypes: the 2.0 schema puts its enum on the array itself, so no list validates.
     actions = [
         {
@@ -159,10 +186,23 @@ def factsheet_sections(
         }
         for name in action_types
     ]
+    rate = config.visualization_rate
+    timing: dict[str, float] = {"minOrderInterval": 0.0, "minStateInterval": 0.0}
+    if rate > 0:
+        timing["visualizationInterval"] = 1.0 / rate  # the interval actually published
+    optional = [
+        {
+            "parameter": "order.nodes.nodePosition",
+            "support": "SUPPORTED",
+            "description": 'without it, a nodeId that is a map target number ("3")',
+        },
+    ]
+    if theta:
+        optional.append({"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"})
     return {
         "typeSpecification": {
             "seriesName": "Galileo",
-            "seriesDescription": f"Galileo visual navigation robot (map {map_id})",
+            "seriesDescription": f"Galileo visual navigation robot (map {config.map_id})",
             "agvKinematic": "DIFF",
             "agvClass": "CARRIER",
             "maxLoadMass": 0.0,
@@ -171,37 +211,23 @@ def factsheet_sections(
         },
         "physicalParameters": {
             "speedMin": 0.0,
-            "speedMax": max_speed if max_speed is not None else 0.0,
-            "accelerationMax": 0.0,
-            "decelerationMax": 0.0,
-            "heightMin": 0.0,
-            "heightMax": 0.0,
-            "width": 0.0,
-            "length": 0.0,
+            "speedMax": config.max_speed,
+            "accelerationMax": config.acceleration_max,
+            "decelerationMax": config.deceleration_max,
+            "heightMin": config.height_min,
+            "heightMax": config.height_max,
+            "width": config.width,
+            "length": config.length,
         },
         "protocolLimits": {
             "maxStringLens": {"idNumericalOnly": False},
-            "maxArrayLens": {
-                "node.actions": 0,
-                "edge.actions": 0,
-                "trajectory.knotVector": 0,
-                "trajectory.controlPoints": 0,
-            },
-            "timing": {
-                "minOrderInterval": 0.0,
-                "minStateInterval": 0.0,
-                "visualizationInterval": 1.0 / MAX_VISUALIZATION_RATE,
-            },
+            # Node and edge actions and trajectories are refused outright: no length is
+            # declared for them, since 0 would mean "no limit".
+            "maxArrayLens": {},
+            "timing": timing,
         },
         "protocolFeatures": {
-            "optionalParameters": [
-                {
-                    "parameter": "order.nodes.nodePosition",
-                    "support": "SUPPORTED",
-                    "description": 'without it, a nodeId that is a map target number ("3")',
-                },
-                {"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"},
-            ],
+            "optionalParameters": optional,
             "agvActions": actions,
         },
         "agvGeometry": {},

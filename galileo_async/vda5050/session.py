@@ -13,11 +13,19 @@ import aiomqtt
 import anyio
 from pydantic import BaseModel
 
-from ..errors import InvalidArgument
+from ..errors import DuplicateVehicle, InvalidArgument
 from .config import VehicleConfig
 from .models import Connection, ConnectionState
 
-__all__ = ["CONNECT_TIMEOUT", "MQTT_LOGGER", "OFFLINE_TIMEOUT", "Session", "tls_context"]
+__all__ = [
+    "CONNECT_TIMEOUT",
+    "MQTT_LOGGER",
+    "OFFLINE_TIMEOUT",
+    "PROBE_WAIT",
+    "YOUNG_SESSION",
+    "Session",
+    "tls_context",
+]
 
 _log = logging.getLogger(__name__)
 #: The MQTT client's own log lines (socket and TLS errors) go here.
@@ -29,6 +37,11 @@ logging.getLogger(MQTT_LOGGER).setLevel(logging.INFO)
 OFFLINE_TIMEOUT = 3.0
 #: Seconds a connection attempt to the broker may take.
 CONNECT_TIMEOUT = 6.0
+#: Seconds after connecting within which a lost session is checked for a duplicate vehicle;
+#: longer than an established vehicle takes to reconnect (reconnect_initial, default 0.5 s).
+YOUNG_SESSION = 2.0
+#: Seconds the duplicate check waits for another vehicle's retained ONLINE.
+PROBE_WAIT = 1.0
 #: Topics the vehicle subscribes to (master control → vehicle).
 SUBSCRIBED = ("order", "instantActions")
 
@@ -106,6 +119,8 @@ class Session:
         self._online = anyio.Event()
         self._offline = anyio.Event()
         self._offline.set()
+        #: The ONLINE message of the current (or last) session, as published.
+        self._online_sent = b""
 
     @property
     def connected(self) -> bool:
@@ -141,9 +156,13 @@ class Session:
             return False
         return True
 
+    def _password(self) -> str | None:
+        password = self.config.address.password
+        return None if password is None else password.get_secret_value()
+
     def _client_for(self, log: logging.Logger) -> aiomqtt.Client:
         address = self.config.address
-        password = None if address.password is None else address.password.get_secret_value()
+        password = self._password()
         will = aiomqtt.Will(
             self.config.topic("connection"),
             self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
@@ -157,7 +176,13 @@ class Session:
         )  # fmt: skip
 
     async def run(self) -> None:
-        """Connect, serve, reconnect with exponential back-off; runs until cancelled."""
+        """Connect, serve, reconnect with exponential back-off; runs until cancelled.
+
+        DuplicateVehicle when the session is lost within YOUNG_SESSION s of connecting and
+        another vehicle with this identity is ONLINE meanwhile: the broker gives a client
+        identifier to the newest connection, and that one took it back, so it was there
+        first and keeps the broker.
+        """
         delay = self.config.reconnect_initial
         while True:
             log = _Recorder()
@@ -175,9 +200,40 @@ class Session:
             else:
                 delay = self.config.reconnect_initial
                 self.last_error = None
+                connected_at = anyio.current_time()
                 await self._serve(client)
+                age = anyio.current_time() - connected_at
+                if age < YOUNG_SESSION and await self._another_online():
+                    raise self._duplicate(age)
             await anyio.sleep(delay)
             delay = min(delay * 2, self.config.reconnect_max)
+
+    def _duplicate(self, age: float) -> DuplicateVehicle:
+        config = self.config
+        return DuplicateVehicle(
+            f"another vehicle {config.manufacturer}/{config.serial_number} is connected to "
+            f"the broker {config.address.host}:{config.address.port}: it took the session "
+            f"back {age:.1f} s after this one connected; two vehicles must not share a "
+            "manufacturer and serial number"
+        )
+
+    async def _another_online(self) -> bool:
+        """True when the retained connection message is an ONLINE this session did not send."""
+        client = aiomqtt.Client(
+            self.config.address.host, self.config.address.port,
+            username=self.config.address.username, password=self._password(),
+            identifier=f"{self.config.manufacturer}-{self.config.serial_number}-check",
+            tls_context=self._tls, timeout=CONNECT_TIMEOUT, logger=_Recorder(),
+        )  # fmt: skip
+        with contextlib.suppress(aiomqtt.MqttError):
+            async with client:
+                await client.subscribe(self.config.topic("connection"), qos=1)
+                with anyio.move_on_after(PROBE_WAIT):
+                    async for message in client.messages:
+                        payload = _payload(message)
+                        if payload != self._online_sent and b'"ONLINE"' in payload:
+                            return True
+        return False
 
     def _failed(self, reason: str, delay: float) -> None:
         # A new reason is a warning (shown by `galileo vda5050`); the same one again is not.
@@ -206,7 +262,9 @@ class Session:
             self._client = client
             self._offline = anyio.Event()
             self._online.set()
-            await self.publish("connection", self._connection("ONLINE"), qos=1, retain=True)
+            online = self._connection("ONLINE")
+            self._online_sent = online.model_dump_json(exclude_none=True).encode()
+            await self.publish("connection", online, qos=1, retain=True)
             await self._on_connect()
             async for message in client.messages:
                 self._on_message(str(message.topic).rsplit("/", 1)[-1], _payload(message))

@@ -11,7 +11,7 @@ from typing import Any
 import anyio
 from pydantic import BaseModel, ValidationError
 
-from ..errors import GalileoError, InvalidArgument
+from ..errors import DuplicateVehicle, GalileoError, InvalidArgument
 from ..models import LinkState, TargetStatus
 from ..robot import Robot
 from . import report
@@ -19,12 +19,13 @@ from .actions import ActionRunner
 from .config import VehicleConfig
 from .execution import Executor
 from .models import (
-    VERSION,
+    VERSIONS,
     Connection,
     ConnectionState,
     Error,
     Factsheet,
     InstantActions,
+    MapState,
     Order,
     State,
     Visualization,
@@ -33,9 +34,11 @@ from .models import (
 from .order import OrderProgress, Rejection, check_order
 from .session import Session
 
-__all__ = ["Vehicle", "run_vehicles"]
+__all__ = ["MAX_ORDER_ERRORS", "Vehicle", "can_limit_speed", "run_vehicles"]
 
 _log = logging.getLogger(__name__)
+#: Order rejections kept in state.errors (the newest) until an order is accepted.
+MAX_ORDER_ERRORS = 10
 
 #: The link states in which the robot is unreachable, each with the name of the event that
 #: reports it (the robotLinkLost error's reference).
@@ -60,6 +63,7 @@ class Vehicle:
         self._dirty = anyio.Event()
         self._order_errors: list[Error] = []
         self._link_error: Error | None = None
+        self._other_key_logged = False
 
     # --- what the vehicle reports ------------------------------------------------------
 
@@ -84,7 +88,8 @@ class Vehicle:
         header_id = self._headers.get(topic, -1) + 1
         self._headers[topic] = header_id
         return {
-            "headerId": header_id, "timestamp": report.timestamp(), "version": VERSION,
+            "headerId": header_id, "timestamp": report.timestamp(),
+            "version": VERSIONS[self.config.vda_version],
             "manufacturer": self.config.manufacturer, "serialNumber": self.config.serial_number,
         }  # fmt: skip
 
@@ -103,6 +108,8 @@ class Vehicle:
         paused = self.executor.paused or (
             status is not None and status.target_status == TargetStatus.PAUSED
         )
+        v21 = self.config.vda_version == "2.1"
+        maps = [MapState(mapId=self.config.map_id, mapVersion="current", mapStatus="ENABLED")]
         return State(
             **self._header("state"),
             orderId=progress.order_id, orderUpdateId=progress.order_update_id,
@@ -113,15 +120,14 @@ class Vehicle:
             newBaseRequest=progress.new_base_request, actionStates=self.actions.states(),
             batteryState=report.battery_state(status),
             operatingMode=report.operating_mode(status),
-            errors=self.errors(), information=list(self.executor.information),
-            safetyState={"eStop": "NONE", "fieldViolation": False},
+            errors=report.with_hints(self.errors()) if v21 else self.errors(),
+            information=list(self.executor.information),
+            safetyState={"eStop": "NONE", "fieldViolation": False}, maps=maps if v21 else None,
         )  # fmt: skip
 
     def factsheet(self) -> Factsheet:
         """The factsheet message (the header is counted)."""
-        sections = report.factsheet_sections(
-            self.config.max_speed, list(report.INSTANT_ACTIONS), self.config.map_id
-        )
+        sections = report.factsheet_sections(self.config, list(report.INSTANT_ACTIONS))
         return Factsheet(**self._header("factsheet"), **sections)
 
     # --- publishing ----------------------------------------------------------------------
@@ -163,7 +169,10 @@ class Vehicle:
             self._reject(Rejection("validationError", _first_problem(exc), [("topic", "order")]))
             return
         try:
-            check_order(order, map_id=self.config.map_id)
+            check_order(
+                order, map_id=self.config.map_id, max_speed=self.config.max_speed,
+                can_limit_speed=can_limit_speed(self.robot),
+            )  # fmt: skip
             status = self.robot.status
             if self._link_error is not None or status is None or not status.navigating:
                 raise Rejection(
@@ -193,7 +202,8 @@ class Vehicle:
 
     def _reject(self, rejection: Rejection) -> None:
         _log.info("%s: order rejected: %s", self.config.serial_number, rejection)
-        self._order_errors = [rejection.error]
+        # Kept until an order is accepted (§6.6.4.1): a later rejection does not hide one.
+        self._order_errors = [*self._order_errors, rejection.error][-MAX_ORDER_ERRORS:]
         self.changed()
 
     def on_instant_actions(self, payload: bytes, group: anyio.abc.TaskGroup) -> None:
@@ -206,19 +216,31 @@ class Vehicle:
             )
             self.changed()
             return
+        if message.other_key and not self._other_key_logged:
+            self._other_key_logged = True
+            _log.warning(
+                "%s: instant actions came under the key 'instantActions' (VDA 5050 2.0 §6.9 "
+                "says 'actions'); accepted", self.config.serial_number,
+            )  # fmt: skip
         self.actions.queue(message.actions)
         group.start_soon(self.actions.run, message.actions)
 
     # --- tasks ----------------------------------------------------------------------------
 
     async def run(self) -> None:
-        """Be the vehicle until cancelled; then OFFLINE is published and the session closed."""
+        """Be the vehicle until cancelled; then OFFLINE is published and the session closed.
+
+        DuplicateVehicle (everything stopped) when another vehicle with this identity was
+        on the broker first: that one stays connected.
+        """
+        duplicate: DuplicateVehicle | None = None
         async with anyio.create_task_group() as group:
             group.start_soon(self.executor.run)
             group.start_soon(self._watch_status)
             group.start_soon(self._watch_link)
             group.start_soon(self._publish_states)
-            group.start_soon(self._broker_watchdog)
+            if self.config.broker_loss_stop_delay is not None:
+                group.start_soon(self._broker_watchdog, self.config.broker_loss_stop_delay)
             if self.config.visualization_rate > 0:
                 group.start_soon(self._visualize)
             if self.config.start_navigation:
@@ -226,8 +248,14 @@ class Vehicle:
             self._group = group
             try:
                 await self.session.run()
+            except DuplicateVehicle as exc:
+                _log.error("%s: %s", self.config.serial_number, exc)
+                duplicate = exc
+                group.cancel_scope.cancel()
             finally:
                 self._group = None
+        if duplicate is not None:
+            raise duplicate
 
     async def _start_navigation(self) -> None:
         status = self.robot.status
@@ -290,10 +318,10 @@ class Vehicle:
                 )
                 await self.publish("visualization", message)
 
-    async def _broker_watchdog(self) -> None:
+    async def _broker_watchdog(self, delay: float) -> None:
         while True:
             await self.session.wait_offline()
-            with anyio.move_on_after(self.config.broker_loss_stop_delay):
+            with anyio.move_on_after(delay):
                 await self.session.wait_online()
                 continue
             if self.progress.active or self.executor.moving:
@@ -302,13 +330,19 @@ class Vehicle:
                     Error(
                         errorType="brokerLost", errorLevel="WARNING",
                         errorDescription=f"the broker was unreachable for "
-                        f"{self.config.broker_loss_stop_delay:g} s: the order was cancelled",
+                        f"{delay:g} s: the order was cancelled",
                         errorReferences=[reference("orderId", self.progress.order_id)],
                     )
                 )  # fmt: skip
                 with contextlib.suppress(GalileoError):
                     await self.executor.cancel_order()
             await self.session.wait_online()
+
+
+def can_limit_speed(robot: Robot) -> bool:
+    """True when ``robot``'s link can set a navigation speed (an edge maxSpeed is honoured)."""
+    # The hook for links that can: a Robot offering set_navigation_speed(m/s).
+    return callable(getattr(robot, "set_navigation_speed", None))
 
 
 def _first_problem(exc: ValidationError) -> str:
