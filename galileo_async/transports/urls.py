@@ -1,4 +1,4 @@
-"""The one URL switch: a serial path, socket://, udp://, sim:// or ros:// URL → its link."""
+"""The one URL switch: a serial path, socket://, udp://, sim://, ros:// or http[s]:// URL → its link."""
 
 from __future__ import annotations
 
@@ -36,8 +36,13 @@ __all__ = ["byte_connector", "check_link_options", "link_kind", "open_link"]
 
 
 def link_kind(url: str) -> str:
-    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
+    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"``, ``"http"`` or ``"serial"`` (a path …).
+
+    ``https://`` URLs are of kind ``"http"``.
+    """
     scheme = urlsplit(url).scheme.lower()
+    if scheme in ("http", "https"):
+        return "http"
     return scheme if scheme in ("ros", "socket", "udp", "sim") else "serial"
 
 
@@ -49,6 +54,9 @@ def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection
     kind = link_kind(url)
     if kind == "ros":
         _ros_module(url).check_ros_options(url, options, also=also)
+        return
+    if kind == "http":
+        _http_module(url).check_http_options(url, options, also=also)
         return
     accepted = {*LINK_OPTIONS, *(UDP_OPTIONS if kind == "udp" else STREAM_OPTIONS), *also}
     for name in options:
@@ -65,7 +73,11 @@ def check_link_options(url: str, options: Mapping[str, Any], *, also: Collection
 
 
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
-    """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://`` or ``ros://``."""
+    """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://``, ``ros://``
+    or ``http[s]://``."""
+    if link_kind(url) == "http":  # its own checks: a password in the URL is never shown
+        link: BaseLink = _http_module(url).open_http_link(url, store, **options)
+        return link
     with naming(url, repr(url)):
         check_link_options(url, options)
         return _open_link(url, store, options)
@@ -88,6 +100,8 @@ def byte_connector(
         raise InvalidArgument(f"{url!r}: a ros:// link carries ROS messages, not a byte stream")
     if kind == "udp":
         raise InvalidArgument(f"{url!r}: a udp:// link carries datagrams, not a byte stream")
+    if kind == "http":
+        raise InvalidArgument("an http:// link carries REST calls and JSON, not a byte stream")
     if kind == "socket":
         host, port = parse_socket_url(url)
         return socket_connector(host, port, connect_timeout=connect_timeout, name=url), None
@@ -131,6 +145,17 @@ def _ros_module(url: str) -> ModuleType:
             f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
         ) from exc
     return ros
+
+
+def _http_module(url: str) -> ModuleType:
+    try:
+        import galileo_async.http as http  # optional: aiohttp, the extra [http]
+    except ImportError as exc:
+        raise GalileoConnectionError(
+            f"{urlsplit(url).scheme}:// links need aiohttp "
+            f"(pip install 'galileo-async[http]'): {exc}"
+        ) from exc
+    return http
 
 
 def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:

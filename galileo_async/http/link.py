@@ -1,0 +1,227 @@
+"""HttpLink: status from the WebSocket /galileo/status, commands through the REST API."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import aiohttp
+
+from ..errors import ConnectionLost, GalileoConnectionError, HttpError, InvalidArgument
+from ..protocol import commands as cmd
+from ..protocol.velocity import Velocity
+from ..transports.base import BaseLink
+from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
+from ..transports.stats import StatusSink
+from .client import HttpApi
+from .options import (
+    DEFAULT_PING_INTERVAL,
+    DEFAULT_REQUEST_TIMEOUT,
+    HttpAddress,
+    redact_http_url,
+)
+from .status import status_from_json
+
+__all__ = ["STATUS_TOPIC", "HttpLink"]
+
+_log = logging.getLogger(__name__)
+
+#: The WebSocket path of the status topic (http.md, "Websocket相关API").
+STATUS_TOPIC = "/galileo/status"
+#: The REST call of each command without parameters: (method, endpoint).
+_FIXED: dict[type[cmd.Command], tuple[str, str]] = {
+    cmd.Cancel: ("GET", "/navigation/stop_nav_task"),
+    cmd.StopNavigation: ("GET", "/navigation/stop"),
+    cmd.StartCharging: ("GET", "/navigation/go_charge"),
+    cmd.StopCharging: ("GET", "/navigation/stop_charge"),
+    cmd.ShutdownHost: ("GET", "/system/shutdown"),
+    cmd.StartMapping: ("GET", "/map/start"),
+    cmd.StopMapping: ("GET", "/map/stop"),
+}
+_Call = Callable[[], Awaitable[Any]]
+
+
+class HttpLink(BaseLink):
+    """The vendor's HTTP API (REST on 3546) and WebSocket status (3547) as one link.
+
+    Each command becomes its REST call, made in order by one worker; a failed call is
+    logged (the status shows what the robot did). A Velocity is PUT /system/speed.
+    """
+
+    carries_velocity = True
+
+    def __init__(
+        self,
+        store: StatusSink,
+        address: HttpAddress,
+        *,
+        request_timeout: float = DEFAULT_REQUEST_TIMEOUT,
+        ping_interval: float = DEFAULT_PING_INTERVAL,
+        connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+        name: str | None = None,
+        **base_options: Any,
+    ) -> None:
+        super().__init__(store, **base_options)
+        self.address = address
+        self.name = redact_http_url(name or address.base_url)
+        self.api = HttpApi(
+            address.base_url,
+            username=address.username,
+            password=address.password,
+            token=address.token,
+            timeout=request_timeout,
+        )
+        self.ping_interval = ping_interval
+        self.connect_timeout = connect_timeout
+        #: The id of the last task a call returned: pause and resume act on it.
+        self.task_id: str | None = None
+        #: REST calls that failed since the link opened.
+        self.failed_calls = 0
+        self._ws: aiohttp.ClientWebSocketResponse | None = None
+        self._abandoned: aiohttp.ClientWebSocketResponse | None = None
+        self._tasks: list[asyncio.Task[None]] = []
+        self._calls: asyncio.Queue[_Call] = asyncio.Queue()
+
+    def __repr__(self) -> str:
+        return f"<HttpLink {self.name}>"
+
+    def ws_url(self, topic: str = STATUS_TOPIC) -> str:
+        """The WebSocket URL of ``topic`` (without the token)."""
+        scheme = "wss" if self.address.secure else "ws"
+        return f"{scheme}://{self.address.host}:{self.address.ws_port}{topic}"
+
+    async def _connect(self) -> None:
+        await self._drop()
+        try:
+            await self.api.login()
+            self._ws = await self.api.session.ws_connect(
+                self.ws_url(),
+                params=self.api.token_query(),
+                timeout=aiohttp.ClientWSTimeout(ws_close=self.connect_timeout),
+                autoping=True,
+                heartbeat=None,  # re-armed by every frame it never fires here: our timer pings
+            )
+        except HttpError:
+            raise
+        except (aiohttp.ClientError, asyncio.TimeoutError, OSError) as exc:
+            status = getattr(exc, "status", None)
+            raise HttpError(
+                f"cannot open the WebSocket {self.ws_url()} of {self.name}: "
+                f"{type(exc).__name__}{f' HTTP {status}' if status else ''}",
+                endpoint=STATUS_TOPIC,
+                status=status,
+            ) from None
+        ws = self._ws
+        self._tasks = [
+            asyncio.create_task(self._read(ws), name=f"{self!r} reader"),
+            asyncio.create_task(self._ping(ws), name=f"{self!r} pinger"),
+            asyncio.create_task(self._call_worker(), name=f"{self!r} calls"),
+        ]
+
+    async def _read(self, ws: aiohttp.ClientWebSocketResponse) -> None:
+        error: BaseException | None = None
+        try:
+            async for message in ws:
+                if message.type is not aiohttp.WSMsgType.TEXT:
+                    continue
+                self.stats.bytes_received += len(message.data)
+                try:
+                    status = status_from_json(json.loads(message.data))
+                except (ValueError, InvalidArgument):
+                    self.stats.decoder.bytes_discarded += len(message.data)
+                    continue
+                self._on_status(status)
+            error = ws.exception()
+        except (aiohttp.ClientError, OSError) as exc:
+            error = exc
+        if self._ws is ws:
+            self._on_lost(error or ConnectionLost("the WebSocket closed"))
+
+    async def _ping(self, ws: aiohttp.ClientWebSocketResponse) -> None:
+        while not ws.closed:
+            await asyncio.sleep(self.ping_interval)
+            try:
+                await ws.ping()
+            except (aiohttp.ClientError, ConnectionError, RuntimeError):
+                return  # the reader sees the close
+
+    async def _call_worker(self) -> None:
+        while True:
+            call = await self._calls.get()
+            try:
+                answer = await call()
+            except GalileoConnectionError as exc:
+                self.failed_calls += 1
+                _log.warning("%s: %s", self.name, exc)
+                continue
+            if isinstance(answer, dict) and isinstance(answer.get("id"), str):
+                self.task_id = answer["id"]
+
+    def _write(self, command: cmd.Command) -> None:
+        if self._ws is None or self._ws.closed:
+            raise ConnectionLost(f"not connected to {self.name}")
+        self._calls.put_nowait(self._call_of(command))
+
+    def _call_of(self, command: cmd.Command) -> _Call:
+        """The REST call that carries ``command``; GalileoConnectionError if none does."""
+        api = self.api
+        fixed = _FIXED.get(type(command))
+        if fixed is not None:
+            return lambda: api.call(*fixed)
+        if isinstance(command, cmd.Goto):
+            return lambda: api.call("GET", "/navigation/move_to_index", {"index": command.target_id})
+        if isinstance(command, (Velocity, cmd.Stop)):
+            linear, angular = (
+                (command.linear, command.angular) if isinstance(command, Velocity) else (0.0, 0.0)
+            )
+            body = {"speed_x": linear, "speed_y": 0.0, "speed_angle": angular}
+            return lambda: api.call("PUT", "/system/speed", body=body)
+        if isinstance(command, (cmd.Pause, cmd.Resume)):
+            verb = "pause" if isinstance(command, cmd.Pause) else "resume"
+            return lambda: self._task_call(verb)
+        if isinstance(command, cmd.StartNavigation):
+            return self._start_navigation
+        raise GalileoConnectionError(f"{command} has no HTTP API form on {self.name}")
+
+    async def _task_call(self, verb: str) -> Any:
+        task_id = self.task_id
+        if task_id is None:  # a task someone else started: the one that works
+            tasks = await self.api.call("GET", "/task")
+            working = [t for t in tasks if isinstance(t, dict) and t.get("state") == "WORKING"]
+            if not working:
+                return None
+            task_id = str(working[0].get("id"))
+        return await self.api.call("GET", f"/task/{verb}", {"id": task_id})
+
+    async def _start_navigation(self) -> Any:
+        current = await self.api.call("GET", "/navigation/current_path")
+        where = current if isinstance(current, dict) else {}
+        return await self.api.call(
+            "GET", "/navigation/start", {"map": where.get("map", ""), "path": where.get("path", "")}
+        )
+
+    def _abandon(self, reason: str) -> None:
+        # Its reader no longer reports it; the reconnect's _drop closes it.
+        self._abandoned, self._ws = self._ws, None
+        self._on_lost(ConnectionLost(reason))
+
+    async def _drop(self) -> None:
+        tasks, self._tasks = self._tasks, []
+        for task in tasks:
+            task.cancel()
+        self._calls = asyncio.Queue()  # calls of a lost connection are not made after it
+        for ws in (self._ws, self._abandoned):
+            if ws is not None:
+                await ws.close()
+        self._ws = self._abandoned = None
+        if tasks:
+            await asyncio.wait(tasks)
+
+    async def _disconnect(self) -> None:
+        try:
+            await self._drop()
+        finally:
+            await self.api.close()
