@@ -50,13 +50,11 @@ class HttpApi:
     def session(self) -> aiohttp.ClientSession:
         """The open session (created on first use, inside the running loop)."""
         if self._session is None or self._session.closed:
-            self._session = aiohttp.ClientSession(
-                timeout=aiohttp.ClientTimeout(total=self.timeout)
-            )
+            self._session = aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=self.timeout))
         return self._session
 
     async def login(self) -> None:
-        """Fetch a token with username and password (GET /token), unless one is set or none given."""
+        """Fetch a token (GET /token) with username and password, unless one is set or none."""
         if self.token is not None or self.username is None or self._password is None:
             return
         params = {"username": self.username, "password": self._password.get_secret_value()}

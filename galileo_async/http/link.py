@@ -80,8 +80,8 @@ class HttpLink(BaseLink):
         self.task_id: str | None = None
         #: REST calls that failed since the link opened.
         self.failed_calls = 0
-        self._ws: aiohttp.ClientWebSocketResponse | None = None
-        self._abandoned: aiohttp.ClientWebSocketResponse | None = None
+        self._ws: aiohttp.ClientWebSocketResponse[bool] | None = None
+        self._abandoned: aiohttp.ClientWebSocketResponse[bool] | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._calls: asyncio.Queue[_Call] = asyncio.Queue()
 
@@ -115,13 +115,14 @@ class HttpLink(BaseLink):
                 status=status,
             ) from None
         ws = self._ws
+        assert ws is not None
         self._tasks = [
             asyncio.create_task(self._read(ws), name=f"{self!r} reader"),
             asyncio.create_task(self._ping(ws), name=f"{self!r} pinger"),
             asyncio.create_task(self._call_worker(), name=f"{self!r} calls"),
         ]
 
-    async def _read(self, ws: aiohttp.ClientWebSocketResponse) -> None:
+    async def _read(self, ws: aiohttp.ClientWebSocketResponse[bool]) -> None:
         error: BaseException | None = None
         try:
             async for message in ws:
@@ -140,7 +141,7 @@ class HttpLink(BaseLink):
         if self._ws is ws:
             self._on_lost(error or ConnectionLost("the WebSocket closed"))
 
-    async def _ping(self, ws: aiohttp.ClientWebSocketResponse) -> None:
+    async def _ping(self, ws: aiohttp.ClientWebSocketResponse[bool]) -> None:
         while not ws.closed:
             await asyncio.sleep(self.ping_interval)
             try:
@@ -172,7 +173,9 @@ class HttpLink(BaseLink):
         if fixed is not None:
             return lambda: api.call(*fixed)
         if isinstance(command, cmd.Goto):
-            return lambda: api.call("GET", "/navigation/move_to_index", {"index": command.target_id})
+            return lambda: api.call(
+                "GET", "/navigation/move_to_index", {"index": command.target_id}
+            )
         if isinstance(command, (Velocity, cmd.Stop)):
             linear, angular = (
                 (command.linear, command.angular) if isinstance(command, Velocity) else (0.0, 0.0)

@@ -8,7 +8,7 @@ from urllib.parse import parse_qs, unquote, urlsplit
 
 from pydantic import SecretStr
 
-from .._checks import check_names, check_seconds
+from .._checks import check_names, check_seconds, hide_secrets
 from ..errors import InvalidArgument
 from ..transports.options import LINK_OPTIONS, PORTABLE_OPTIONS, check_values
 
@@ -36,7 +36,6 @@ HTTP_OPTIONS = (
     "username", "password", "token", "ws_port", "request_timeout", "ping_interval", "layout",
     *PORTABLE_OPTIONS,
 )  # fmt: skip
-_SECRET = "***"
 
 
 class HttpAddress:
@@ -67,16 +66,7 @@ class HttpAddress:
 
 def redact_http_url(url: str) -> str:
     """``url`` without a password in its user part or a ``token`` / ``password`` in its query."""
-    parts = urlsplit(url)
-    netloc = parts.netloc
-    userinfo, at, host = netloc.rpartition("@")
-    if at and ":" in userinfo:
-        netloc = f"{userinfo.partition(':')[0]}:{_SECRET}@{host}"
-    query = "&".join(
-        f"{key}={_SECRET}" if key in ("token", "password") else f"{key}={value}"
-        for key, _, value in (item.partition("=") for item in parts.query.split("&") if item)
-    )
-    return parts._replace(netloc=netloc, query=query).geturl()
+    return hide_secrets(url)
 
 
 def _port(name: str, value: object) -> int:
@@ -136,9 +126,7 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
     )
 
 
-def check_http_options(
-    url: str, options: Mapping[str, Any], *, also: Collection[str] = ()
-) -> None:
+def check_http_options(url: str, options: Mapping[str, Any], *, also: Collection[str] = ()) -> None:
     """Raise InvalidArgument for a bad http[s]:// URL, an unknown option or a bad value."""
     check_names(options, {*LINK_OPTIONS, *HTTP_OPTIONS, *also})
     parse_http_url(url, options)

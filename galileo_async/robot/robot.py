@@ -27,6 +27,7 @@ from .drive import (
     SpeedLimits,
 )
 from .goal import GoalResult, GoalRunner
+from .http_services import HttpServices
 from .operations import (
     CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -80,7 +81,7 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(RobotServices):
+class Robot(RobotServices, HttpServices):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
     Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;

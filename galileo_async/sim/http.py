@@ -19,7 +19,7 @@ from ..protocol.names import ROS_FIELD_NAMES
 from .device import SimDevice
 from .robot_model import WIRE_FIELDS, WireValues
 
-__all__ = ["HttpFace", "MAPS", "VERSION"]
+__all__ = ["MAPS", "VERSION", "HttpFace"]
 
 #: What /system/info reports as the firmware.
 VERSION = {"version": "5.1.0", "code_name": "galileo-sim"}
@@ -102,9 +102,9 @@ class HttpFace:
         self.requests += 1
         if self.closed:
             raise web.HTTPServiceUnavailable()
-        if self.token_check and request.path != "/api/v1/token":
-            if request.query.get("token") not in self.tokens:
-                raise web.HTTPUnauthorized(text='{"status": "token invalid"}')
+        token = request.query.get("token")
+        if self.token_check and request.path != "/api/v1/token" and token not in self.tokens:
+            raise web.HTTPUnauthorized(text='{"status": "token invalid"}')
         return await handler(request)
 
     # --- REST --------------------------------------------------------------------------
@@ -134,14 +134,18 @@ class HttpFace:
         return {
             ("GET", "/token"): self._token,
             ("GET", "/system/info"): lambda q: {
-                "battery": self.battery(), "camera_rgb": 30, "camera_depth": 30, "odom": 50,
-                "imu": 100, "camera_processed": 30,
+                "battery": self.battery(),
+                "camera_rgb": 30,
+                "camera_depth": 30,
+                "odom": 50,
+                "imu": 100,
+                "camera_processed": 30,
                 "info": {**VERSION, "id": "SIM", "mac": "00:00:00:00:00:00", "port": 3546},
-            },  # fmt: skip
+            },
             ("GET", "/system/status"): lambda q: {"status": self._system_status()},
             ("PUT", "/system/speed"): lambda q: self._speed(q),
             ("GET", "/system/shutdown"): lambda q: run(cmd.ShutdownHost(), {"result": True}),
-            ("GET", "/system/tts"): lambda q: self.spoken.append(str(q["text"])) or {"status": "OK"},
+            ("GET", "/system/tts"): self._say,
             ("GET", "/map/start"): lambda q: run(cmd.StartMapping(), {"result": True}),
             ("GET", "/map/stop"): lambda q: run(cmd.StopMapping(), {"result": True}),
             ("GET", "/map/image"): lambda q: list(MAPS),
@@ -149,7 +153,9 @@ class HttpFace:
             ("GET", "/navigation/stop"): lambda q: run(
                 cmd.StopNavigation(), {"result": True, "description": ""}
             ),
-            ("GET", "/navigation/current_path"): lambda q: dict(zip(("map", "path"), self.current)),
+            ("GET", "/navigation/current_path"): lambda q: dict(
+                zip(("map", "path"), self.current, strict=True)
+            ),
             ("GET", "/navigation/current_map"): lambda q: {"name": self.current[0], "md5sum": ""},
             ("GET", "/navigation/reload"): self._reload,
             ("GET", "/navigation/nav_points"): self._nav_points,
@@ -164,12 +170,16 @@ class HttpFace:
             ("GET", "/navigation/stop_charge"): lambda q: run(
                 cmd.StopCharging(), {"status": "OK", "task": None}
             ),
-            ("GET", "/task"): lambda q: self.tasks[q["id"]] if "id" in q else list(self.tasks.values()),
+            ("GET", "/task"): lambda q: (
+                self.tasks[q["id"]] if "id" in q else list(self.tasks.values())
+            ),
             ("GET", "/task/pause"): lambda q: self._task_verb(q, cmd.Pause()),
             ("GET", "/task/resume"): lambda q: self._task_verb(q, cmd.Resume()),
             ("GET", "/task/stop"): lambda q: self._task_verb(q, cmd.Cancel()),
             ("GET", "/navigation/pose"): lambda q: {
-                "x": model.x, "y": model.y, "angle": math.degrees(model.theta)
+                "x": model.x,
+                "y": model.y,
+                "angle": math.degrees(model.theta),
             },
         }
 
@@ -201,6 +211,10 @@ class HttpFace:
         token = uuid.uuid4().hex
         self.tokens.add(token)
         return {"result": True, "token": token}
+
+    def _say(self, query: dict[str, Any]) -> Any:
+        self.spoken.append(str(query["text"]))
+        return {"status": "OK"}
 
     def _speed(self, query: dict[str, Any]) -> Any:
         self.device.model.set_speed(float(query["speed_x"]), float(query["speed_angle"]))
@@ -339,4 +353,3 @@ class HttpFace:
         for runner in self._runners:
             await runner.cleanup()
         self._runners.clear()
-

@@ -386,7 +386,7 @@ class RobotModel(ServiceCommands, Body):
         self._fresh = True
 
     def goto_pose(self, x: float, y: float) -> None:
-        """A goal by pose, as the HTTP API's nav task: it shows target_num_id -2 (VENDOR.md §1.4)."""
+        """A goal by pose, as an HTTP API nav task: it shows target_num_id -2 (VENDOR.md §1.4)."""
         if self.nav_status == 1 and self.visual_initialised:
             self.targets.append((x, y))  # _begin_goal takes its goal by index
             self._begin_goal(len(self.targets) - 1)

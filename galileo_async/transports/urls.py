@@ -1,4 +1,4 @@
-"""The one URL switch: a serial path, socket://, udp://, sim://, ros:// or http[s]:// URL → its link."""
+"""The one URL switch: a serial path or a socket, udp, sim, ros or http[s] URL → its link."""
 
 from __future__ import annotations
 

@@ -1,0 +1,328 @@
+"""http:// against the simulator's HTTP face (REST + WebSocket) and bare servers, on loopback."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from typing import Any
+
+import pytest
+from aiohttp import web
+from cancel_ways import WAYS, stop_waiting
+
+import galileo_async as galileo
+from galileo_async import (
+    ConnectionLost,
+    HttpError,
+    InvalidArgument,
+    NotSupported,
+    TargetStatus,
+    TaskFailed,
+)
+from galileo_async.http import parse_http_url, redact_http_url
+from galileo_async.sim import Simulator
+from galileo_async.transports import link_kind
+
+pytestmark = pytest.mark.timeout(60)
+
+WAIT = 10.0
+SPEED = 40.0
+TARGETS = ((1.5, 0.0), (30.0, 0.0))
+
+
+@contextlib.asynccontextmanager
+async def robot_on_http(
+    robot_options: dict[str, Any] | None = None, token_check: bool = False, **sim_options: Any
+) -> AsyncIterator[tuple[Simulator, galileo.Robot, Any]]:
+    """A simulator serving HTTP on 127.0.0.1 and a Robot on http:// to it (and the face)."""
+    options: dict[str, Any] = {"speed": SPEED, "targets": TARGETS, **sim_options}
+    async with Simulator(**options) as sim:
+        face = await sim.serve_http(token_check=token_check)
+        url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+        async with galileo.connect(url, map_targets=len(TARGETS), **(robot_options or {})) as robot:
+            yield sim, robot, face
+
+
+async def navigating(robot: galileo.Robot) -> None:
+    await robot.wait_until(lambda s: True, timeout=WAIT)
+    await robot.start_navigation(timeout=WAIT)
+
+
+# --- the URL and its options -------------------------------------------------------------
+
+
+def test_url_forms_and_secrets_never_shown() -> None:
+    assert link_kind("http://10.0.0.5") == link_kind("https://10.0.0.5") == "http"
+    address = parse_http_url("http://admin:s3cret@10.0.0.5?ws_port=4000")
+    assert address.base_url == "http://10.0.0.5:3546"
+    assert address.ws_port == 4000
+    assert address.password is not None
+    assert address.password.get_secret_value() == "s3cret"
+    assert "s3cret" not in repr(address)
+    assert redact_http_url("http://admin:s3cret@h:1?token=abc&ws_port=2") == (
+        "http://admin:***@h:1?token=***&ws_port=2"
+    )
+    for bad in ("http://", "http://host:port", "http://h?x=1"):
+        with pytest.raises(InvalidArgument):
+            parse_http_url(bad)
+
+
+async def test_options_checked_before_anything_opens() -> None:
+    with pytest.raises(InvalidArgument, match="ws_port"):
+        galileo.connect("http://127.0.0.1:1", ws_port=0)
+    with pytest.raises(InvalidArgument, match="layout"):
+        galileo.connect("http://127.0.0.1:1", layout="v1")
+    with pytest.raises(InvalidArgument) as info:
+        galileo.connect("http://u:hunter2@127.0.0.1:1", nonsense=1)
+    assert "hunter2" not in str(info.value)
+
+
+async def test_a_failed_connect_names_no_password() -> None:
+    async with Simulator(speed=SPEED) as sim:
+        face = await sim.serve_http(token_check=True)
+        url = f"http://admin:Pa55word9@127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+        with pytest.raises(HttpError) as info:
+            await galileo.connect(url, reconnect=False)
+        assert "Pa55word9" not in str(info.value)
+        assert "Pa55word9" not in repr(info.value)
+        assert info.value.endpoint == "/token"
+
+
+# --- every operation ----------------------------------------------------------------------
+
+
+async def test_status_arrives_as_from_a_serial_link() -> None:
+    async with robot_on_http() as (sim, robot, face):
+        status = await robot.wait_until(lambda s: s.power is not None, timeout=WAIT)
+        assert status.power == pytest.approx(sim.state.status.power)
+        assert robot.link.frames > 0
+        assert face.sockets
+
+
+async def test_goto_by_index_pause_resume_and_cancel() -> None:
+    async with robot_on_http() as (sim, robot, face):
+        await navigating(robot)
+        result = await robot.goto(0, timeout=WAIT)
+        assert result.target_id == 0
+        assert sim.state.pose.x == pytest.approx(1.5, abs=0.3)
+        far = asyncio.ensure_future(robot.goto(1, timeout=WAIT))
+        await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING, timeout=WAIT)
+        await robot.pause(timeout=WAIT)
+        assert sim.state.status.target_status == TargetStatus.PAUSED
+        await robot.resume(timeout=WAIT)
+        await robot.cancel(timeout=WAIT)
+        with pytest.raises(galileo.GoalCancelled):
+            await far
+        calls = [task["state"] for task in face.tasks.values()]
+        assert calls == ["COMPLETE", "CANCELLED"]
+        await robot.stop_navigation(timeout=WAIT)
+        assert not sim.state.status.navigating
+
+
+async def test_goto_pose_returns_the_tasks_result() -> None:
+    async with robot_on_http() as (sim, robot, _):
+        await navigating(robot)
+        result = await robot.goto_pose(1.0, 1.0, 0.5, timeout=WAIT)
+        assert result.target_id == -2
+        assert result.distance is not None
+        assert result.distance < 0.3
+        assert sim.state.pose.y == pytest.approx(1.0, abs=0.3)
+
+
+async def test_goto_pose_cancelled_by_the_user_is_a_task_failed() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        await navigating(robot)
+        going = asyncio.ensure_future(robot.goto_pose(40.0, 0.0, timeout=WAIT))
+        await robot.wait_until(lambda s: s.target_num_id == -2 and s.goal_active, timeout=WAIT)
+        await robot.cancel(timeout=WAIT)
+        with pytest.raises(TaskFailed) as info:
+            await going
+        assert info.value.state == "CANCELLED"
+
+
+async def test_goto_pose_refused_is_an_error_task() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        with pytest.raises(TaskFailed) as info:  # navigation closed: the model refuses
+            await robot.goto_pose(1.0, 0.0, timeout=WAIT)
+        assert info.value.state == "ERROR"
+
+
+@pytest.mark.parametrize("how", WAYS)
+async def test_goto_pose_cancelled_stops_the_task(how: str) -> None:
+    async with robot_on_http() as (sim, robot, face):
+        await navigating(robot)
+        await stop_waiting(how, lambda: robot.goto_pose(40.0, 0.0, timeout=WAIT), 0.3)
+        assert [task["state"] for task in face.tasks.values()] == ["CANCELLED"]
+        assert not sim.state.status.goal_active
+
+
+async def test_drive_puts_the_speed_and_stops_on_exit() -> None:
+    async with robot_on_http() as (sim, robot, _):
+        await navigating(robot)
+        async with robot.drive(0.3, 0.2):
+            await robot.wait_until(lambda s: (s.control_speed_x or 0) > 0.25, timeout=WAIT)
+            assert sim.model.control_w == pytest.approx(0.2)
+        await robot.wait_until(lambda s: s.control_speed_x == 0, timeout=WAIT)
+
+
+async def test_charging_and_shutdown() -> None:
+    async with robot_on_http() as (sim, robot, _):
+        await navigating(robot)
+        await robot.start_charging(timeout=WAIT)
+        await robot.stop_charging(timeout=WAIT)
+        await robot.shutdown_host()
+        await robot.wait_until(lambda s: False, timeout=None) if False else None
+        for _ in range(200):
+            if sim.state.shutdown:
+                break
+            await asyncio.sleep(0.01)
+        assert sim.state.shutdown
+
+
+async def test_http_only_methods() -> None:
+    async with robot_on_http() as (_, robot, face):
+        assert await robot.maps() == ["sim", "floor2"]
+        assert (await robot.current_map()).map == "sim"
+        switched = await robot.switch_map("floor2", "path2")
+        assert (switched.map, switched.path) == ("floor2", "path2")
+        assert (await robot.current_map()).path == "path2"
+        points = await robot.targets()
+        assert [(p.x, p.y) for p in points] == list(TARGETS)
+        info = await robot.info()
+        assert info.version == "5.1.0"
+        assert info.code_name
+        assert 0 <= (await robot.battery_percent() or 0) <= 100
+        await robot.say("hello")
+        assert face.spoken == ["hello"]
+
+
+async def test_http_only_methods_are_not_supported_elsewhere() -> None:
+    async with galileo.connect("sim://?speed=40") as robot:
+        for call in (robot.maps, robot.current_map, robot.targets, robot.info):
+            with pytest.raises(NotSupported, match="http://"):
+                await call()
+        with pytest.raises(NotSupported):
+            await robot.goto_pose(1.0, 1.0)
+
+
+# --- error paths -----------------------------------------------------------------------------
+
+
+async def test_token_checking_on_401_without_a_login_and_a_token_with_one() -> None:
+    async with robot_on_http(token_check=True, robot_options={"reconnect": False}) as _:
+        pytest.fail("connected without a token")  # pragma: no cover
+
+
+async def test_401_names_endpoint_and_status() -> None:
+    async with Simulator(speed=SPEED) as sim:
+        face = await sim.serve_http(token_check=True)
+        port, ws_port = face.address[1], face.ws_address[1]
+        with pytest.raises(HttpError) as info:
+            await galileo.connect(f"http://127.0.0.1:{port}?ws_port={ws_port}", reconnect=False)
+        assert info.value.status == 401
+        url = f"http://admin:admin@127.0.0.1:{port}?ws_port={ws_port}"
+        async with galileo.connect(url) as robot:
+            assert await robot.maps() == ["sim", "floor2"]
+
+
+@contextlib.asynccontextmanager
+async def bare_server(routes: list[web.RouteDef]) -> AsyncIterator[int]:
+    app = web.Application()
+    app.add_routes(routes)
+    runner = web.AppRunner(app, handle_signals=False, access_log=None)
+    await runner.setup()
+    site = web.TCPSite(runner, "127.0.0.1", 0)
+    await site.start()
+    try:
+        yield site._server.sockets[0].getsockname()[1]  # type: ignore[union-attr]
+    finally:
+        await runner.cleanup()
+
+
+async def test_404_500_and_timeouts_are_http_errors() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        api = robot._link.api  # type: ignore[attr-defined]
+        with pytest.raises(HttpError) as info:
+            await api.call("GET", "/no/such")
+        assert (info.value.status, info.value.endpoint) == (404, "/no/such")
+
+    never = asyncio.Event()
+
+    async def broken(request: web.Request) -> web.Response:
+        raise web.HTTPInternalServerError()
+
+    async def silent(request: web.Request) -> web.Response:
+        await never.wait()
+        raise AssertionError  # pragma: no cover
+
+    routes = [web.get("/api/v1/map/image", broken), web.get("/api/v1/system/info", silent)]
+    async with bare_server(routes) as port:
+        from galileo_async.http import HttpApi
+
+        api = HttpApi(f"http://127.0.0.1:{port}", timeout=0.3)
+        try:
+            with pytest.raises(HttpError) as info:
+                await api.call("GET", "/map/image")
+            assert info.value.status == 500
+            assert "/map/image" in str(info.value)
+            with pytest.raises(HttpError, match="no answer within") as info:
+                await api.call("GET", "/system/info")
+            assert info.value.status is None
+        finally:
+            await api.close()
+
+
+async def test_a_server_that_never_answers_the_websocket() -> None:
+    never = asyncio.Event()
+
+    async def silent(request: web.Request) -> web.Response:
+        await never.wait()
+        raise AssertionError  # pragma: no cover
+
+    async with bare_server([web.get("/galileo/status", silent)]) as port:
+        url = f"http://127.0.0.1:{port}?ws_port={port}"
+        with pytest.raises(HttpError) as info:
+            await galileo.connect(url, reconnect=False, connect_timeout=0.3)
+        assert info.value.endpoint == "/galileo/status"
+
+
+async def test_a_dropped_websocket_reconnects(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.WARNING)
+    async with robot_on_http() as (_, robot, face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        for request, _outbox in list(face.sockets.values()):
+            request.transport.abort()
+        await robot.wait_until(lambda s: not robot.link.connected or True, timeout=WAIT)
+        for _ in range(500):
+            if robot.link.reconnects:
+                break
+            await asyncio.sleep(0.01)
+        assert robot.link.reconnects >= 1
+        frames = robot.link.frames
+        await robot.wait_until(lambda s: robot.link.frames > frames, timeout=WAIT)
+
+
+async def test_the_link_pings_on_its_own_timer() -> None:
+    pings = 0
+
+    async with robot_on_http(robot_options={"ping_interval": 0.05}) as (_, robot, face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        ws = robot._link._ws  # type: ignore[attr-defined]
+        original = ws.ping
+
+        async def counted(*args: Any) -> None:
+            nonlocal pings
+            pings += 1
+            await original(*args)
+
+        ws.ping = counted
+        for _ in range(200):
+            if pings >= 3:
+                break
+            await asyncio.sleep(0.01)
+        assert pings >= 3
+        del face
+    assert ConnectionLost
