@@ -110,6 +110,7 @@ PARTS = {
     "galileo_async.transitions": "transitions",
     "galileo_async.transports": "transports",
     "galileo_async.ros": "ros",
+    "galileo_async.http": "http",
     "galileo_async.state": "state",
     "galileo_async.robot": "robot",
     "galileo_async.fleet": "fleet",
@@ -126,6 +127,7 @@ MAY_IMPORT = {
     "transitions": {"base"},
     "transports": {"base", "protocol"},
     "ros": {"base", "protocol", "transports"},
+    "http": {"base", "protocol", "transports"},
     "state": {"base", "transitions"},
     "robot": {"base", "protocol", "transitions", "state", "transports"},
     "fleet": {"base", "transitions", "state", "robot"},
@@ -133,7 +135,7 @@ MAY_IMPORT = {
 }
 #: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
 #: the ROS link for ros:// inside the functions that need them (or for type checking).
-LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros"}}
+LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros", "http"}}
 #: Modules that open or speak to a transport: state must do no I/O and know no transport.
 TRANSPORT_MODULES = (
     "socket",

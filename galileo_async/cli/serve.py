@@ -48,6 +48,16 @@ def sim(
             "alone, UDP only)."
         ),
     ] = None,
+    http: Annotated[
+        str | None,
+        typer.Option(
+            help="Also serve the HTTP API on PORT or HOST:PORT (loopback by default) and its "
+            "WebSocket on the next port (alone, HTTP only)."
+        ),
+    ] = None,
+    ws_port: Annotated[
+        int | None, typer.Option("--ws-port", help="The WebSocket's port (default: HTTP + 1).")
+    ] = None,
     udp_layout: Annotated[
         str, typer.Option(help="UDP status layout: udp_v2 (48 bytes) or udp_v1 (44).")
     ] = "udp_v2",
@@ -79,13 +89,19 @@ def sim(
             served: list[tuple[str, str]] = []  # (where, its status layout)
             if pty:
                 served.append((simulator.open_pty(), layout))
-            elif tcp is not None or udp is None:
+            elif tcp is not None or (udp is None and http is None):
                 host, port = _host_port(tcp or DEFAULT_TCP)
                 server = await simulator.serve_tcp(host, port)
                 served.append((_url("socket", server.sockets[0].getsockname()), layout))
             if udp is not None:
                 face = await simulator.serve_udp(*_udp_address(udp))
                 served.append((_url("udp", face.address), udp_layout))
+            if http is not None:
+                web = await simulator.serve_http(*_udp_address(http), ws_port=ws_port)
+                where = _url("http", web.address)
+                if web.ws_address[1] != web.address[1] + 1:
+                    where += f"?ws_port={web.ws_address[1]}"
+                served.append((where, "JSON"))
             console = out_console()
             for where, _ in served:
                 console.print(where, markup=False)
