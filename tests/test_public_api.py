@@ -18,6 +18,7 @@ PUBLIC = {
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
     "GoalStalled",
+    "HttpError", "NotSupported", "TaskFailed",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.

@@ -152,14 +152,17 @@ def discover(
     bind: Annotated[str, typer.Option("--bind", help="Local address to listen on.")] = "",
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:
-    """List robots announcing themselves on the LAN, with the ros:// URL of their ROS master."""
+    """List robots announcing themselves on the LAN, with the URLs they offer (http://, ros://)."""
     from ..ros.discovery import discover as listen
 
     settings = settings_of(ctx)
 
     async def main() -> int:
         robots = await listen(timeout, bind=bind, port=port)
-        rows = [{"id": r.id, "url": r.url, "mac": r.mac, "version": r.version} for r in robots]
+        rows = [
+            {"id": r.id, "url": r.url, "urls": list(r.urls), "mac": r.mac, "version": r.version}
+            for r in robots
+        ]
         if settings.json or json_output:
             # The announced port (3546, HTTP, on newer firmware) is not the master's.
             ports = [{"announced_port": robot.port} for robot in robots]
@@ -171,9 +174,12 @@ def discover(
             return int(ExitCode.OK)
         from rich.table import Table
 
-        table = Table("id", "url", "mac", "version", box=None)
+        table = Table("id", "urls", "mac", "version", box=None)
         for row in rows:
-            table.add_row(*(str(row[key] or "-") for key in ("id", "url", "mac", "version")))
+            urls = "\n".join(row["urls"])  # one a line: a URL is never wrapped
+            table.add_row(
+                str(row["id"]), urls, *(str(row[key] or "-") for key in ("mac", "version"))
+            )
         out_console().print(table)
         return int(ExitCode.OK)
 
