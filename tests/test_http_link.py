@@ -131,6 +131,31 @@ async def test_goto_pose_returns_the_tasks_result() -> None:
         assert sim.state.pose.y == pytest.approx(1.0, abs=0.3)
 
 
+async def test_goto_point_is_one_nav_task_followed_by_the_goal_rule() -> None:
+    async with robot_on_http() as (sim, robot, face):
+        await navigating(robot)
+        result = await robot.goto_point(0.5, -1.0, timeout=WAIT)
+        assert result.target_id == -2
+        assert sim.state.pose.y == pytest.approx(-1.0, abs=0.3)
+        assert len(sim.state.targets) == len(TARGETS)  # no target added
+        again = await robot.goto_point(1.0, -1.0, timeout=WAIT)  # -2 again: a new goal
+        assert not again.already_there
+        assert sim.state.pose.x == pytest.approx(1.0, abs=0.3)
+        assert [task["state"] for task in face.tasks.values()] == ["COMPLETE", "COMPLETE"]
+
+
+@pytest.mark.parametrize("how", WAYS)
+async def test_goto_and_goto_point_cancelled_stop_the_robot(how: str) -> None:
+    async with robot_on_http() as (sim, robot, face):
+        await navigating(robot)
+        await stop_waiting(how, lambda: robot.goto(1, timeout=WAIT), 0.3)
+        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
+        await stop_waiting(how, lambda: robot.goto_point(40.0, 5.0, timeout=WAIT), 0.3)
+        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
+        assert [task["state"] for task in face.tasks.values()] == ["CANCELLED", "CANCELLED"]
+        assert not sim.state.status.goal_active
+
+
 async def test_goto_pose_cancelled_by_the_user_is_a_task_failed() -> None:
     async with robot_on_http() as (_, robot, _face):
         await navigating(robot)

@@ -159,7 +159,7 @@ def discover(
 
     async def main() -> int:
         robots = await listen(timeout, bind=bind, port=port)
-        rows = [
+        rows: list[dict[str, Any]] = [
             {"id": r.id, "url": r.url, "urls": list(r.urls), "mac": r.mac, "version": r.version}
             for r in robots
         ]

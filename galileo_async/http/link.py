@@ -12,7 +12,7 @@ import aiohttp
 
 from ..errors import ConnectionLost, GalileoConnectionError, HttpError, InvalidArgument
 from ..protocol import commands as cmd
-from ..protocol.velocity import Velocity
+from ..protocol.velocity import PoseGoal, Velocity
 from ..transports.base import BaseLink
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
 from ..transports.stats import StatusSink
@@ -52,6 +52,7 @@ class HttpLink(BaseLink):
     """
 
     carries_velocity = True
+    carries_pose_goals = True
 
     def __init__(
         self,
@@ -172,6 +173,9 @@ class HttpLink(BaseLink):
         fixed = _FIXED.get(type(command))
         if fixed is not None:
             return lambda: api.call(*fixed)
+        if isinstance(command, PoseGoal):
+            body = {"x": command.x, "y": command.y, "theta": command.theta}
+            return lambda: api.call("POST", "/navigation/start_nav_task", body=body)
         if isinstance(command, cmd.Goto):
             return lambda: api.call(
                 "GET", "/navigation/move_to_index", {"index": command.target_id}

@@ -15,7 +15,15 @@ from ..errors import (
 )
 from ..events import Event
 from ..models import GalileoStatus
-from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation, Velocity
+from ..protocol import (
+    AddTarget,
+    Command,
+    Goto,
+    PoseGoal,
+    StartNavigation,
+    StopNavigation,
+    Velocity,
+)
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import BaseLink, LinkStats
@@ -199,6 +207,8 @@ class Robot(RobotServices, HttpServices):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
         if isinstance(command, Velocity) and not self._link.carries_velocity:
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
+        if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
+            raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
         await self._written(command, f"send({command!r})", timeout)
 
     def drive(
@@ -273,7 +283,17 @@ class Robot(RobotServices, HttpServices):
         once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
         at the target already: a GoalResult with ``already_there`` True.
         """
-        command = Goto(target_id)  # validates before anything is sent
+        return await self._goto(Goto(target_id), timeout, accept_timeout, progress_timeout,
+                                cancel_on_exit)  # fmt: skip
+
+    async def _goto(
+        self,
+        command: Goto,
+        timeout: float | RobotDefault | None,
+        accept_timeout: float | None,
+        progress_timeout: float | RobotDefault | None,
+        cancel_on_exit: bool,
+    ) -> GoalResult:
         self._refuse_while_driving("goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
@@ -289,7 +309,7 @@ class Robot(RobotServices, HttpServices):
                 cancel_on_exit=cancel_on_exit,
             )  # fmt: skip
         except CommandSuperseded as exc:  # a user stop came before ``g N`` was written
-            raise goal_superseded(exc, target_id) from exc
+            raise goal_superseded(exc, command.target_id) from exc
 
     async def goto_point(
         self,
@@ -309,6 +329,10 @@ class Robot(RobotServices, HttpServices):
         """
         command = AddTarget(x, y)  # validate before anything is sent
         self._refuse_while_driving("goto_point")
+        if self._link.carries_pose_goals:  # http://: one nav task, followed as target -2
+            result = await self._goto(PoseGoal(x=x, y=y), timeout, None, progress_timeout,
+                                      cancel_on_exit)  # fmt: skip
+            return landed_at(result, x, y, self.arrive_tolerance)
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         progress = or_default(progress_timeout, self.progress_timeout)
