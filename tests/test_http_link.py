@@ -5,6 +5,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import subprocess
+import sys
 from collections.abc import AsyncIterator
 from typing import Any
 
@@ -344,3 +346,31 @@ async def test_the_link_pings_on_its_own_timer() -> None:
             await asyncio.sleep(0.01)
         assert pings >= 3
         del face
+
+
+def test_cli_sim_http_and_status_goto_over_http() -> None:
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "galileo_async", "sim", "--http", "0", "--speed", "20"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert sim.stdout is not None
+        url = sim.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:")
+        cli = [sys.executable, "-m", "galileo_async", "-p", url]
+        result = subprocess.run(
+            [*cli, "status", "--json"], capture_output=True, text=True, timeout=WAIT * 3
+        )
+        assert result.returncode == 0, result.stderr
+        assert '"layout": "ros"' in result.stdout
+        result = subprocess.run(
+            [*cli, "nav", "start"], capture_output=True, text=True, timeout=WAIT * 3
+        )
+        assert result.returncode == 0, result.stdout + result.stderr
+        result = subprocess.run([*cli, "goto", "0"], capture_output=True, text=True, timeout=60)
+        assert result.returncode == 0, result.stdout + result.stderr
+    finally:
+        sim.terminate()
+        sim.communicate(timeout=WAIT)
