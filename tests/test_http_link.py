@@ -276,6 +276,19 @@ async def bare_server(routes: list[web.RouteDef]) -> AsyncIterator[int]:
         await runner.cleanup()
 
 
+async def test_a_refused_command_raises_its_http_error_to_the_caller() -> None:
+    async with robot_on_http() as (_, robot, face):
+        await navigating(robot)
+        face.token_check = True  # the token is revoked: every REST call is refused
+        with pytest.raises(HttpError) as info:
+            await robot.stop()
+        assert (info.value.status, info.value.endpoint) == (401, "/system/speed")
+        with pytest.raises(HttpError) as info:
+            await robot.goto(0, timeout=WAIT)
+        assert info.value.endpoint == "/navigation/move_to_index"
+        assert robot._link.failed_calls == 2  # type: ignore[attr-defined]
+
+
 async def test_404_500_and_timeouts_are_http_errors() -> None:
     async with robot_on_http() as (_, robot, _face):
         api = robot._link.api  # type: ignore[attr-defined]

@@ -47,8 +47,10 @@ _Call = Callable[[], Awaitable[Any]]
 class HttpLink(BaseLink):
     """The vendor's HTTP API (REST on 3546) and WebSocket status (3547) as one link.
 
-    Each command becomes its REST call, made in order by one worker; a failed call is
-    logged (the status shows what the robot did). A Velocity is PUT /system/speed.
+    Each command becomes its REST call, made in order by one worker; send() returns once
+    the call answered and raises its HttpError if it failed (a command queued without a
+    sender waiting, e.g. a cancel on exit, is logged instead). A Velocity is PUT
+    /system/speed.
     """
 
     carries_velocity = True
@@ -84,7 +86,9 @@ class HttpLink(BaseLink):
         self._ws: aiohttp.ClientWebSocketResponse[bool] | None = None
         self._abandoned: aiohttp.ClientWebSocketResponse[bool] | None = None
         self._tasks: list[asyncio.Task[None]] = []
-        self._calls: asyncio.Queue[_Call] = asyncio.Queue()
+        self._calls: asyncio.Queue[tuple[_Call, asyncio.Future[Any]]] = asyncio.Queue()
+        #: The answer of each written command's call, by the command's id(), until send() takes it.
+        self._answers: dict[int, asyncio.Future[Any]] = {}
 
     def __repr__(self) -> str:
         return f"<HttpLink {self.name}>"
@@ -150,22 +154,53 @@ class HttpLink(BaseLink):
             except (aiohttp.ClientError, ConnectionError, RuntimeError):
                 return  # the reader sees the close
 
+    async def send(
+        self, command: cmd.Command, *, written: asyncio.Future[bool] | None = None
+    ) -> None:
+        """Queue ``command``; return once its REST call answered (HttpError if it failed)."""
+        await super().send(command, written=written)
+        answer = self._answers.pop(id(command), None)
+        if answer is not None:
+            await asyncio.shield(answer)  # a cancelled sender leaves the call to finish
+
     async def _call_worker(self) -> None:
         while True:
-            call = await self._calls.get()
+            call, answer = await self._calls.get()
             try:
-                answer = await call()
+                result = await call()
+            except asyncio.CancelledError:  # the connection dropped or the link closes
+                if not answer.done():
+                    answer.set_exception(ConnectionLost(f"{self.name}: the call was cut off"))
+                raise
             except GalileoConnectionError as exc:
                 self.failed_calls += 1
                 _log.warning("%s: %s", self.name, exc)
+                if not answer.done():
+                    answer.set_exception(exc)
                 continue
-            if isinstance(answer, dict) and isinstance(answer.get("id"), str):
-                self.task_id = answer["id"]
+            if isinstance(result, dict) and isinstance(result.get("id"), str):
+                self.task_id = result["id"]
+            if not answer.done():
+                answer.set_result(result)
 
     def _write(self, command: cmd.Command) -> None:
         if self._ws is None or self._ws.closed:
             raise ConnectionLost(f"not connected to {self.name}")
-        self._calls.put_nowait(self._call_of(command))
+        call = self._call_of(command)
+        answer: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
+        answer.add_done_callback(self._settled(id(command)))
+        self._answers[id(command)] = answer
+        self._calls.put_nowait((call, answer))
+
+    def _settled(self, key: int) -> Callable[[asyncio.Future[Any]], None]:
+        def settled(answer: asyncio.Future[Any]) -> None:
+            if not answer.cancelled():
+                answer.exception()  # retrieved: a failure nobody awaits is only logged
+            if self._answers.get(key) is answer:
+                # Normally send() took it first; a command queued by enqueue() has no sender.
+                self._answers.pop(key)
+
+        return settled
 
     def _call_of(self, command: cmd.Command) -> _Call:
         """The REST call that carries ``command``; GalileoConnectionError if none does."""
@@ -219,7 +254,10 @@ class HttpLink(BaseLink):
         tasks, self._tasks = self._tasks, []
         for task in tasks:
             task.cancel()
-        self._calls = asyncio.Queue()  # calls of a lost connection are not made after it
+        calls, self._calls = self._calls, asyncio.Queue()
+        while not calls.empty():  # calls of a lost connection are not made after it
+            _, answer = calls.get_nowait()
+            answer.set_exception(ConnectionLost(f"not sent: the connection to {self.name} dropped"))
         for ws in (self._ws, self._abandoned):
             if ws is not None:
                 await ws.close()
