@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import subprocess
 import sys
@@ -24,6 +25,7 @@ from galileo_async import (
 )
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
+from galileo_async.protocol import Velocity
 from galileo_async.sim import Simulator
 from galileo_async.transports import link_kind
 
@@ -359,6 +361,43 @@ async def test_the_link_pings_on_its_own_timer() -> None:
             await asyncio.sleep(0.01)
         assert pings >= 3
         del face
+
+
+async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
+    held = asyncio.Event()
+    release = asyncio.Event()
+    bodies: list[dict[str, Any]] = []
+
+    async def status(request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse()
+        await ws.prepare(request)
+        await ws.send_str(json.dumps({"navStatus": 1, "power": 24.0, "targetNumID": -1}))
+        async for _ in ws:
+            pass
+        return ws
+
+    async def speed(request: web.Request) -> web.Response:
+        bodies.append(await request.json())
+        held.set()
+        await release.wait()
+        return web.json_response({"result": True})
+
+    routes = [web.get("/galileo/status", status), web.put("/api/v1/system/speed", speed)]
+    async with bare_server(routes) as port:
+        url = f"http://127.0.0.1:{port}?ws_port={port}"
+        async with galileo.connect(url, stale_timeout=None) as robot:
+            link = robot._link  # the drive keep-alive's path: enqueue, nobody waits
+            link.enqueue(Velocity(0.3, 0.0))
+            await held.wait()
+            for linear in (0.2, 0.1, 0.05):
+                link.enqueue(Velocity(linear, 0.0))
+            stopping = asyncio.ensure_future(robot.stop())
+            async with asyncio.timeout(WAIT):
+                while link.stats.commands_sent < 5:  # all written (paced), the first held
+                    await asyncio.sleep(0.005)
+            release.set()
+            await stopping
+        assert [body["speed_x"] for body in bodies] == [0.3, 0.0]
 
 
 def test_cli_sim_http_and_status_goto_over_http() -> None:

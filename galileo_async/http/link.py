@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+from collections import deque
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -86,7 +87,9 @@ class HttpLink(BaseLink):
         self._ws: aiohttp.ClientWebSocketResponse[bool] | None = None
         self._abandoned: aiohttp.ClientWebSocketResponse[bool] | None = None
         self._tasks: list[asyncio.Task[None]] = []
-        self._calls: asyncio.Queue[tuple[_Call, asyncio.Future[Any]]] = asyncio.Queue()
+        #: Calls still to make, in order: (sets the speed, call, its answer).
+        self._calls: deque[tuple[bool, _Call, asyncio.Future[Any]]] = deque()
+        self._calls_ready = asyncio.Event()
         #: The answer of each written command's call, by the command's id(), until send() takes it.
         self._answers: dict[int, asyncio.Future[Any]] = {}
 
@@ -164,8 +167,18 @@ class HttpLink(BaseLink):
             await asyncio.shield(answer)  # a cancelled sender leaves the call to finish
 
     async def _call_worker(self) -> None:
+        calls = self._calls
         while True:
-            call, answer = await self._calls.get()
+            if not calls:
+                self._calls_ready.clear()
+                await self._calls_ready.wait()
+                continue
+            speed, call, answer = calls.popleft()
+            if speed and calls and calls[0][0]:
+                # A newer speed is queued behind: on a slow server speeds must not pile up
+                # (a stop behind them would wait), so only the newest is put.
+                answer.set_result(None)
+                continue
             try:
                 result = await call()
             except asyncio.CancelledError:  # the connection dropped or the link closes
@@ -190,7 +203,8 @@ class HttpLink(BaseLink):
         answer: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
         answer.add_done_callback(self._settled(id(command)))
         self._answers[id(command)] = answer
-        self._calls.put_nowait((call, answer))
+        self._calls.append((isinstance(command, (Velocity, cmd.Stop)), call, answer))
+        self._calls_ready.set()
 
     def _settled(self, key: int) -> Callable[[asyncio.Future[Any]], None]:
         def settled(answer: asyncio.Future[Any]) -> None:
@@ -254,9 +268,8 @@ class HttpLink(BaseLink):
         tasks, self._tasks = self._tasks, []
         for task in tasks:
             task.cancel()
-        calls, self._calls = self._calls, asyncio.Queue()
-        while not calls.empty():  # calls of a lost connection are not made after it
-            _, answer = calls.get_nowait()
+        while self._calls:  # calls of a lost connection are not made after it
+            answer = self._calls.popleft()[2]
             answer.set_exception(ConnectionLost(f"not sent: the connection to {self.name} dropped"))
         for ws in (self._ws, self._abandoned):
             if ws is not None:
