@@ -25,7 +25,7 @@ from galileo_async import (
 )
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
-from galileo_async.protocol import Velocity
+from galileo_async.protocol import Stop, Velocity
 from galileo_async.sim import Simulator
 from galileo_async.transports import link_kind
 
@@ -366,6 +366,7 @@ async def test_the_link_pings_on_its_own_timer() -> None:
 async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
     held = asyncio.Event()
     release = asyncio.Event()
+    stopped = asyncio.Event()
     bodies: list[dict[str, Any]] = []
 
     async def status(request: web.Request) -> web.WebSocketResponse:
@@ -379,6 +380,8 @@ async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
     async def speed(request: web.Request) -> web.Response:
         bodies.append(await request.json())
         held.set()
+        if bodies[-1]["speed_x"] == 0:
+            stopped.set()
         await release.wait()
         return web.json_response({"result": True})
 
@@ -391,12 +394,9 @@ async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
             await held.wait()
             for linear in (0.2, 0.1, 0.05):
                 link.enqueue(Velocity(linear, 0.0))
-            stopping = asyncio.ensure_future(robot.stop())
-            async with asyncio.timeout(WAIT):
-                while link.stats.commands_sent < 5:  # all written (paced), the first held
-                    await asyncio.sleep(0.005)
+            assert await asyncio.wait_for(link.enqueue(Stop()), WAIT)  # written behind them
             release.set()
-            await stopping
+            await asyncio.wait_for(stopped.wait(), WAIT)
         assert [body["speed_x"] for body in bodies] == [0.3, 0.0]
 
 
