@@ -228,6 +228,19 @@ async def test_http_only_methods() -> None:
         assert face.spoken == ["hello"]
 
 
+async def test_commands_without_an_http_form_are_not_supported_nothing_sent() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        await navigating(robot)
+        sent = robot.link.commands_sent
+        with pytest.raises(NotSupported, match="no HTTP API form"):
+            await robot.rotate_to(90)
+        with pytest.raises(NotSupported):
+            await robot.forward(20)
+        with pytest.raises(NotSupported):
+            await robot.start_patrol()
+        assert robot.link.commands_sent == sent
+
+
 async def test_http_only_methods_are_not_supported_elsewhere() -> None:
     async with galileo.connect("sim://?speed=40") as robot:
         for call in (robot.maps, robot.current_map, robot.targets, robot.info):

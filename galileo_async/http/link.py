@@ -11,7 +11,13 @@ from typing import Any
 
 import aiohttp
 
-from ..errors import ConnectionLost, GalileoConnectionError, HttpError, InvalidArgument
+from ..errors import (
+    ConnectionLost,
+    GalileoConnectionError,
+    HttpError,
+    InvalidArgument,
+    NotSupported,
+)
 from ..protocol import commands as cmd
 from ..protocol.velocity import PoseGoal, Velocity
 from ..transports.base import BaseLink
@@ -157,6 +163,17 @@ class HttpLink(BaseLink):
             except (aiohttp.ClientError, ConnectionError, RuntimeError):
                 return  # the reader sees the close
 
+    def enqueue(
+        self,
+        command: cmd.Command,
+        *,
+        superseded_by: tuple[type[cmd.Command], ...] = (),
+        written: asyncio.Future[bool] | None = None,
+    ) -> asyncio.Future[bool]:
+        """As BaseLink's; NotSupported, nothing queued, for a command without an HTTP form."""
+        self._call_of(command)
+        return super().enqueue(command, superseded_by=superseded_by, written=written)
+
     async def send(
         self, command: cmd.Command, *, written: asyncio.Future[bool] | None = None
     ) -> None:
@@ -217,7 +234,7 @@ class HttpLink(BaseLink):
         return settled
 
     def _call_of(self, command: cmd.Command) -> _Call:
-        """The REST call that carries ``command``; GalileoConnectionError if none does."""
+        """The REST call that carries ``command`` (not made yet); NotSupported if none does."""
         api = self.api
         fixed = _FIXED.get(type(command))
         if fixed is not None:
@@ -240,7 +257,9 @@ class HttpLink(BaseLink):
             return lambda: self._task_call(verb)
         if isinstance(command, cmd.StartNavigation):
             return self._start_navigation
-        raise GalileoConnectionError(f"{command} has no HTTP API form on {self.name}")
+        raise NotSupported(
+            f"{command} has no HTTP API form: use a serial, socket://, udp:// or ros:// link"
+        )
 
     async def _task_call(self, verb: str) -> Any:
         task_id = self.task_id
