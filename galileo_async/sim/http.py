@@ -12,7 +12,7 @@ import uuid
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-from aiohttp import web
+from aiohttp import WSMsgType, web
 
 from ..protocol import commands as cmd
 from ..protocol.names import ROS_FIELD_NAMES
@@ -71,6 +71,10 @@ class HttpFace:
         #: Each open status WebSocket: its request and the statuses it has still to send.
         self.sockets: dict[web.WebSocketResponse, tuple[web.Request, asyncio.Queue[str]]] = {}
         self.requests = 0
+        #: WebSocket pings received (the vendor drops a client that does not ping), and
+        #: an event set at each.
+        self.pings = 0
+        self.pinged = asyncio.Event()
         self._runners: list[web.AppRunner] = []
         self.address: tuple[str, int] = ("", 0)
         self.ws_address: tuple[str, int] = ("", 0)
@@ -284,7 +288,7 @@ class HttpFace:
     # --- status ------------------------------------------------------------------------
 
     async def _status_socket(self, request: web.Request) -> web.StreamResponse:
-        ws = web.WebSocketResponse(autoping=True)
+        ws = web.WebSocketResponse(autoping=False)
         await ws.prepare(request)
         outbox: asyncio.Queue[str] = asyncio.Queue(maxsize=_OUTBOX)
         self.sockets[ws] = (request, outbox)
@@ -292,8 +296,11 @@ class HttpFace:
         self.device.start()
         sender = asyncio.create_task(self._send(ws, outbox))
         try:
-            async for _ in ws:  # pings are answered by aiohttp; nothing else is read
-                pass
+            async for message in ws:  # only pings are read: each is answered and counted
+                if message.type is WSMsgType.PING:
+                    self.pings += 1
+                    self.pinged.set()
+                    await ws.pong(message.data)
         finally:
             self.sockets.pop(ws, None)
             sender.cancel()
