@@ -275,6 +275,28 @@ async def silent(request: web.Request) -> web.Response:
     return web.Response(status=503)
 
 
+async def test_a_token_option_and_no_secret_in_logs(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.DEBUG)
+    async with Simulator(speed=SPEED) as sim:
+        face = await sim.serve_http(token_check=True)
+        port, ws_port = face.address[1], face.ws_address[1]
+        face.tokens.add("t0ken-5ecret")
+        url = f"http://127.0.0.1:{port}?ws_port={ws_port}"
+        async with galileo.connect(url, token="t0ken-5ecret") as robot:
+            assert await robot.maps() == ["sim", "floor2"]
+            assert "t0ken-5ecret" not in repr(robot._link)  # type: ignore[attr-defined]
+            face.tokens.clear()  # revoked: the failure is logged and raised without it
+            with pytest.raises(HttpError) as info:
+                await robot.stop()
+            assert "t0ken-5ecret" not in str(info.value)
+        login = f"http://admin:admin@127.0.0.1:{port}?ws_port={ws_port}"
+        async with galileo.connect(login) as robot:
+            assert await robot.current_map()
+    for secret in ("t0ken-5ecret", "admin:admin", "password=admin"):
+        assert secret not in caplog.text
+    assert "***" in caplog.text or "HTTP 401" in caplog.text
+
+
 @contextlib.asynccontextmanager
 async def bare_server(routes: list[web.RouteDef]) -> AsyncIterator[int]:
     RELEASE.append(asyncio.Event())
@@ -419,6 +441,16 @@ def test_cli_sim_http_and_status_goto_over_http() -> None:
         )
         assert result.returncode == 0, result.stderr
         assert '"layout": "ros"' in result.stdout
+        login = url.replace("http://", "http://admin:admin@")
+        result = subprocess.run(
+            [sys.executable, "-m", "galileo_async", "-p", login, "status", "--json"],
+            capture_output=True,
+            text=True,
+            timeout=WAIT * 3,
+        )
+        assert result.returncode == 0, result.stderr  # a token is fetched, then used
+        assert '"port": "http://admin:***@127.0.0.1:' in result.stdout
+        assert "admin:admin" not in result.stdout + result.stderr
         result = subprocess.run(
             [*cli, "nav", "start"], capture_output=True, text=True, timeout=WAIT * 3
         )

@@ -8,6 +8,7 @@ from collections.abc import Generator
 from types import TracebackType
 from typing import Any
 
+from .._checks import hide_secrets
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
@@ -52,7 +53,8 @@ class Connection:
             await self._robot.close()
 
     async def _open(self) -> Robot:
-        running_loop(f"connect({self.url!r})")
+        shown = hide_secrets(self.url)  # a password or token in the URL is never logged
+        running_loop(f"connect({shown!r})")
         options = dict(self._options)
         robot_options = {name: options.pop(name) for name in ROBOT_OPTIONS if name in options}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
@@ -73,11 +75,11 @@ class Connection:
             if "map_targets" not in robot_options:
                 robot.map_targets = count
             if first_status_timeout is not None:
-                await _first_status(store, first_status_timeout, self.url)
+                await _first_status(store, first_status_timeout, shown)
         except BaseException:
             await robot.close()
             raise
-        _log.debug("connected to %s", self.url)
+        _log.debug("connected to %s", shown)
         return robot
 
 
