@@ -23,7 +23,7 @@ from galileo_async import (
     TargetStatus,
     TaskFailed,
 )
-from galileo_async.events import ConnectionLostEvent, ConnectionRestored
+from galileo_async.events import ConnectionLostEvent, ConnectionRestored, LinkStaleEvent
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
 from galileo_async.protocol import Stop, Velocity
 from galileo_async.sim import Simulator
@@ -385,6 +385,34 @@ async def test_the_link_pings_on_its_own_timer_while_statuses_stream() -> None:
                 face.pinged.clear()
                 await face.pinged.wait()
         assert robot.link.frames > 0
+
+
+async def test_a_websocket_gone_silent_is_stale_then_reopened() -> None:
+    opened = 0
+
+    async def status(request: web.Request) -> web.WebSocketResponse:
+        nonlocal opened
+        opened += 1
+        ws = web.WebSocketResponse()
+        await ws.prepare(request)
+        await ws.send_str(json.dumps({"navStatus": 1, "power": 24.0, "targetNumID": -1}))
+        async for _ in ws:  # then silent, the connection kept open
+            pass
+        return ws
+
+    async with bare_server([web.get("/galileo/status", status)]) as port:
+        url = f"http://127.0.0.1:{port}?ws_port={port}"
+        options = {"stale_timeout": 0.2, "stale_reconnect": 2.0, "reconnect_initial": 0.05}
+        async with galileo.connect(url, **options) as robot:
+            seen: list[type] = []
+            async with asyncio.timeout(WAIT):
+                async for event in robot.events():
+                    seen.append(type(event))
+                    if isinstance(event, ConnectionRestored):
+                        break
+            assert seen[0] is LinkStaleEvent
+            assert opened >= 2
+            assert robot.link.reconnects >= 1
 
 
 async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
