@@ -488,3 +488,13 @@ def test_cli_sim_http_and_status_goto_over_http() -> None:
     finally:
         sim.terminate()
         sim.communicate(timeout=WAIT)
+
+
+async def test_closing_the_robot_ends_a_running_goto_pose() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        await navigating(robot)
+        going = asyncio.ensure_future(robot.goto_pose(40.0, 0.0, timeout=WAIT))
+        await robot.wait_until(lambda s: s.target_num_id == -2 and s.goal_active, timeout=WAIT)
+        await robot.close()
+        with pytest.raises(galileo.GalileoConnectionError):
+            await going

@@ -10,7 +10,7 @@ from typing import Any
 import aiohttp
 from pydantic import SecretStr
 
-from ..errors import HttpError
+from ..errors import ConnectionLost, HttpError
 
 __all__ = ["API_PATH", "HttpApi"]
 
@@ -42,13 +42,19 @@ class HttpApi:
         self.timeout = timeout
         self._ssl: ssl.SSLContext | bool = True if ssl_context is None else ssl_context
         self._session: aiohttp.ClientSession | None = None
+        self._closed = False
 
     def __repr__(self) -> str:
         return f"<HttpApi {self.base_url}>"
 
     @property
     def session(self) -> aiohttp.ClientSession:
-        """The open session (created on first use, inside the running loop)."""
+        """The open session (created on first use, inside the running loop).
+
+        ConnectionLost once close() was called.
+        """
+        if self._closed:
+            raise ConnectionLost(f"{self.base_url}: the link is closed")
         if self._session is None or self._session.closed:
             self._session = aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=self.timeout))
         return self._session
@@ -119,6 +125,7 @@ class HttpApi:
 
     async def close(self) -> None:
         """Close the session (idempotent)."""
+        self._closed = True
         session, self._session = self._session, None
         if session is not None:
             await session.close()
