@@ -498,3 +498,12 @@ async def test_closing_the_robot_ends_a_running_goto_pose() -> None:
         await robot.close()
         with pytest.raises(galileo.GalileoConnectionError):
             await going
+
+
+async def test_mapping_over_http() -> None:
+    async with robot_on_http() as (sim, robot, _face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        await robot.start_mapping(timeout=WAIT)
+        assert sim.state.status.mapping
+        await robot.stop_mapping(timeout=WAIT)
+        assert not sim.state.status.mapping
