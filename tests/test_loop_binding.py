@@ -27,6 +27,9 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "set_patrol_dwell": (5,),
     "send": (Stop(100),),
     "wait_until": (lambda _status: True,),
+    "switch_map": ("map",),
+    "say": ("hello",),
+    "goto_pose": (1.0, 2.0),
 }
 KEYWORDS: dict[str, dict[str, Any]] = {"shutdown_host": {"confirm": True}}
 

@@ -16,6 +16,7 @@ from ..errors import GalileoTimeout, InvalidArgument, NotSupported, TaskFailed
 from ..state.store import StatusStore
 from ..transports import BaseLink
 from .goal import GoalResult
+from .operations import Operations
 from .runtime import finish_shielded
 
 __all__ = ["DEFAULT_TASK_POLL", "HttpServices", "MapPath", "NavPoint", "RobotInfo"]
@@ -67,8 +68,11 @@ class HttpServices:
 
     _link: BaseLink
     _store: StatusStore
+    _ops: Operations
 
     def _api(self, what: str) -> _Api:
+        """The link's REST API; WrongEventLoop off the Robot's loop, NotSupported off http://."""
+        self._ops.ensure_open()
         api = getattr(self._link, "api", None)
         if api is None or not callable(getattr(api, "call", None)):
             raise NotSupported(f"{what} needs the robot's HTTP API: connect with http://host:3546")
@@ -87,10 +91,11 @@ class HttpServices:
 
     async def switch_map(self, name: str, path: str | None = None) -> MapPath:
         """Switch to map ``name`` (``path`` None: its default) without restarting navigation."""
+        api = self._api("switch_map()")
         if not isinstance(name, str) or not name or not (path is None or isinstance(path, str)):
             raise InvalidArgument("switch_map: name (and path) must be non-empty strings")
         params = {"map": name} if path is None else {"map": name, "path": path}
-        answer = await self._api("switch_map()").call("GET", "/navigation/reload", params)
+        answer = await api.call("GET", "/navigation/reload", params)
         return MapPath(str(answer.get("map", name)), str(answer.get("path", path or "")))
 
     async def targets(self) -> list[NavPoint]:
@@ -124,9 +129,10 @@ class HttpServices:
 
     async def say(self, text: str) -> None:
         """Speak ``text`` on the robot (GET /system/tts)."""
+        api = self._api("say()")
         if not isinstance(text, str) or not text:
             raise InvalidArgument("say: text must be a non-empty string")
-        await self._api("say()").call("GET", "/system/tts", {"text": text})
+        await api.call("GET", "/system/tts", {"text": text})
 
     async def goto_pose(
         self,
@@ -143,11 +149,11 @@ class HttpServices:
         GalileoTimeout after ``timeout`` s. A call cancelled or timed out stops the task
         (GET /navigation/stop_nav_task) before it ends.
         """
+        api = self._api("goto_pose()")
         for name, value in (("x", x), ("y", y), ("theta", theta)):
             check_number(name, value)
         check_timeout("timeout", timeout)
         check_timeout("poll_interval", poll_interval)
-        api = self._api("goto_pose()")
         body = {"x": float(x), "y": float(y), "theta": float(theta)}
         started = time.monotonic()
         task = await api.call("POST", "/navigation/start_nav_task", body=body)
