@@ -1,6 +1,7 @@
 """Latency: device write → wait_until woken, and command call → bytes at the device.
 
-The same two paths over ``udp://`` are measured in the same run (latency_udp.py).
+The same two paths over ``udp://`` and ``http://`` are measured in the same run
+(latency_udp.py, latency_http.py).
 
 A device-side TCP server on 127.0.0.1 runs in the same process and event loop as the
 host, so both sides read one clock (time.perf_counter) and every figure includes the
@@ -28,6 +29,7 @@ from galileo_async.protocol import HEADER, LAYOUTS, encode, encode_status
 from galileo_async.protocol.commands import Forward
 
 from .common import Row, percentile
+from .latency_http import http_command_latency, http_status_latency
 from .latency_udp import udp_command_latency, udp_status_latency
 
 __all__ = ["run"]
@@ -212,15 +214,19 @@ def _rows(name: str, driver: list[float], bare: list[float]) -> list[Row]:
 
 
 def run(*, quick: bool = False) -> list[Row]:
-    """Measure both latencies, over socket:// and over udp://."""
+    """Measure both latencies, over socket://, udp:// and http://."""
     samples = 300 if quick else 2000
     status_driver, status_bare = asyncio.run(_status_latency(samples))
     command_driver, command_bare = asyncio.run(_command_latency(samples // 4))
     udp_status_driver, udp_status_bare = asyncio.run(udp_status_latency(samples))
     udp_command_driver, udp_command_bare = asyncio.run(udp_command_latency(samples // 4))
+    http_status_driver, http_status_bare = asyncio.run(http_status_latency(samples))
+    http_command_driver, http_command_bare = asyncio.run(http_command_latency(samples // 4))
     return [
         *_rows("status frame → wait_until woken", status_driver, status_bare),
         *_rows("robot.forward() call → bytes at device", command_driver, command_bare),
         *_rows("udp:// status datagram → wait_until woken", udp_status_driver, udp_status_bare),
         *_rows("udp:// robot.forward() → datagram at device", udp_command_driver, udp_command_bare),
+        *_rows("http:// WebSocket status → wait_until woken", http_status_driver, http_status_bare),
+        *_rows("http:// send(Velocity) → PUT at device", http_command_driver, http_command_bare),
     ]

@@ -12,6 +12,7 @@ import math
 import numbers
 import re
 from collections.abc import Collection, Iterable, Iterator, Mapping
+from urllib.parse import urlsplit
 
 from .errors import InvalidArgument
 
@@ -146,12 +147,32 @@ def parse_hosts(hosts: str | Mapping[str, str]) -> dict[str, str]:
     return parsed
 
 
+def hide_secrets(url: str) -> str:
+    """``url`` with a password in its user part and ``token``/``password`` values as ``***``."""
+    parts = urlsplit(url)
+    userinfo, at, host = parts.netloc.rpartition("@")
+    netloc = f"{userinfo.partition(':')[0]}:***@{host}" if at and ":" in userinfo else None
+    pairs = [item.partition("=") for item in parts.query.split("&") if item]
+    query = "&".join(
+        f"{k}=***" if k in ("token", "password") else f"{k}{eq}{v}" for k, eq, v in pairs
+    )
+    if netloc is None and query == parts.query:
+        return url
+    return parts._replace(netloc=netloc or parts.netloc, query=query).geturl()
+
+
 @contextlib.contextmanager
 def naming(url: str, what: str) -> Iterator[None]:
-    """Put ``what`` in front of an InvalidArgument raised inside that does not name ``url``."""
+    """Put ``what`` in front of an InvalidArgument raised inside that does not name ``url``.
+
+    A password or token in ``url`` is shown as ``***`` (hide_secrets).
+    """
     try:
         yield
     except InvalidArgument as exc:
+        shown = hide_secrets(url)
+        if shown != url:  # the cause would show the secret too
+            raise InvalidArgument(f"{what}: {exc}".replace(url, shown)) from None
         if url in str(exc):
             raise
         raise InvalidArgument(f"{what}: {exc}") from exc

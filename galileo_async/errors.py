@@ -21,12 +21,15 @@ __all__ = [
     "GoalError",
     "GoalRejected",
     "GoalStalled",
+    "HttpError",
     "InvalidArgument",
     "LinkStale",
     "NotReady",
+    "NotSupported",
     "OperationFailed",
     "OperationTimeout",
     "PortBusy",
+    "TaskFailed",
     "UnconfirmedOperation",
     "WrongEventLoop",
 ]
@@ -193,3 +196,30 @@ class GoalStalled(GoalError):
     ) -> None:
         super().__init__(message, target_id=target_id, status=status)
         self.stalled_for = stalled_for
+
+
+# --- channels ------------------------------------------------------------------------
+
+
+class NotSupported(GalileoError):
+    """The operation exists only on another channel (e.g. maps over http://)."""
+
+
+class HttpError(GalileoConnectionError):
+    """An HTTP API call failed: ``endpoint`` and ``status`` (None: no answer) name it."""
+
+    def __init__(self, message: str, *, endpoint: str, status: int | None) -> None:
+        super().__init__(message)
+        self.endpoint = endpoint
+        self.status = status
+
+
+class TaskFailed(GoalError):
+    """An HTTP API task ended CANCELLED or ERROR: ``state`` and ``task_id`` say which."""
+
+    def __init__(
+        self, message: str, *, state: str, task_id: str, status: GalileoStatus | None = None
+    ) -> None:
+        super().__init__(message, target_id=-2, status=status)
+        self.state = state
+        self.task_id = task_id

@@ -30,9 +30,18 @@ def test_every_example_is_tested() -> None:
     # vda5050_vehicle.py needs a broker: tests/test_vda5050_links.py runs it.
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
-        "vda5050_vehicle.py",
+        "vda5050_vehicle.py", "http_maps.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
+
+
+def test_http_maps_example_lists_maps_and_goes_to_a_pose() -> None:
+    out = run_example("http_maps.py")
+    assert "firmware 5.1.0" in out
+    assert "maps: sim, floor2" in out
+    assert "current map: sim, path path1" in out
+    assert "target 0: (" in out
+    assert "arrived at (1.0, 0.5)" in out
 
 
 def test_goto_example_handles_arrival_and_rejection() -> None:

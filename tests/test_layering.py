@@ -111,6 +111,7 @@ PARTS = {
     "galileo_async.transitions": "transitions",
     "galileo_async.transports": "transports",
     "galileo_async.ros": "ros",
+    "galileo_async.http": "http",
     "galileo_async.state": "state",
     "galileo_async.robot": "robot",
     "galileo_async.fleet": "fleet",
@@ -129,6 +130,7 @@ MAY_IMPORT = {
     "options": {"base", "protocol", "transitions"},
     "transports": {"base", "protocol", "options"},
     "ros": {"base", "protocol", "transports", "options"},
+    "http": {"base", "protocol", "transports", "options"},
     "state": {"base", "transitions"},
     "robot": {"base", "protocol", "transitions", "state", "transports", "options"},
     "fleet": {"base", "transitions", "state", "robot", "options"},
@@ -136,7 +138,7 @@ MAY_IMPORT = {
 }
 #: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
 #: the ROS link for ros:// inside the functions that need them (or for type checking).
-LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros"}}
+LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros", "http"}}
 #: Modules that open or speak to a transport: state must do no I/O and know no transport.
 TRANSPORT_MODULES = (
     "socket",

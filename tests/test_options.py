@@ -34,6 +34,7 @@ URLS = {
     "udp": "udp://127.0.0.1:1",
     "sim": "sim://",
     "ros": "ros://127.0.0.1:1",
+    "http": "http://127.0.0.1:1",
 }
 #: A value each option takes where its default is None (TOML has no None).
 SAMPLES: dict[str, Any] = {
@@ -43,12 +44,15 @@ SAMPLES: dict[str, Any] = {
     "bind": "127.0.0.1",
     "node_name": "/fleet_test",
     "hosts": "xiaoqiang-desktop=10.0.0.5",
+    "username": "admin",
+    "password": "admin",
+    "token": "a-token",
 }
 
 
 def sample(name: str, kind: str) -> Any:
     if name == "layout":
-        return "ros" if kind == "ros" else "v1"
+        return "ros" if kind in ("ros", "http") else "v1"
     default = OPTIONS[name].default
     return SAMPLES[name] if default is None else default
 

@@ -19,6 +19,7 @@ PUBLIC = {
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
     "GoalStalled", "LinkState",
     "DuplicateVehicle",
+    "HttpError", "NotSupported", "TaskFailed",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.

@@ -17,6 +17,8 @@ from galileo_async.ros.discovery import DiscoveredRobot, discover, parse_announc
 pytestmark = pytest.mark.timeout(20)
 
 ANNOUNCEMENT = {"id": "galileo-7", "port": 11311, "mac": "00:11:22:33:44:55", "version": "5.1"}
+#: A 5.x robot with the HTTP API announces its port 3546 (VENDOR.md §1.2).
+HTTP_ANNOUNCEMENT = {"id": "galileo-8", "port": 3546, "version": "5.0.0"}
 
 
 async def broadcast(port: int, datagrams: Iterable[bytes], period: float = 0.02) -> None:
@@ -111,6 +113,11 @@ def test_parse_announcement_fields() -> None:
     assert parse_announcement(b'{"id": "x", "port": true}', "h") is None
     assert parse_announcement(b'{"id": "x"}', "::1") == DiscoveredRobot("x", "::1", 11311)
     assert DiscoveredRobot("x", "fe80::1", 11311).url == "ros://[fe80::1]:11311"
+    assert DiscoveredRobot("x", "fe80::1", 11311).urls == ("ros://[fe80::1]:11311",)
+    assert DiscoveredRobot("x", "10.0.0.8", 3546).urls == (
+        "http://10.0.0.8:3546",
+        "ros://10.0.0.8:11311",
+    )
     assert parse_announcement(b"x" * 5000, "h") is None
 
 
@@ -126,7 +133,8 @@ def test_cli_discover_lists_the_robot_with_its_url(udp_port: int) -> None:
     def announce() -> None:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             while not stop.wait(0.02):
-                sock.sendto(json.dumps(ANNOUNCEMENT).encode(), ("127.0.0.1", udp_port))
+                for announcement in (ANNOUNCEMENT, HTTP_ANNOUNCEMENT):
+                    sock.sendto(json.dumps(announcement).encode(), ("127.0.0.1", udp_port))
 
     sender = threading.Thread(target=announce, daemon=True)
     sender.start()
@@ -142,13 +150,23 @@ def test_cli_discover_lists_the_robot_with_its_url(udp_port: int) -> None:
         {
             "id": "galileo-7",
             "url": "ros://127.0.0.1:11311",
+            "urls": ["ros://127.0.0.1:11311"],
             "mac": ANNOUNCEMENT["mac"],
             "version": "5.1",
             "announced_port": 11311,
-        }
+        },
+        {
+            "id": "galileo-8",
+            "url": "ros://127.0.0.1:11311",
+            "urls": ["http://127.0.0.1:3546", "ros://127.0.0.1:11311"],
+            "mac": None,
+            "version": "5.0.0",
+            "announced_port": 3546,
+        },
     ]
     assert plain.exit_code == 0
     assert "ros://127.0.0.1:11311" in plain.stdout
+    assert "http://127.0.0.1:3546" in plain.stdout
 
 
 def test_cli_discover_says_when_nothing_is_heard(udp_port: int) -> None:

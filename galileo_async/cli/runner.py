@@ -19,6 +19,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from .._checks import hide_secrets
 from ..errors import (
     DuplicateVehicle,
     GalileoConnectionError,
@@ -197,8 +198,11 @@ def robot_url(settings: Settings) -> str:
 
 
 def print_json(settings: Settings, data: dict[str, Any]) -> None:
-    """Print one JSON object on stdout, naming the port it came from first (``"port"``)."""
-    out_console().print(json.dumps({"port": settings.port} | data), markup=False)
+    """Print one JSON object on stdout, naming the port it came from first (``"port"``).
+
+    A password or token in the port's URL shows as ``***``.
+    """
+    out_console().print(json.dumps({"port": hide_secrets(settings.port)} | data), markup=False)
 
 
 def out_console() -> Console:

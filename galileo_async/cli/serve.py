@@ -73,6 +73,16 @@ def sim(
             "alone, UDP only)."
         ),
     ] = None,
+    http: Annotated[
+        str | None,
+        typer.Option(
+            help="Also serve the HTTP API on PORT or HOST:PORT (loopback by default) and its "
+            "WebSocket on the next port (alone, HTTP only)."
+        ),
+    ] = None,
+    ws_port: Annotated[
+        int | None, typer.Option("--ws-port", help="The WebSocket's port (default: HTTP + 1).")
+    ] = None,
     udp_layout: Annotated[
         str, typer.Option(help="UDP status layout: udp_v2 (48 bytes) or udp_v1 (44).")
     ] = "udp_v2",
@@ -104,7 +114,7 @@ def sim(
             served: list[tuple[str, str]] = []  # (where, its status layout)
             if pty:
                 served.append((simulator.open_pty(), layout))
-            elif tcp is not None or udp is None:
+            elif tcp is not None or (udp is None and http is None):
                 host, port = _host_port(tcp or DEFAULT_TCP)
                 with _listening(f"{host}:{port}", "--tcp"):
                     server = await simulator.serve_tcp(host, port)
@@ -114,6 +124,12 @@ def sim(
                 with _listening("{}:{}".format(*address), "--udp"):
                     face = await simulator.serve_udp(*address)
                 served.append((_url("udp", face.address), udp_layout))
+            if http is not None:
+                web = await simulator.serve_http(*_udp_address(http), ws_port=ws_port)
+                where = _url("http", web.address)
+                if web.ws_address[1] != web.address[1] + 1:
+                    where += f"?ws_port={web.ws_address[1]}"
+                served.append((where, "JSON"))
             console = out_console()
             for where, _ in served:
                 console.print(where, markup=False)
@@ -228,14 +244,17 @@ def discover(
     bind: Annotated[str, typer.Option("--bind", help="Local address to listen on.")] = "",
     json_output: Annotated[bool, typer.Option("--json", help="JSON output.")] = False,
 ) -> None:
-    """List robots announcing themselves on the LAN, with the ros:// URL of their ROS master."""
+    """List robots announcing themselves on the LAN, with the URLs they offer (http://, ros://)."""
     from ..ros.discovery import discover as listen
 
     settings = settings_of(ctx)
 
     async def main() -> int:
         robots = await listen(timeout, bind=bind, port=port)
-        rows = [{"id": r.id, "url": r.url, "mac": r.mac, "version": r.version} for r in robots]
+        rows: list[dict[str, Any]] = [
+            {"id": r.id, "url": r.url, "urls": list(r.urls), "mac": r.mac, "version": r.version}
+            for r in robots
+        ]
         if settings.json or json_output:
             # The announced port (3546, HTTP, on newer firmware) is not the master's.
             ports = [{"announced_port": robot.port} for robot in robots]
@@ -247,9 +266,12 @@ def discover(
             return int(ExitCode.OK)
         from rich.table import Table
 
-        table = Table("id", "url", "mac", "version", box=None)
+        table = Table("id", "urls", "mac", "version", box=None)
         for row in rows:
-            table.add_row(*(str(row[key] or "-") for key in ("id", "url", "mac", "version")))
+            urls = "\n".join(row["urls"])  # one a line: a URL is never wrapped
+            table.add_row(
+                str(row["id"]), urls, *(str(row[key] or "-") for key in ("mac", "version"))
+            )
         out_console().print(table)
         return int(ExitCode.OK)
 

@@ -6,6 +6,8 @@ import functools
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from pydantic import SecretStr
+
 from .._checks import check_int, check_number, check_seconds, check_timeout, parse_hosts
 from ..errors import InvalidArgument
 from ..models import StatusLayout
@@ -36,6 +38,12 @@ DEFAULT_RECONNECT_MAX = 5.0
 DEFAULT_BAUDRATE = 115200
 DEFAULT_CONNECT_TIMEOUT = 5.0
 DEFAULT_RPC_TIMEOUT = 2.0
+#: The WebSocket port of the robot's HTTP API (its REST port is 3546).
+DEFAULT_WS_PORT = 3547
+#: Seconds between the WebSocket pings of the http:// link's own timer (http.md: about 1 s).
+DEFAULT_PING_INTERVAL = 1.0
+#: Seconds one REST call of the http:// link may take before it fails with HttpError.
+DEFAULT_REQUEST_TIMEOUT = 5.0
 DEFAULT_MASTER_CHECK_INTERVAL = 1.0
 #: Goal ids are one byte (PROTOCOL.md §2.b).
 MAX_TARGET_ID = 255
@@ -99,6 +107,24 @@ def check_serial_options(name: str, value: object) -> None:
         return
     if not isinstance(value, Mapping) or not all(isinstance(key, str) for key in value):
         raise InvalidArgument(f"{name} must be a dict of pyserial settings, got {value!r}")
+
+
+def check_secret(name: str, value: object) -> None:
+    """A password or token: a non-empty string, a SecretStr or None; never shown in the error."""
+    if value is None or isinstance(value, SecretStr):
+        return
+    if not isinstance(value, str) or not value:
+        raise InvalidArgument(f"{name} must be a non-empty string or None")
+
+
+def check_port(name: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 < value < 65536:
+        raise InvalidArgument(f"{name} must be a port number (1-65535), got {value!r}")
+
+
+def check_http_layout(name: str, value: object) -> None:
+    if value is not None and str(value) != StatusLayout.ROS.value:
+        raise InvalidArgument(f"{name} {value!r} does not apply to http:// (JSON, by name)")
 
 
 def check_name(name: str, value: object) -> None:

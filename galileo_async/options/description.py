@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal, TypedDict, get_args, get_type_hints
+from typing import Annotated, Any, TypedDict, get_args, get_type_hints
+
+from pydantic import SecretStr
 
 from .._checks import check_bool, check_seconds, check_timeout
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
@@ -20,23 +22,28 @@ from .checks import (
     DEFAULT_MAX_LINEAR_SPEED,
     DEFAULT_MAX_QUEUED_COMMANDS,
     DEFAULT_MIN_COMMAND_INTERVAL,
+    DEFAULT_PING_INTERVAL,
     DEFAULT_PROGRESS_TIMEOUT,
     DEFAULT_RECONNECT_INITIAL,
     DEFAULT_RECONNECT_MAX,
+    DEFAULT_REQUEST_TIMEOUT,
     DEFAULT_RPC_TIMEOUT,
     DEFAULT_STALE_RECONNECT,
     DEFAULT_STALE_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
+    DEFAULT_WS_PORT,
     FIRST_STATUS_TIMEOUT,
-    Check,
     check_baudrate,
     check_degrees,
     check_hosts,
+    check_http_layout,
     check_map_targets,
     check_metres,
     check_name,
+    check_port,
     check_queue,
     check_ros_layout,
+    check_secret,
     check_serial_options,
     check_speed_limit,
     check_stale_reconnect,
@@ -44,44 +51,14 @@ from .checks import (
     seconds_or_zero,
     timeout_not_none,
 )
+from .option import LINK_KINDS, OWNERS, Option, Owner
 
 __all__ = ["LINK_KINDS", "OPTIONS", "OWNERS", "ConnectOptions", "Option", "Owner"]
 
-#: The link kinds (transports.link_kind): what a URL opens.
-LINK_KINDS = ("serial", "socket", "udp", "sim", "ros")
-#: Who takes an option: the Robot, connect() itself, or the link.
-Owner = Literal["robot", "connect", "link"]
-OWNERS: tuple[Owner, ...] = ("robot", "connect", "link")
-
-
-@dataclasses.dataclass(frozen=True)
-class Option:
-    """One option: its default, owner, the link kinds that take it (None: all), doc, check.
-
-    ``name`` and ``type`` come from its field of ConnectOptions; ``by_kind``: a check of
-    its own on some link kinds.
-    """
-
-    default: Any
-    doc: str
-    check_value: Check
-    owner: Owner = "link"
-    kinds: frozenset[str] | None = None
-    by_kind: Mapping[str, Check] = dataclasses.field(default_factory=dict)
-    name: str = ""
-    type: Any = None
-
-    def takes(self, kind: str | None) -> bool:
-        """True when a link of ``kind`` (None: any) takes this option."""
-        return self.kinds is None or kind is None or kind in self.kinds
-
-    def check(self, value: object, kind: str | None = None) -> None:
-        """Raise InvalidArgument, naming the option, when a ``kind`` link cannot use ``value``."""
-        self.by_kind.get(kind or "", self.check_value)(self.name, value)
-
 
 _ROS = frozenset({"ros"})
-_LAYOUT_KINDS = frozenset({"serial", "socket", "sim", "ros"})
+_HTTP = frozenset({"http"})
+_LAYOUT_KINDS = frozenset({"serial", "socket", "sim", "ros", "http"})
 
 
 class ConnectOptions(TypedDict, total=False):
@@ -275,7 +252,7 @@ class ConnectOptions(TypedDict, total=False):
             "pin the status layout (`v2`, `v2_truncated`, `v1`, `v1_charge`; `ros` on `ros://`); None: detect it",  # noqa: E501
             check_stream_layout,
             kinds=_LAYOUT_KINDS,
-            by_kind={"ros": check_ros_layout},
+            by_kind={"ros": check_ros_layout, "http": check_http_layout},
         ),
     ]
     # ros:// links' own (ros.md).
@@ -306,7 +283,10 @@ class ConnectOptions(TypedDict, total=False):
     rpc_timeout: Annotated[
         float,
         Option(
-            DEFAULT_RPC_TIMEOUT, "bound in seconds on each XML-RPC call", check_seconds, kinds=_ROS
+            DEFAULT_RPC_TIMEOUT,
+            "bound in seconds on each XML-RPC call",
+            check_seconds,
+            kinds=_ROS,
         ),
     ]
     master_check_interval: Annotated[
@@ -325,6 +305,59 @@ class ConnectOptions(TypedDict, total=False):
             '`"name=ip,…"` or `{name: ip}`: where to reach the host names the robot\'s nodes advertise',  # noqa: E501
             check_hosts,
             kinds=_ROS,
+        ),
+    ]
+
+    # http:// and https:// links' own (transports.md).
+    username: Annotated[
+        str | None,
+        Option(
+            None,
+            "user name for the API's token (token checking is off by default)",
+            check_name,
+            kinds=_HTTP,
+        ),
+    ]
+    password: Annotated[
+        str | SecretStr | None,
+        Option(
+            None,
+            "password for the API's token (a string or pydantic `SecretStr`; never logged or shown)",  # noqa: E501
+            check_secret,
+            kinds=_HTTP,
+        ),
+    ]
+    token: Annotated[
+        str | SecretStr | None,
+        Option(
+            None, "an API token got elsewhere (never logged or shown)", check_secret, kinds=_HTTP
+        ),
+    ]
+    ws_port: Annotated[
+        int,
+        Option(
+            DEFAULT_WS_PORT,
+            "the WebSocket port of the robot's API (status)",
+            check_port,
+            kinds=_HTTP,
+        ),
+    ]
+    request_timeout: Annotated[
+        float,
+        Option(
+            DEFAULT_REQUEST_TIMEOUT,
+            "seconds one REST call may take before it fails with `HttpError`",
+            check_seconds,
+            kinds=_HTTP,
+        ),
+    ]
+    ping_interval: Annotated[
+        float,
+        Option(
+            DEFAULT_PING_INTERVAL,
+            "seconds between the WebSocket pings of the link's own timer",
+            check_seconds,
+            kinds=_HTTP,
         ),
     ]
 

@@ -48,7 +48,7 @@ from .device import (
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS, Layout
 from .status import MAX_BUFFER, MAX_COUNTED_GAP, DecoderStats, StatusDecoder
 from .udp import UDP_LAYOUTS, UdpLayout, UdpStatusDecoder
-from .velocity import Velocity, speed_commands
+from .velocity import PoseGoal, Velocity, speed_commands
 
 __all__ = [
     "COMMAND_TYPES",
@@ -73,6 +73,7 @@ __all__ = [
     "Greeting",
     "Layout",
     "Pause",
+    "PoseGoal",
     "RawCommand",
     "ResetTargets",
     "Resume",

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 from .._checks import check_number
 from ..errors import InvalidArgument
-from .commands import Backward, Command, Forward, TurnLeft, TurnRight
+from .commands import Backward, Command, Forward, Goto, TurnLeft, TurnRight
 
-__all__ = ["Velocity", "speed_commands"]
+__all__ = ["PoseGoal", "Velocity", "speed_commands"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -27,6 +27,29 @@ class Velocity(Command):
 
     def payload(self) -> bytes:
         raise InvalidArgument("a Velocity has no serial encoding (use forward/turn_left …)")
+
+
+@dataclass(frozen=True, slots=True)
+class PoseGoal(Goto):
+    """A goal by pose, ``x``, ``y`` m and ``theta`` rad; http:// links only (a nav task).
+
+    The robot shows such a goal as target -2 (VENDOR.md §1.4), which is its ``target_id``.
+    """
+
+    target_id: int = -2
+    x: float = 0.0
+    y: float = 0.0
+    theta: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.target_id != -2:
+            raise InvalidArgument("a PoseGoal is target -2")
+        check_number("x", self.x)
+        check_number("y", self.y)
+        check_number("theta", self.theta)
+
+    def payload(self) -> bytes:
+        raise InvalidArgument("a PoseGoal has no serial encoding (use goto_point)")
 
 
 def speed_commands(

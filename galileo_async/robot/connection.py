@@ -9,6 +9,7 @@ from collections.abc import Generator
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
+from .._checks import hide_secrets
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
 from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
 from ..state.store import StatusStore
@@ -57,7 +58,8 @@ class Connection:
             await self._robot.close()
 
     async def _open(self) -> Robot:
-        running_loop(f"connect({self.url!r})")
+        shown = hide_secrets(self.url)  # a password or token in the URL is never logged
+        running_loop(f"connect({shown!r})")
         options = dict(self._options)
         robot_options = {n: options.pop(n) for n in list(options) if OPTIONS[n].owner == "robot"}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
@@ -80,11 +82,11 @@ class Connection:
             if "map_targets" not in robot_options:
                 robot.map_targets = count
             if first_status_timeout is not None:
-                await _first_status(store, first_status_timeout, self.url)
+                await _first_status(store, first_status_timeout, shown)
         except BaseException:
             await robot.close()
             raise
-        _log.debug("connected to %s", self.url)
+        _log.debug("connected to %s", shown)
         return robot
 
 

@@ -16,7 +16,15 @@ from ..errors import (
 from ..events import Event
 from ..models import GalileoStatus
 from ..options import DEFAULT_ACCEPT_TIMEOUT, DEFAULT_GOAL_TIMEOUT, DEFAULT_WAIT_TIMEOUT
-from ..protocol import AddTarget, Command, Goto, StartNavigation, StopNavigation, Velocity
+from ..protocol import (
+    AddTarget,
+    Command,
+    Goto,
+    PoseGoal,
+    StartNavigation,
+    StopNavigation,
+    Velocity,
+)
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import BaseLink, LinkStats
@@ -29,6 +37,7 @@ from .drive import (
 )
 from .following import Following
 from .goal import GoalResult, GoalRunner
+from .http_services import HttpServices
 from .operations import (
     CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -52,7 +61,7 @@ from .runtime import (
 from .services import DEFAULT_ANGLE_TOLERANCE, RobotServices
 from .supersede import goal_superseded
 from .targets import DynamicTargets, landed_at
-from .turn import turn_in_place
+from .turning import Turning
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -77,7 +86,7 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(RobotServices, Following):
+class Robot(Turning, RobotServices, HttpServices, Following):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
     Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;
@@ -196,6 +205,8 @@ class Robot(RobotServices, Following):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
         if isinstance(command, Velocity) and not self._link.carries_velocity:
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
+        if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
+            raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
         await self._written(command, f"send({command!r})", timeout)
 
     def drive(
@@ -270,7 +281,17 @@ class Robot(RobotServices, Following):
         once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
         at the target already: a GoalResult with ``already_there`` True.
         """
-        command = Goto(target_id)  # validates before anything is sent
+        return await self._goto(Goto(target_id), timeout, accept_timeout, progress_timeout,
+                                cancel_on_exit)  # fmt: skip
+
+    async def _goto(
+        self,
+        command: Goto,
+        timeout: float | RobotDefault | None,
+        accept_timeout: float | None,
+        progress_timeout: float | RobotDefault | None,
+        cancel_on_exit: bool,
+    ) -> GoalResult:
         self._refuse_while_driving("goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
@@ -286,7 +307,7 @@ class Robot(RobotServices, Following):
                 cancel_on_exit=cancel_on_exit,
             )  # fmt: skip
         except CommandSuperseded as exc:  # a user stop came before ``g N`` was written
-            raise goal_superseded(exc, target_id) from exc
+            raise goal_superseded(exc, command.target_id) from exc
 
     async def goto_point(
         self,
@@ -306,6 +327,10 @@ class Robot(RobotServices, Following):
         """
         command = AddTarget(x, y)  # validate before anything is sent
         self._refuse_while_driving("goto_point")
+        if self._link.carries_pose_goals:  # http://: one nav task, followed as target -2
+            result = await self._goto(PoseGoal(x=x, y=y), timeout, None, progress_timeout,
+                                      cancel_on_exit)  # fmt: skip
+            return landed_at(result, x, y, self.arrive_tolerance)
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         progress = or_default(progress_timeout, self.progress_timeout)
@@ -327,22 +352,6 @@ class Robot(RobotServices, Following):
         except CommandSuperseded as exc:  # a user stop came before the last step was written
             raise goal_superseded(exc, first_id) from exc
         return landed_at(result, x, y, self.arrive_tolerance)
-
-    async def rotate_to(
-        self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT, fallback: bool = False
-    ) -> None:
-        """RobotServices.rotate_to; ``fallback``: when ``a`` is unconfirmed, turn_to() after."""
-        try:
-            await super().rotate_to(degrees, timeout=timeout)
-        except UnconfirmedOperation:
-            if not fallback:
-                raise
-            await self.turn_to(degrees, timeout=timeout)
-
-    async def turn_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
-        """Turn in place to ``degrees`` by drive() (every firmware), within angle_tolerance."""
-        self._ops.ensure_loop()
-        await turn_in_place(self, degrees, limit=timeout)
 
     # --- lifecycle -----------------------------------------------------------------------
 

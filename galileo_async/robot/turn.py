@@ -13,7 +13,13 @@ from ..models import GalileoStatus
 from ..state.store import StatusStream
 from .drive import DriveSession, SpeedLimits
 
-__all__ = ["MAX_TURN_RATE", "MIN_TURN_RATE", "TURN_GAIN", "Turnable", "turn_in_place"]
+__all__ = [
+    "MAX_TURN_RATE",
+    "MIN_TURN_RATE",
+    "TURN_GAIN",
+    "Turnable",
+    "turn_in_place",
+]
 
 #: rad/s per radian of heading error (proportional control).
 TURN_GAIN = 1.5

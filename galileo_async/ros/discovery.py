@@ -43,6 +43,17 @@ class DiscoveredRobot:
         host = f"[{self.address}]" if ":" in self.address else self.address
         return f"ros://{host}:{self.master_port}"
 
+    @property
+    def urls(self) -> tuple[str, ...]:
+        """Every URL the robot offers: ``http://`` when it announces its HTTP API, then ``url``.
+
+        An announced port other than the master's is the HTTP API (3546 on 5.x firmware).
+        """
+        if self.port == self.master_port:
+            return (self.url,)
+        host = f"[{self.address}]" if ":" in self.address else self.address
+        return (f"http://{host}:{self.port}", self.url)
+
 
 def parse_announcement(data: bytes, address: str) -> DiscoveredRobot | None:
     """Decode one broadcast from ``address``; None when it is not a robot announcement."""

@@ -10,6 +10,7 @@ from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from ..protocol._build import trusted_status
 from ..protocol.commands import Command
 from ..protocol.layouts import ENUM_FIELDS
+from ..protocol.names import ROS_FIELD_NAMES
 from .msgdef import (
     HEADER_DEFINITION,
     SEPARATOR,
@@ -56,29 +57,6 @@ _HEADER_TEXT = (
 #: PROTOCOL.md §3: the command bytes after the length byte.
 CMDS_DEFINITION = "Header header\nuint32 length\nuint8[] data\n"
 
-#: ROS field name → GalileoStatus field, for every field any version of the message has.
-ROS_FIELD_NAMES: dict[str, str] = {
-    "navStatus": "nav_status",
-    "visualStatus": "visual_status",
-    "mapStatus": "map_status",
-    "gcStatus": "gc_status",
-    "gbaStatus": "gba_status",
-    "chargeStatus": "charge_status",
-    "loopStatus": "loop_status",
-    "power": "power",
-    "targetNumID": "target_num_id",
-    "targetStatus": "target_status",
-    "targetDistance": "target_distance",
-    "angleGoalStatus": "angle_goal_status",
-    "controlSpeedX": "control_speed_x",
-    "controlSpeedTheta": "control_speed_theta",
-    "currentSpeedX": "current_speed_x",
-    "currentSpeedTheta": "current_speed_theta",
-    "currentPosX": "current_pose_x",
-    "currentPosY": "current_pose_y",
-    "currentAngle": "current_angle",
-    "busyStatus": "busy_status",
-}
 
 _FLOAT_FIELDS = frozenset(
     {

@@ -386,3 +386,15 @@ class RobotModel(ServiceCommands, Body):
         self._rotate_goal = wrap_angle(math.radians(command.degrees))
         self.rotate_status = 0
         self._fresh = True
+
+    def goto_pose(self, x: float, y: float) -> None:
+        """A goal by pose, as an HTTP API nav task: it shows target_num_id -2 (VENDOR.md §1.4)."""
+        if self.nav_status == 1 and self.visual_initialised:
+            self.targets.append((x, y))  # _begin_goal takes its goal by index
+            self._begin_goal(len(self.targets) - 1)
+            self.targets.pop()
+            self.target_num_id = -2
+
+    def set_speed(self, linear: float, angular: float) -> None:
+        """Teleop in m/s and rad/s (the HTTP API's PUT /system/speed)."""
+        self._teleop(v=linear, w=angular)

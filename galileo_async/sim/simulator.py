@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 from collections.abc import Awaitable, Callable
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidArgument
 from ..models import GalileoStatus, Pose
@@ -17,6 +17,9 @@ from .replay import ReplayConnection, load_capture
 from .robot_model import RobotModel
 from .serve import PtyTransport
 from .udp import UdpFace
+
+if TYPE_CHECKING:
+    from .http import HttpFace
 
 __all__ = ["Connector", "SimState", "Simulator"]
 
@@ -123,6 +126,7 @@ class Simulator:
         self._servers: list[asyncio.Server] = []
         self._ptys: list[PtyTransport] = []
         self._udp: list[UdpFace] = []
+        self._http: list[HttpFace] = []
         self._closed = False
 
     @classmethod
@@ -188,6 +192,28 @@ class Simulator:
         self._device.start()
         return face
 
+    async def serve_http(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        *,
+        ws_port: int | None = None,
+        token_check: bool = False,
+    ) -> HttpFace:
+        """Serve the vendor's HTTP API on ``host:port`` and its WebSocket on ``ws_port``.
+
+        ``ws_port`` None: ``port + 1`` (0: any free port). Needs aiohttp (the extra http).
+        """
+        if self._device.closed:
+            raise ConnectionRefusedError("the simulated robot is off")
+        from .http import HttpFace  # optional: aiohttp
+
+        face = HttpFace(self._device, token_check=token_check)
+        self._http.append(face)
+        await face.start(host, port, 0 if port == 0 and ws_port is None else ws_port)
+        self._device.start()
+        return face
+
     def open_pty(self) -> str:
         """Serve over a new pseudo-terminal; returns the path a host opens as a serial port."""
         if self._device.closed:
@@ -212,6 +238,8 @@ class Simulator:
             pty.close()
         for face in self._udp:
             face.close()
+        for http in self._http:
+            http.close()
 
     async def close(self) -> None:
         """Stop the clock, drop every connection and listener; idempotent."""
@@ -229,6 +257,9 @@ class Simulator:
         self._servers.clear()
         self._ptys.clear()
         self._udp.clear()
+        for http in self._http:
+            await http.aclose()
+        self._http.clear()
         await asyncio.sleep(0)  # let connection_lost callbacks run
 
     async def __aenter__(self) -> Simulator:

@@ -41,6 +41,8 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     )  # fmt: skip
     #: True when the link writes a Velocity (a Twist) itself; serial links write f/b and c/d.
     carries_velocity: ClassVar[bool] = False
+    #: True when the link writes a PoseGoal itself (http://); others add a target and go to it.
+    carries_pose_goals: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -1,4 +1,4 @@
-"""The one URL switch: a serial path, socket://, udp://, sim:// or ros:// URL → its link."""
+"""The one URL switch: a serial path or a socket, udp, sim, ros or http[s] URL → its link."""
 
 from __future__ import annotations
 
@@ -44,8 +44,13 @@ LINK_SCHEMES = tuple(kind for kind in LINK_KINDS if kind != "serial")
 
 
 def link_kind(url: str) -> str:
-    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"`` or ``"serial"`` (a path or pyserial URL)."""
+    """``"ros"``, ``"socket"``, ``"udp"``, ``"sim"``, ``"http"`` or ``"serial"`` (a path …).
+
+    ``https://`` URLs are of kind ``"http"``.
+    """
     scheme = urlsplit(url).scheme.lower()
+    if scheme in ("http", "https"):
+        return "http"
     return scheme if scheme in LINK_SCHEMES else "serial"
 
 
@@ -90,6 +95,9 @@ def check_link_options(
     if kind == "ros":
         _ros_module(url).check_ros_options(url, options, also=also, owners=owners)
         return
+    if kind == "http":
+        _http_module(url).check_http_options(url, options, also=also, owners=owners)
+        return
     check_options(kind, options, owners=owners, also=also)
     if kind == "socket":
         parse_socket_url(url)
@@ -100,7 +108,11 @@ def check_link_options(
 
 
 def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
-    """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://`` or ``ros://``."""
+    """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://``, ``ros://``
+    or ``http[s]://``."""
+    if link_kind(url) == "http":  # its own checks: a password in the URL is never shown
+        link: BaseLink = _http_module(url).open_http_link(url, store, **options)
+        return link
     with naming(url, repr(url)):
         check_link_options(url, options)
         return _open_link(url, store, options)
@@ -123,6 +135,8 @@ def byte_connector(
         raise InvalidArgument(f"{url!r}: a ros:// link carries ROS messages, not a byte stream")
     if kind == "udp":
         raise InvalidArgument(f"{url!r}: a udp:// link carries datagrams, not a byte stream")
+    if kind == "http":
+        raise InvalidArgument("an http:// link carries REST calls and JSON, not a byte stream")
     if kind == "socket":
         host, port = parse_socket_url(url)
         return socket_connector(host, port, connect_timeout=connect_timeout, name=url), None
@@ -167,6 +181,17 @@ def _ros_module(url: str) -> ModuleType:
             f"{url}: ros:// links need the ROS support (pip install 'galileo-async[ros]'): {exc}"
         ) from exc
     return ros
+
+
+def _http_module(url: str) -> ModuleType:
+    try:
+        import galileo_async.http as http  # optional: aiohttp, the extra [http]
+    except ImportError as exc:
+        raise GalileoConnectionError(
+            f"{urlsplit(url).scheme}:// links need aiohttp "
+            f"(pip install 'galileo-async[http]'): {exc}"
+        ) from exc
+    return http
 
 
 def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:

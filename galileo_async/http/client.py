@@ -1,0 +1,131 @@
+"""HttpApi: the vendor's REST API (``/api/v1`` on port 3546) over one aiohttp session."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import ssl
+from typing import Any
+
+import aiohttp
+from pydantic import SecretStr
+
+from ..errors import ConnectionLost, HttpError
+
+__all__ = ["API_PATH", "HttpApi"]
+
+#: Every endpoint lives under this path (galileo-proto http.md).
+API_PATH = "/api/v1"
+
+
+class HttpApi:
+    """Calls endpoints, adds the token, and turns every failure into HttpError.
+
+    The password and the token never appear in repr, logs or error messages: only the
+    endpoint's path and the HTTP status do.
+    """
+
+    def __init__(
+        self,
+        base_url: str,
+        *,
+        username: str | None = None,
+        password: SecretStr | None = None,
+        token: SecretStr | None = None,
+        timeout: float = 5.0,
+        ssl_context: ssl.SSLContext | bool | None = None,
+    ) -> None:
+        self.base_url = base_url.rstrip("/")
+        self.username = username
+        self._password = password
+        self.token = token
+        self.timeout = timeout
+        self._ssl: ssl.SSLContext | bool = True if ssl_context is None else ssl_context
+        self._session: aiohttp.ClientSession | None = None
+        self._closed = False
+
+    def __repr__(self) -> str:
+        return f"<HttpApi {self.base_url}>"
+
+    @property
+    def session(self) -> aiohttp.ClientSession:
+        """The open session (created on first use, inside the running loop).
+
+        ConnectionLost once close() was called.
+        """
+        if self._closed:
+            raise ConnectionLost(f"{self.base_url}: the link is closed")
+        if self._session is None or self._session.closed:
+            self._session = aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=self.timeout))
+        return self._session
+
+    async def login(self) -> None:
+        """Fetch a token (GET /token) with username and password, unless one is set or none."""
+        if self.token is not None or self.username is None or self._password is None:
+            return
+        params = {"username": self.username, "password": self._password.get_secret_value()}
+        answer = await self.call("GET", "/token", params, authenticate=False)
+        token = answer.get("token") if isinstance(answer, dict) else None
+        if not isinstance(token, str) or not token:
+            raise HttpError(
+                f"GET {API_PATH}/token: no token in the answer (wrong username or password?)",
+                endpoint="/token",
+                status=None,
+            )
+        self.token = SecretStr(token)
+
+    def token_query(self) -> dict[str, str]:
+        """``{"token": …}`` when a token is known, else empty."""
+        return {} if self.token is None else {"token": self.token.get_secret_value()}
+
+    async def call(
+        self,
+        method: str,
+        endpoint: str,
+        params: dict[str, Any] | None = None,
+        body: dict[str, Any] | None = None,
+        *,
+        authenticate: bool = True,
+    ) -> Any:
+        """The decoded JSON answer (or text) of ``method`` ``API_PATH + endpoint``.
+
+        HttpError naming the endpoint: an HTTP status of 400 or more (``status``), no answer
+        within ``timeout`` or a failed connection (``status`` None).
+        """
+        query = {k: str(v) for k, v in (params or {}).items()}
+        if authenticate:
+            query.update(self.token_query())
+        where = f"{method} {API_PATH}{endpoint}"
+        try:
+            async with self.session.request(
+                method, f"{self.base_url}{API_PATH}{endpoint}", params=query, json=body,
+                ssl=self._ssl,
+            ) as response:  # fmt: skip
+                text = await response.text()
+                if response.status >= 400:
+                    hint = " (token checking is on: give token= or username/password)"
+                    raise HttpError(
+                        f"{where}: HTTP {response.status} {response.reason or ''}".rstrip()
+                        + (hint if response.status == 401 else ""),
+                        endpoint=endpoint,
+                        status=response.status,
+                    )
+        except asyncio.TimeoutError:
+            raise HttpError(
+                f"{where}: no answer within {self.timeout} s", endpoint=endpoint, status=None
+            ) from None
+        except aiohttp.ClientError as exc:
+            raise HttpError(
+                f"{where}: {type(exc).__name__}", endpoint=endpoint, status=None
+            ) from None
+        try:
+            return json.loads(text)
+        except ValueError:
+            return text
+
+    async def close(self) -> None:
+        """Close the session (idempotent)."""
+        self._closed = True
+        session, self._session = self._session, None
+        if session is not None:
+            await session.close()

@@ -1,0 +1,362 @@
+"""The simulator's HTTP face: the vendor's REST API (/api/v1) and WebSocket status (http.md).
+
+Needs aiohttp (the extra ``http``); loaded only by Simulator.serve_http.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import uuid
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from aiohttp import WSMsgType, web
+
+from ..protocol import commands as cmd
+from ..protocol.names import ROS_FIELD_NAMES
+from .device import SimDevice
+from .robot_model import WIRE_FIELDS, WireValues
+
+__all__ = ["MAPS", "VERSION", "HttpFace"]
+
+#: What /system/info reports as the firmware.
+VERSION = {"version": "5.1.0", "code_name": "galileo-sim"}
+#: The simulated robot's maps and each map's paths; navigation starts on the first.
+MAPS: dict[str, tuple[str, ...]] = {"sim": ("path1",), "floor2": ("path1", "path2")}
+#: The JSON name of each wire value, in WIRE_FIELDS order.
+_JSON_NAMES = tuple({v: k for k, v in ROS_FIELD_NAMES.items()}[f] for f in WIRE_FIELDS)
+_ID, _STATUS, _DISTANCE = (WIRE_FIELDS.index(f) for f in ("target_num_id", "target_status",
+                                                          "target_distance"))  # fmt: skip
+#: Statuses a WebSocket may lag behind before the oldest are dropped.
+_OUTBOX = 64
+_Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
+
+
+def _task(name: str, action: dict[str, Any]) -> dict[str, Any]:
+    action = {"state": "WAITTING", "result": "", "progress": 0, **action, "id": str(uuid.uuid4())}
+    return {
+        "name": name, "loop_flag": False, "id": str(uuid.uuid4()), "state": "WORKING",
+        "sub_tasks": [action], "progress": 0, "current_task": action,
+    }  # fmt: skip
+
+
+class HttpFace:
+    """REST on one port, /galileo/status as JSON on a WebSocket port; tasks follow the model.
+
+    A navigation task is WORKING while the model shows its goal running (index, or -2 for a
+    pose), COMPLETE when it ends at the target, ERROR on a goal error or a goal refused,
+    CANCELLED when stopped or replaced. Token checking is off unless ``token_check``.
+    """
+
+    def __init__(
+        self,
+        device: SimDevice,
+        *,
+        token_check: bool = False,
+        username: str = "admin",
+        password: str = "admin",
+    ) -> None:
+        self.device = device
+        self.token_check = token_check
+        self._login = (username, password)
+        self.tokens: set[str] = set()
+        #: Every task made, by id; the last navigation task and the goal id it waits for.
+        self.tasks: dict[str, dict[str, Any]] = {}
+        self._nav: tuple[dict[str, Any], int] | None = None
+        #: Texts /system/tts was asked to say, and the map and path in use.
+        self.spoken: list[str] = []
+        self.current = ("sim", "path1")
+        #: Each open status WebSocket: its request and the statuses it has still to send.
+        self.sockets: dict[web.WebSocketResponse, tuple[web.Request, asyncio.Queue[str]]] = {}
+        self.requests = 0
+        #: WebSocket pings received (the vendor drops a client that does not ping), and
+        #: an event set at each.
+        self.pings = 0
+        self.pinged = asyncio.Event()
+        self._runners: list[web.AppRunner] = []
+        self.address: tuple[str, int] = ("", 0)
+        self.ws_address: tuple[str, int] = ("", 0)
+        self.closed = False
+
+    async def start(self, host: str, port: int, ws_port: int | None) -> None:
+        """Listen: REST on ``port``, the WebSocket on ``ws_port`` (None: port + 1; 0: any)."""
+        rest = web.Application(middlewares=[self._auth])
+        rest.add_routes([web.route("*", "/api/v1/{tail:.*}", self._rest)])
+        sockets = web.Application(middlewares=[self._auth])
+        sockets.add_routes([web.get("/galileo/status", self._status_socket)])
+        self.address = await self._listen(rest, host, port)
+        ws_port = self.address[1] + 1 if ws_port is None else ws_port
+        self.ws_address = await self._listen(sockets, host, ws_port)
+
+    async def _listen(self, app: web.Application, host: str, port: int) -> tuple[str, int]:
+        runner = web.AppRunner(app, handle_signals=False, access_log=None)
+        await runner.setup()
+        self._runners.append(runner)
+        site = web.TCPSite(runner, host, port)
+        await site.start()
+        server = site._server  # the one asyncio.Server a TCPSite holds
+        assert isinstance(server, asyncio.Server)
+        bound: tuple[str, int] = server.sockets[0].getsockname()[:2]
+        return bound
+
+    @web.middleware
+    async def _auth(self, request: web.Request, handler: _Handler) -> web.StreamResponse:
+        self.requests += 1
+        if self.closed:
+            raise web.HTTPServiceUnavailable()
+        token = request.query.get("token")
+        if self.token_check and request.path != "/api/v1/token" and token not in self.tokens:
+            raise web.HTTPUnauthorized(text='{"status": "token invalid"}')
+        return await handler(request)
+
+    # --- REST --------------------------------------------------------------------------
+
+    async def _rest(self, request: web.Request) -> web.StreamResponse:
+        route = (request.method, "/" + request.match_info["tail"])
+        handler = self._routes().get(route)
+        if handler is None:
+            raise web.HTTPNotFound()
+        query = dict(request.query)
+        if request.method in ("POST", "PUT"):
+            try:
+                body = await request.json()
+            except ValueError:
+                raise web.HTTPBadRequest() from None
+            if isinstance(body, dict):
+                query.update(body)
+        try:
+            answer = handler(query)
+        except (KeyError, ValueError, TypeError):
+            raise web.HTTPBadRequest() from None
+        return web.json_response(answer)
+
+    def _routes(self) -> dict[tuple[str, str], Callable[[dict[str, Any]], Any]]:
+        model = self.device.model
+        run = self._run
+        return {
+            ("GET", "/token"): self._token,
+            ("GET", "/system/info"): lambda q: {
+                "battery": self.battery(),
+                "camera_rgb": 30,
+                "camera_depth": 30,
+                "odom": 50,
+                "imu": 100,
+                "camera_processed": 30,
+                "info": {**VERSION, "id": "SIM", "mac": "00:00:00:00:00:00", "port": 3546},
+            },
+            ("GET", "/system/status"): lambda q: {"status": self._system_status()},
+            ("PUT", "/system/speed"): lambda q: self._speed(q),
+            ("GET", "/system/shutdown"): lambda q: run(cmd.ShutdownHost(), {"result": True}),
+            ("GET", "/system/tts"): self._say,
+            ("GET", "/map/start"): lambda q: run(cmd.StartMapping(), {"result": True}),
+            ("GET", "/map/stop"): lambda q: run(cmd.StopMapping(), {"result": True}),
+            ("GET", "/map/image"): lambda q: list(MAPS),
+            ("GET", "/navigation/start"): self._start,
+            ("GET", "/navigation/stop"): lambda q: run(
+                cmd.StopNavigation(), {"result": True, "description": ""}
+            ),
+            ("GET", "/navigation/current_path"): lambda q: dict(
+                zip(("map", "path"), self.current, strict=True)
+            ),
+            ("GET", "/navigation/current_map"): lambda q: {"name": self.current[0], "md5sum": ""},
+            ("GET", "/navigation/reload"): self._reload,
+            ("GET", "/navigation/nav_points"): self._nav_points,
+            ("GET", "/navigation/move_to_index"): lambda q: self._goal(
+                int(q["index"]), {"type": "nav_action", "index": int(q["index"])}
+            ),
+            ("POST", "/navigation/start_nav_task"): self._pose_goal,
+            ("GET", "/navigation/stop_nav_task"): lambda q: self._stop_task(),
+            ("GET", "/navigation/go_charge"): lambda q: run(
+                cmd.StartCharging(), self._keep(_task("charge task", {"type": "charge_action"}))
+            ),
+            ("GET", "/navigation/stop_charge"): lambda q: run(
+                cmd.StopCharging(), {"status": "OK", "task": None}
+            ),
+            ("GET", "/task"): lambda q: (
+                self.tasks[q["id"]] if "id" in q else list(self.tasks.values())
+            ),
+            ("GET", "/task/pause"): lambda q: self._task_verb(q, cmd.Pause()),
+            ("GET", "/task/resume"): lambda q: self._task_verb(q, cmd.Resume()),
+            ("GET", "/task/stop"): lambda q: self._task_verb(q, cmd.Cancel()),
+            ("GET", "/navigation/pose"): lambda q: {
+                "x": model.x,
+                "y": model.y,
+                "angle": math.degrees(model.theta),
+            },
+        }
+
+    def battery(self) -> int:
+        """The battery in percent, from the model's voltage between 20 V and full."""
+        config = self.device.config
+        share = (self.device.model.power - 20.0) / (config.power_full - 20.0)
+        return max(0, min(100, round(share * 100)))
+
+    def _system_status(self) -> str:
+        model = self.device.model
+        if model.busy:
+            return "Busy"
+        if model.map_status == 1:
+            return "Mapping"
+        return "Navigating" if model.nav_status == 1 else "Free"
+
+    def _run(self, command: cmd.Command, answer: Any) -> Any:
+        self.device.execute([command])
+        return answer
+
+    def _keep(self, task: dict[str, Any]) -> dict[str, Any]:
+        self.tasks[task["id"]] = task
+        return task
+
+    def _token(self, query: dict[str, Any]) -> Any:
+        if (query.get("username"), query.get("password")) != self._login:
+            return {"result": False}
+        token = uuid.uuid4().hex
+        self.tokens.add(token)
+        return {"result": True, "token": token}
+
+    def _say(self, query: dict[str, Any]) -> Any:
+        self.spoken.append(str(query["text"]))
+        return {"status": "OK"}
+
+    def _speed(self, query: dict[str, Any]) -> Any:
+        self.device.model.set_speed(float(query["speed_x"]), float(query["speed_angle"]))
+        return {"result": True}
+
+    def _start(self, query: dict[str, Any]) -> Any:
+        name, path = str(query["map"]), str(query["path"])
+        if path not in MAPS.get(name, ()):
+            return {"result": False, "description": f"no map {name!r} with path {path!r}"}
+        self.current = (name, path)
+        return self._run(cmd.StartNavigation(), {"result": True, "description": ""})
+
+    def _reload(self, query: dict[str, Any]) -> Any:
+        name = str(query["map"])
+        path = str(query.get("path") or MAPS.get(name, ("",))[0])
+        if path not in MAPS.get(name, ()):
+            raise web.HTTPNotFound()
+        self.current = (name, path)
+        return {"status": "ok", "map": name, "path": path}
+
+    def _nav_points(self, query: dict[str, Any]) -> Any:
+        name = str(query.get("map_name", self.current[0]))
+        path = str(query.get("path_name", self.current[1]))
+        lines = "".join(f"{x} {y} 0 0 0.1 0.1 0\n" for x, y in self.device.model.targets)
+        return {"map_name": name, "path_name": path, "path_data": lines}
+
+    def _goal(self, goal_id: int, action: dict[str, Any]) -> Any:
+        self._end_nav("CANCELLED")
+        task = self._keep(_task("navigation task", action))
+        if goal_id >= 0:
+            self.device.execute([cmd.Goto(goal_id)])
+        model = self.device.model
+        running = model.target_num_id == goal_id and model.target_status in (1, 2)
+        if running or (goal_id >= 0 and model.pending):
+            task["current_task"]["state"] = "WORKING"
+            self._nav = (task, goal_id)
+        else:
+            task["state"] = task["current_task"]["state"] = "ERROR"
+        return task
+
+    def _pose_goal(self, query: dict[str, Any]) -> Any:
+        x, y, theta = float(query["x"]), float(query["y"]), float(query["theta"])
+        self.device.model.goto_pose(x, y)
+        return self._goal(-2, {"type": "nav_action", "x": x, "y": y, "theta": theta})
+
+    def _stop_task(self) -> Any:
+        task = self._nav[0] if self._nav is not None else None
+        self.device.execute([cmd.Cancel()])
+        self._end_nav("CANCELLED")
+        return task or {}
+
+    def _task_verb(self, query: dict[str, Any], command: cmd.Command) -> Any:
+        task = self.tasks[query["id"]]
+        if isinstance(command, cmd.Cancel):
+            self._stop_task()
+        elif self._nav is not None and self._nav[0] is task:
+            self.device.execute([command])
+        return task
+
+    def _end_nav(self, state: str) -> None:
+        if self._nav is not None:
+            task = self._nav[0]
+            task["state"] = task["current_task"]["state"] = state
+            task["progress"] = 100 if state == "COMPLETE" else task["progress"]
+            self._nav = None
+
+    # --- status ------------------------------------------------------------------------
+
+    async def _status_socket(self, request: web.Request) -> web.StreamResponse:
+        ws = web.WebSocketResponse(autoping=False)
+        await ws.prepare(request)
+        outbox: asyncio.Queue[str] = asyncio.Queue(maxsize=_OUTBOX)
+        self.sockets[ws] = (request, outbox)
+        self.device.listeners[self] = None
+        self.device.start()
+        sender = asyncio.create_task(self._send(ws, outbox))
+        try:
+            async for message in ws:  # only pings are read: each is answered and counted
+                if message.type is WSMsgType.PING:
+                    self.pings += 1
+                    self.pinged.set()
+                    await ws.pong(message.data)
+        finally:
+            self.sockets.pop(ws, None)
+            sender.cancel()
+            await asyncio.wait([sender])
+        return ws
+
+    @staticmethod
+    async def _send(ws: web.WebSocketResponse, outbox: asyncio.Queue[str]) -> None:
+        while True:
+            text = await outbox.get()
+            try:
+                await ws.send_str(text)
+            except (ConnectionError, RuntimeError):
+                return
+
+    def send_statuses(self, frames: list[WireValues]) -> None:
+        """Each frame as one JSON message to every WebSocket; navigation tasks follow it."""
+        for values in frames:
+            self._follow(values)
+        if not self.sockets or not frames:
+            return
+        seq = self.device.model.time_stamp
+        for values in frames:
+            message = dict(zip(_JSON_NAMES, values, strict=True))
+            text = json.dumps({"header": {"seq": seq, "frame_id": ""}, **message})
+            for _, outbox in self.sockets.values():
+                if outbox.full():  # a slow reader gets the newest statuses
+                    outbox.get_nowait()
+                outbox.put_nowait(text)
+
+    def _follow(self, values: WireValues) -> None:
+        if self._nav is None:
+            return
+        task, goal_id = self._nav
+        shown, status = values[_ID], values[_STATUS]
+        if shown == goal_id and status in (1, 2):
+            task["current_task"]["state"] = "WORKING"
+        elif shown == goal_id and status == 0 and task["current_task"]["state"] == "WORKING":
+            arrived = values[_DISTANCE] <= self.device.config.arrival_distance + 0.05
+            self._end_nav("COMPLETE" if arrived else "ERROR")
+        elif shown == goal_id and status in (3, -1):
+            self._end_nav("ERROR")
+        elif not self.device.model.pending:
+            self._end_nav("CANCELLED")
+
+    def close(self) -> None:
+        """Stop serving at once: every WebSocket dropped, every request refused."""
+        self.closed = True
+        self.device.listeners.pop(self, None)
+        for request, _ in list(self.sockets.values()):
+            if request.transport is not None:
+                request.transport.abort()
+
+    async def aclose(self) -> None:
+        """close(), then stop listening."""
+        self.close()
+        for runner in self._runners:
+            await runner.cleanup()
+        self._runners.clear()
