@@ -233,7 +233,9 @@ async def test_following_stops_on_every_cancellation_route(how: str) -> None:
             states = robot.link_states()
             assert await next_state(states) is LinkState.UP
             await robot.close()
-            assert [state async for state in states] == [LinkState.CLOSED]
+            rest = [state async for state in states]  # ends after CLOSED
+            # A loaded machine may let the short stale_timeout pass before the close.
+            assert rest in ([LinkState.CLOSED], [LinkState.STALE, LinkState.CLOSED]), rest
         finally:
             await robot.close()
 
