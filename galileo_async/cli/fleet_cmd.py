@@ -16,7 +16,7 @@ from .fleet_view import SORT_KEYS, FleetView
 from .goals import aclose
 from .map_render import save_svg
 from .render import event_text
-from .runner import ExitCode, fail, out_console, run, settings_of
+from .runner import ExitCode, fail, out_console, run, settings_of, timestamp
 from .watch import SvgOption, TargetsOption, map_model
 
 if TYPE_CHECKING:
@@ -67,9 +67,14 @@ def status(
     match: MatchOption = "",
     state: StateOption = None,
     rows: RowsOption = 1000,
+    json_output: Annotated[bool, typer.Option("--json", help="JSON lines, one per robot.")] = False,
 ) -> None:
-    """One table of every robot (JSON lines with --json), once every robot was tried."""
+    """One table of every robot (JSON lines with --json), once every robot was tried.
+
+    Exits 7 (connection) unless every robot is up.
+    """
     settings, spec = settings_of(ctx), _spec(ctx)
+    settings.json = settings.json or json_output
     states = _view_options(sort, state)
 
     async def main() -> int:
@@ -78,12 +83,15 @@ def status(
                              limit=rows)  # fmt: skip
             view.latest = {name: fleet[name].status for name in fleet if _has_status(fleet, name)}
             console = out_console()
+            view.width = console.width
             if settings.json:
                 for row in view.rows()[:rows]:
-                    console.print(json.dumps(row.as_dict()), markup=False)
+                    line = {"time": timestamp()} | row.as_dict()
+                    console.print(json.dumps(line), markup=False, soft_wrap=True)
             else:
                 console.print(view.table())
-        return 0
+            up = all(fleet.state(name) is RobotState.UP for name in fleet)
+        return ExitCode.OK if up else ExitCode.CONNECTION
 
     run(settings, main)
 
@@ -144,6 +152,7 @@ async def _watch(fleet: Fleet, view: FleetView, duration: float | None) -> None:
             await aclose(stream)
 
     console = out_console()
+    view.width = console.width
     async with anyio.create_task_group() as group:
         group.start_soon(follow_statuses)
         group.start_soon(follow_events)
@@ -151,5 +160,6 @@ async def _watch(fleet: Fleet, view: FleetView, duration: float | None) -> None:
             with anyio.move_on_after(duration if duration is not None else float("inf")):
                 while True:
                     await anyio.sleep(1 / FLEET_REFRESH)
+                    view.width = console.width
                     live.update(view.screen(), refresh=True)
         group.cancel_scope.cancel()

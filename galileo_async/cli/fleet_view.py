@@ -17,8 +17,18 @@ from ..fleet.fleet import Fleet
 from ..models import GalileoStatus, LinkState, TargetStatus
 from .map_model import MapModel
 from .map_render import map_panel
+from .render import rounded
 
-__all__ = ["SORT_KEYS", "FleetRow", "FleetView", "fleet_rows", "summary_line"]
+__all__ = [
+    "COLUMNS",
+    "DROP_ORDER",
+    "SORT_KEYS",
+    "FleetRow",
+    "FleetView",
+    "fleet_rows",
+    "row_cells",
+    "summary_line",
+]
 
 #: Link state colours of the table.
 _STATE_STYLES = {LinkState.UP: "green", LinkState.STALE: "yellow", LinkState.LOST: "red",
@@ -34,6 +44,7 @@ class FleetRow:
     age: float | None
     nav: str
     visual: str
+    charge: str
     goal: int | None
     goal_state: str
     distance: float | None
@@ -44,18 +55,28 @@ class FleetRow:
     last_event: str
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready values."""
-        return {**self.__dict__, "state": self.state.value}
+        """JSON-ready values, numbers rounded as shown (render.rounded), null when unknown."""
+        values = {**self.__dict__, "state": self.state.value}
+        return {
+            key: rounded(key, value)
+            if isinstance(value, float)
+            else None
+            if value == "—"
+            else value
+            for key, value in values.items()
+        }
 
 
-_NAMES: dict[Any, str] = {}
+#: Keyed by (type, value): members of different IntEnums with one value compare equal.
+_NAMES: dict[tuple[type, Any], str] = {}
 
 
 def _low(value: Any) -> str:
     """An enum's lower-case name ("—" for None), cached: a thousand robots a render."""
-    text = _NAMES.get(value)
+    key = (type(value), value)
+    text = _NAMES.get(key)
     if text is None:
-        text = _NAMES[value] = "—" if value is None else str(getattr(value, "name", value)).lower()
+        text = _NAMES[key] = "—" if value is None else str(getattr(value, "name", value)).lower()
     return text
 
 
@@ -72,7 +93,7 @@ def fleet_rows(
         age = None if seen is None else now - seen
         event = events.get(name) or _failure(fleet, name)
         if status is None:
-            rows.append(FleetRow(name, state, age, "—", "—", None, "—", None, None, None, None,
+            rows.append(FleetRow(name, state, age, "—", "—", "—", None, "—", None, None, None, None,
                                  None, event))  # fmt: skip
             continue
         x, y, theta = status.current_pose_x, status.current_pose_y, status.current_angle
@@ -81,7 +102,8 @@ def fleet_rows(
         goal = status.target_num_id
         rows.append(FleetRow(
             name, state, age, _low(status.nav_status), _low(status.visual_status),
-            goal if goal is not None and goal >= 0 else None, _low(status.target_status),
+            _low(status.charge_status), goal if goal is not None and goal >= 0 else None,
+            _low(status.target_status),
             status.target_distance, x, y, None if theta is None else math.degrees(theta),
             status.power, event,
         ))  # fmt: skip
@@ -109,34 +131,64 @@ SORT_KEYS: dict[str, Callable[[FleetRow], Any]] = {
 
 
 def summary_line(rows: list[FleetRow]) -> str:
-    """``N robots · connecting C · up U · stale S · lost L · closed D · goals running G``."""
+    """``N robots · up U · lost L · goals running G``: the link states with robots in them."""
     counts = {state: 0 for state in LinkState}
     for row in rows:
         counts[row.state] += 1
     running = sum(1 for row in rows if row.goal_state == TargetStatus.WORKING.name.lower())
-    states = " · ".join(f"{state.value} {counts[state]}" for state in LinkState)
-    return f"{len(rows)} robots · {states} · goals running {running}"
+    states = " · ".join(f"{state.value} {counts[state]}" for state in LinkState if counts[state])
+    return " · ".join(part for part in (f"{len(rows)} robots", states, f"goals running {running}")
+                      if part)  # fmt: skip
 
 
 def _number(value: float | None, form: str) -> str:
     return "—" if value is None or math.isnan(value) else format(value, form)
 
 
-def _table(rows: list[FleetRow], limit: int) -> Table:
-    table = Table(box=None, pad_edge=False, header_style="bold")
-    for column in ("robot", "link", "age", "nav", "visual", "goal", "distance", "pose", "power"):
-        table.add_column(column, no_wrap=True, min_width=len(column))
-    table.add_column("last event", no_wrap=True, overflow="ellipsis", max_width=30)
-    for row in rows[:limit]:
-        pose = "—" if row.x is None or row.y is None else (
-            f"{row.x:+.2f} {row.y:+.2f} {_number(row.heading, '+.0f')}°")  # fmt: skip
-        goal = "—" if row.goal is None else f"{row.goal} {row.goal_state}"
-        table.add_row(
-            row.name, Text(row.state.value, style=_STATE_STYLES[row.state]),
-            "—" if row.age is None else f"{row.age * 1000:.0f} ms", row.nav, row.visual, goal,
-            "—" if row.distance is None or row.distance < 0 else f"{row.distance:.2f} m", pose,
-            "—" if row.power is None else f"{row.power:.1f} V", row.last_event,
-        )  # fmt: skip
+#: Columns of the table in order; the narrow screen drops them from the end of DROP_ORDER.
+COLUMNS = ("robot", "link", "age", "nav", "visual", "charge", "goal", "distance", "pose",
+           "power", "last event")  # fmt: skip
+#: Least important first: what a narrow screen drops, one column at a time, until it fits.
+DROP_ORDER = ("age", "last event", "visual", "charge", "pose", "power", "distance", "nav")
+
+
+def row_cells(row: FleetRow) -> dict[str, str | Text]:
+    pose = "—" if row.x is None or row.y is None else (
+        f"{row.x:+.2f} {row.y:+.2f} {_number(row.heading, '+.0f')}°")  # fmt: skip
+    return {
+        "robot": row.name, "link": Text(row.state.value, style=_STATE_STYLES[row.state]),
+        "age": "—" if row.age is None else f"{row.age * 1000:.0f} ms", "nav": row.nav,
+        "visual": row.visual, "charge": row.charge,
+        "goal": "—" if row.goal is None else f"{row.goal} {row.goal_state}",
+        "distance": "—" if row.distance is None or row.distance < 0 else f"{row.distance:.2f} m",
+        "pose": pose, "power": "—" if row.power is None else f"{row.power:.1f} V",
+        "last event": row.last_event,
+    }  # fmt: skip
+
+
+def _columns(cells: list[dict[str, str | Text]], width: int) -> list[str]:
+    """The columns that fit ``width`` (2 spaces between), dropping by DROP_ORDER."""
+    widths = {name: max([len(name), *(len(str(cell[name])) for cell in cells)]) for name in COLUMNS}
+    widths["last event"] = min(widths["last event"], 30)
+    shown = list(COLUMNS)
+    for name in DROP_ORDER:
+        if sum(widths[column] for column in shown) + 2 * (len(shown) - 1) <= width:
+            break
+        shown.remove(name)
+    return shown
+
+
+def _table(rows: list[FleetRow], limit: int, width: int) -> Table:
+    cells = [row_cells(row) for row in rows[:limit]]
+    table = Table(box=None, pad_edge=False, header_style="bold", padding=(0, 1))
+    shown = _columns(cells, width)
+    for column in shown:
+        if column == "last event":
+            table.add_column(column, no_wrap=True, overflow="ellipsis", max_width=30)
+        else:
+            table.add_column(column, no_wrap=True, min_width=len(column))
+    for cell in cells:
+        table.add_row(*(cell[column] for column in shown))
     return table
 
 
@@ -146,6 +198,7 @@ class FleetView:
     def __init__(
         self, fleet: Fleet, model: MapModel, *, sort: str = "name", match: str = "",
         states: set[LinkState] | None = None, limit: int = 20, map_rows: int = 16,
+        width: int = 200,
     ) -> None:  # fmt: skip
         self.fleet = fleet
         self.model = model
@@ -154,6 +207,8 @@ class FleetView:
         self.states = states
         self.limit = limit
         self.map_rows = map_rows
+        #: Columns of the screen: the table drops its least important columns to fit.
+        self.width = width
         #: Newest statuses not yet on the map, and every robot's latest.
         self.changed: dict[str, GalileoStatus] = {}
         self.latest: dict[str, GalileoStatus] = {}
@@ -175,7 +230,9 @@ class FleetView:
         more = len(rows) - self.limit
         shown = f" · showing {self.limit} of {len(rows)} (--rows)" if more > 0 else ""
         title = f"galileo fleet · {summary_line(every)}"
-        return Panel(_table(rows, self.limit), title=title, subtitle=f"sort {self.sort}{shown}")
+        # The panel's border and padding take 4 columns.
+        table = _table(rows, self.limit, self.width - 4)
+        return Panel(table, title=title, subtitle=f"sort {self.sort}{shown}")
 
     def screen(self) -> RenderableType:
         """Move the changed robots on the map, then the whole screen."""
