@@ -104,7 +104,12 @@ def test_a_fleet_files_robot_by_name(config_home: Path, tmp_path: Path) -> None:
 
 
 def test_show_completion_prints_a_script() -> None:
-    result = galileo("--show-completion", "bash", config_home=Path("/nonexistent"))
+    # Typer detects the shell from the parent process (sh under CI, where it refuses);
+    # its test switch makes the shell an argument instead.
+    result = galileo(
+        "--show-completion", "bash", config_home=Path("/nonexistent"),
+        _TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION="1",
+    )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "_GALILEO_COMPLETE" in result.stdout
 
