@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, unquote, urlsplit
@@ -49,6 +50,7 @@ class HttpAddress:
         password: SecretStr | None = None,
         token: SecretStr | None = None,
         ws_port: int = DEFAULT_WS_PORT,
+        ca_file: str | None = None,
     ) -> None:
         self.base_url = base_url
         self.host = host
@@ -57,6 +59,8 @@ class HttpAddress:
         self.password = password
         self.token = token
         self.ws_port = ws_port
+        #: The PEM file of the CAs https:// and wss:// trust (None: the system's).
+        self.ca_file = ca_file
 
     def __repr__(self) -> str:
         return f"<HttpAddress {self.base_url} user={self.username!r}>"
@@ -112,6 +116,9 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
     username = given.get("username")
     if username is not None and not (isinstance(username, str) and username):
         raise InvalidArgument(f"username must be a non-empty string or None, got {username!r}")
+    ca_file = (options or {}).get("ca_file")
+    if ca_file is not None and scheme != "https":
+        raise InvalidArgument(f"ca_file applies to https:// only, not to {shown!r}")
     host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
     return HttpAddress(
         f"{scheme}://{host}:{port}",
@@ -121,6 +128,7 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
         password=_secret("password", given.get("password")),
         token=_secret("token", given.get("token")),
         ws_port=_port("ws_port", given.get("ws_port", DEFAULT_WS_PORT)),
+        ca_file=None if ca_file is None else os.fspath(ca_file),
     )
 
 
