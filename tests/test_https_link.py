@@ -1,4 +1,4 @@
-"""https:// and wss:// against the simulator's HTTP face served over TLS (a test CA), on loopback."""
+"""https:// and wss:// against the simulator's HTTP face over TLS (a test CA), on loopback."""
 
 from __future__ import annotations
 
