@@ -75,9 +75,7 @@ async def test_without_the_ca_the_certificate_is_refused_and_nothing_sent(
         assert sim.state.status.target_status != TargetStatus.WORKING
 
 
-async def test_a_ca_that_did_not_sign_the_server_is_refused(
-    tls: MutualTls, tmp_path: Path
-) -> None:
+async def test_a_ca_that_did_not_sign_the_server_is_refused(tls: MutualTls, tmp_path: Path) -> None:
     other = make_mutual_tls(tmp_path)
     async with tls_face(tls) as (_sim, face, url):
         with pytest.raises(GalileoConnectionError, match="certificate verify failed"):
