@@ -5,6 +5,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import ssl
+import subprocess
+import sys
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -95,3 +97,42 @@ async def test_a_ca_that_did_not_sign_the_server_is_refused(tls: MutualTls, tmp_
 def test_bad_ca_file_is_invalid_before_anything_opens(url: str, value: object, words: str) -> None:
     with pytest.raises(InvalidArgument, match=words):
         galileo.connect(url, ca_file=value)
+
+
+def test_cli_sim_over_tls_and_status_with_ca_file_in_the_url(tls: MutualTls) -> None:
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "galileo_async", "sim", "--http", "0", "--ws-port", "0",
+         "--tls-cert", str(tls.server_cert), "--tls-key", str(tls.server_key)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    try:
+        assert sim.stdout is not None
+        url = sim.stdout.readline().strip()
+        assert url.startswith("https://127.0.0.1:"), url
+        status = [sys.executable, "-m", "galileo_async", "-p"]
+        trusted = subprocess.run(
+            [*status, f"{url}{'&' if '?' in url else '?'}ca_file={tls.ca}", "status", "--json"],
+            capture_output=True, text=True, timeout=WAIT * 3,
+        )  # fmt: skip
+        assert trusted.returncode == 0, trusted.stderr
+        assert '"layout": "ros"' in trusted.stdout
+        refused = subprocess.run(
+            [*status, url, "status", "--json"], capture_output=True, text=True, timeout=WAIT * 3
+        )
+        assert refused.returncode != 0
+        assert "certificate verify failed" in refused.stdout + refused.stderr
+    finally:
+        sim.terminate()
+        sim.communicate(timeout=WAIT)
+
+
+def test_cli_sim_tls_needs_both_files_and_http(tls: MutualTls) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "galileo_async", "sim", "--http", "0",
+         "--tls-cert", str(tls.server_cert)],
+        capture_output=True, text=True, timeout=WAIT * 3,
+    )  # fmt: skip
+    assert result.returncode != 0
+    assert "--tls-cert and --tls-key go together" in result.stdout + result.stderr

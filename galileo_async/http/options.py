@@ -18,6 +18,7 @@ from ..options import (
     check_options,
     names_for,
 )
+from ..options.checks import check_ca_file
 
 __all__ = [
     "DEFAULT_HTTP_PORT",
@@ -90,7 +91,7 @@ def _secret(name: str, value: object) -> SecretStr | None:
 
 
 def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAddress:
-    """``http[s]://[user:password@]host[:port][?token=…&ws_port=…]`` plus options → address.
+    """``http[s]://[user:password@]host[:port][?token=…&ws_port=…&ca_file=…]`` + options → address.
 
     Options win over the URL. InvalidArgument (never showing a secret) when malformed.
     """
@@ -105,7 +106,7 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
         raise InvalidArgument(f"bad port in {shown!r}") from None
     given: dict[str, Any] = {}
     for key, values in parse_qs(parts.query).items():
-        if key not in ("token", "ws_port", "username", "password"):
+        if key not in ("token", "ws_port", "username", "password", "ca_file"):
             raise InvalidArgument(f"unknown option {key!r} in {shown!r}")
         given[key] = values[-1]
     if parts.username:
@@ -116,7 +117,8 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
     username = given.get("username")
     if username is not None and not (isinstance(username, str) and username):
         raise InvalidArgument(f"username must be a non-empty string or None, got {username!r}")
-    ca_file = (options or {}).get("ca_file")
+    ca_file = given.get("ca_file")
+    check_ca_file("ca_file", ca_file)
     if ca_file is not None and scheme != "https":
         raise InvalidArgument(f"ca_file applies to https:// only, not to {shown!r}")
     host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
