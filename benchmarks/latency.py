@@ -14,6 +14,10 @@ same loop turns for the driver and its baseline:
 * **command → bytes**: t0 just before ``await robot.forward(20)``; t1 when the device's
   ``data_received`` gets the bytes. Baseline: ``transport.write(encode(Forward(20)))``.
   Samples are spaced beyond the driver's 10 ms command pacing, so pacing never delays one.
+* **status age**: from the device's send (time.monotonic) to ``robot.link.last_frame_at``,
+  set when the status reached the store; over socket://, udp:// and http:// in one run.
+
+The loops are latency_loops.py's, shared by the three links.
 """
 
 from __future__ import annotations
