@@ -14,6 +14,10 @@ same loop turns for the driver and its baseline:
 * **command → bytes**: t0 just before ``await robot.forward(20)``; t1 when the device's
   ``data_received`` gets the bytes. Baseline: ``transport.write(encode(Forward(20)))``.
   Samples are spaced beyond the driver's 10 ms command pacing, so pacing never delays one.
+* **status age**: from the device's send (time.monotonic) to ``robot.link.last_frame_at``,
+  set when the status reached the store; over socket://, udp:// and http:// in one run.
+
+The loops are latency_loops.py's, shared by the three links.
 """
 
 from __future__ import annotations
@@ -30,13 +34,13 @@ from galileo_async.protocol.commands import Forward
 
 from .common import Row, percentile
 from .latency_http import http_command_latency, http_status_latency
+from .latency_loops import Arrivals, bare_status, driver_status, timed_commands
 from .latency_udp import udp_command_latency, udp_status_latency
 
 __all__ = ["run"]
 
 _UNPACK = LAYOUTS[StatusLayout.V2].struct.unpack_from
 _STAMP = LAYOUTS[StatusLayout.V2].fields.index("time_stamp")
-COMMAND_GAP = 0.012  # above the 10 ms pacing
 
 
 def _frame(time_stamp: int) -> bytes:
@@ -95,104 +99,64 @@ async def _serve(on_bytes: Callable[[float], None]) -> tuple[asyncio.Server, lis
     return server, devices
 
 
-async def _status_latency(samples: int) -> tuple[list[float], list[float]]:
-    arrivals: list[float] = []
-    server, devices = await _serve(arrivals.append)
+async def _status_latency(samples: int) -> tuple[list[float], list[float], list[float]]:
+    arrivals = Arrivals()
+    server, devices = await _serve(arrivals)
     port = server.sockets[0].getsockname()[1]
-    driver: list[float] = []
-    bare: list[float] = []
-    perf = time.perf_counter
+
+    async def send(k: int) -> None:
+        assert devices[-1].transport is not None
+        devices[-1].transport.write(_frame(k))
+
     try:
         robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
         try:
-            device = devices[-1]
-            assert device.transport is not None
-            for k in range(2, samples + 2):
-                frame = _frame(k)
-
-                def wanted(status: GalileoStatus, k: int = k) -> bool:
-                    return status.time_stamp == k
-
-                waiter = asyncio.create_task(robot.wait_until(wanted, timeout=5))
-                await asyncio.sleep(0)  # registered before the frame is written
-                t0 = perf()
-                device.transport.write(frame)
-                await waiter
-                driver.append(perf() - t0)
+            driver, ages = await driver_status(robot, send, _time_stamp, samples)
         finally:
             await robot.close()
         loop = asyncio.get_running_loop()
         transport, bare_host = await loop.create_connection(_Bare, "127.0.0.1", port)
+
+        async def wait(k: int) -> None:
+            future: asyncio.Future[None] = loop.create_future()
+            bare_host.waiting = (k, future)
+            await future
+
         try:
             await devices[-1].connected
-            device = devices[-1]
-            assert device.transport is not None
-            for k in range(2, samples + 2):
-                frame = _frame(k)
-                future: asyncio.Future[None] = loop.create_future()
-                bare_host.waiting = (k, future)
-
-                async def wait(future: asyncio.Future[None] = future) -> None:
-                    await asyncio.wait_for(future, 5)
-
-                bare_waiter = asyncio.create_task(wait())
-                await asyncio.sleep(0)
-                t0 = perf()
-                device.transport.write(frame)
-                await bare_waiter
-                bare.append(perf() - t0)
+            bare = await bare_status(send, wait, samples)
         finally:
             transport.close()
     finally:
         server.close()
         await server.wait_closed()
-    return driver, bare
+    return driver, bare, ages
+
+
+def _time_stamp(status: GalileoStatus) -> int | None:
+    return status.time_stamp
 
 
 async def _command_latency(samples: int) -> tuple[list[float], list[float]]:
-    arrivals: list[float] = []
-    arrived = asyncio.Event()
-
-    def on_bytes(when: float) -> None:
-        arrivals.append(when)
-        arrived.set()
-
-    server, _devices = await _serve(on_bytes)
+    arrivals = Arrivals()
+    server, _devices = await _serve(arrivals)
     port = server.sockets[0].getsockname()[1]
-    perf = time.perf_counter
-    driver: list[float] = []
-    bare: list[float] = []
-
-    async def arrival(before: int) -> float:
-        while len(arrivals) == before:
-            arrived.clear()
-            await arrived.wait()
-        return arrivals[before]
-
     try:
         robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
         try:
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(arrivals)
-                t0 = perf()
-                await robot.forward(20)
-                t1 = await asyncio.wait_for(arrival(before), 5)
-                driver.append(t1 - t0)
+            driver = await timed_commands(lambda: robot.forward(20), arrivals, samples)
         finally:
             await robot.close()
         loop = asyncio.get_running_loop()
         transport, _host = await loop.create_connection(asyncio.Protocol, "127.0.0.1", port)
         assert isinstance(transport, asyncio.WriteTransport)
+        data = encode(Forward(20))
+
+        async def write() -> None:
+            transport.write(data)
+
         try:
-            data = encode(Forward(20))
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(arrivals)
-                t0 = perf()
-                transport.write(data)
-                t1 = await asyncio.wait_for(arrival(before), 5)
-                bare.append(t1 - t0)
+            bare = await timed_commands(write, arrivals, samples)
         finally:
             transport.close()
     finally:
@@ -213,14 +177,26 @@ def _rows(name: str, driver: list[float], bare: list[float]) -> list[Row]:
     ]  # fmt: skip
 
 
+def _age_rows(name: str, ages: list[float], socket_ages: list[float] | None) -> list[Row]:
+    ms = 1000
+    base = "socket://" if socket_ages is not None else ""
+    return [
+        Row("latency", f"{name} status age (device send → store) p{q}",
+            percentile(ages, q) * ms, "ms",
+            None if socket_ages is None else percentile(socket_ages, q) * ms, base, "", None,
+            {"samples": len(ages)})
+        for q in (50, 99)
+    ]  # fmt: skip
+
+
 def run(*, quick: bool = False) -> list[Row]:
-    """Measure both latencies, over socket://, udp:// and http://."""
+    """Measure both latencies and the status age, over socket://, udp:// and http://."""
     samples = 300 if quick else 2000
-    status_driver, status_bare = asyncio.run(_status_latency(samples))
+    status_driver, status_bare, ages = asyncio.run(_status_latency(samples))
     command_driver, command_bare = asyncio.run(_command_latency(samples // 4))
-    udp_status_driver, udp_status_bare = asyncio.run(udp_status_latency(samples))
+    udp_status_driver, udp_status_bare, udp_ages = asyncio.run(udp_status_latency(samples))
     udp_command_driver, udp_command_bare = asyncio.run(udp_command_latency(samples // 4))
-    http_status_driver, http_status_bare = asyncio.run(http_status_latency(samples))
+    http_status_driver, http_status_bare, http_ages = asyncio.run(http_status_latency(samples))
     http_command_driver, http_command_bare = asyncio.run(http_command_latency(samples // 4))
     return [
         *_rows("status frame → wait_until woken", status_driver, status_bare),
@@ -229,4 +205,7 @@ def run(*, quick: bool = False) -> list[Row]:
         *_rows("udp:// robot.forward() → datagram at device", udp_command_driver, udp_command_bare),
         *_rows("http:// WebSocket status → wait_until woken", http_status_driver, http_status_bare),
         *_rows("http:// send(Velocity) → PUT at device", http_command_driver, http_command_bare),
+        *_age_rows("socket://", ages, None),
+        *_age_rows("udp://", udp_ages, ages),
+        *_age_rows("http://", http_ages, ages),
     ]

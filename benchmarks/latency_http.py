@@ -17,17 +17,18 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from typing import Any
 
 import aiohttp
 from aiohttp import web
 
 import galileo_async
+from galileo_async import GalileoStatus
 from galileo_async.protocol import Velocity
+
+from .latency_loops import Arrivals, bare_status, driver_status, timed_commands
 
 __all__ = ["http_command_latency", "http_status_latency"]
 
-COMMAND_GAP = 0.012  # above the 10 ms pacing
 _FIELDS = {
     "navStatus": 1, "visualStatus": 1, "mapStatus": 0, "gcStatus": 0, "gbaStatus": 0,
     "chargeStatus": 0, "loopStatus": 0, "power": 24.0, "targetNumID": 0, "targetStatus": 0,
@@ -47,8 +48,7 @@ class _Device:
     def __init__(self) -> None:
         self.sockets: list[web.WebSocketResponse] = []
         self.connected = asyncio.Event()
-        self.arrivals: list[float] = []
-        self.arrived = asyncio.Event()
+        self.arrivals = Arrivals()
         self.runner: web.AppRunner | None = None
         self.port = 0
 
@@ -75,8 +75,7 @@ class _Device:
         return ws
 
     async def _speed(self, request: web.Request) -> web.Response:
-        self.arrivals.append(time.perf_counter())
-        self.arrived.set()
+        self.arrivals(time.perf_counter())
         await request.read()
         return web.json_response({"result": True})
 
@@ -94,27 +93,14 @@ def _url(port: int) -> str:
     return f"http://127.0.0.1:{port}?ws_port={port}"
 
 
-async def http_status_latency(samples: int) -> tuple[list[float], list[float]]:
-    """Device send_str → waiter woken, driver and bare, in seconds."""
+async def http_status_latency(samples: int) -> tuple[list[float], list[float], list[float]]:
+    """Device send_str → waiter woken, driver and bare, and the driver's status ages, seconds."""
     device = _Device()
     await device.start()
-    perf = time.perf_counter
-    driver: list[float] = []
-    bare: list[float] = []
     try:
         robot = await galileo_async.connect(_url(device.port), stale_timeout=None)
         try:
-            for k in range(2, samples + 2):
-
-                def wanted(status: Any, k: int = k) -> bool:
-                    return bool(status.target_num_id == k)
-
-                waiter = asyncio.create_task(robot.wait_until(wanted, timeout=5))
-                await asyncio.sleep(0)
-                t0 = perf()
-                await device.send(k)
-                await waiter
-                driver.append(perf() - t0)
+            driver, ages = await driver_status(robot, device.send, _target, samples)
         finally:
             await robot.close()
         async with (
@@ -122,58 +108,42 @@ async def http_status_latency(samples: int) -> tuple[list[float], list[float]]:
             session.ws_connect(f"ws://127.0.0.1:{device.port}/galileo/status") as ws,
         ):
             await ws.receive()
-            for k in range(2, samples + 2):
 
-                async def wait(k: int = k) -> None:
-                    while json.loads((await ws.receive()).data)["targetNumID"] != k:
-                        pass
+            async def wait(k: int) -> None:
+                while json.loads((await ws.receive()).data)["targetNumID"] != k:
+                    pass
 
-                bare_waiter = asyncio.create_task(wait())
-                await asyncio.sleep(0)
-                t0 = perf()
-                await device.send(k)
-                await bare_waiter
-                bare.append(perf() - t0)
+            bare = await bare_status(device.send, wait, samples)
     finally:
         await device.stop()
-    return driver, bare
+    return driver, bare, ages
+
+
+def _target(status: GalileoStatus) -> int | None:
+    return status.target_num_id
 
 
 async def http_command_latency(samples: int) -> tuple[list[float], list[float]]:
     """robot.send(Velocity) call → PUT at the device, driver and bare, in seconds."""
     device = _Device()
     await device.start()
-    perf = time.perf_counter
-    driver: list[float] = []
-    bare: list[float] = []
-
-    async def arrival(before: int) -> float:
-        while len(device.arrivals) == before:
-            device.arrived.clear()
-            await device.arrived.wait()
-        return device.arrivals[before]
-
     try:
         robot = await galileo_async.connect(_url(device.port), stale_timeout=None)
         try:
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(device.arrivals)
-                t0 = perf()
-                await robot.send(Velocity(0.1, 0.0))
-                driver.append(await asyncio.wait_for(arrival(before), 5) - t0)
+            driver = await timed_commands(
+                lambda: robot.send(Velocity(0.1, 0.0)), device.arrivals, samples
+            )
         finally:
             await robot.close()
         url = f"http://127.0.0.1:{device.port}/api/v1/system/speed"
         body = {"speed_x": 0.1, "speed_y": 0.0, "speed_angle": 0.0}
         async with aiohttp.ClientSession() as session:
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(device.arrivals)
-                t0 = perf()
+
+            async def put() -> None:
                 async with session.put(url, json=body) as response:
                     await response.read()
-                bare.append(device.arrivals[before] - t0)
+
+            bare = await timed_commands(put, device.arrivals, samples)
     finally:
         await device.stop()
     return driver, bare

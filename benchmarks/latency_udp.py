@@ -25,11 +25,12 @@ from galileo_async.protocol import HEADER, UDP_LAYOUTS, encode, encode_status
 from galileo_async.protocol.commands import Forward
 from galileo_async.transports.udp import REGISTRATION
 
+from .latency_loops import Arrivals, bare_status, driver_status, timed_commands
+
 __all__ = ["udp_command_latency", "udp_status_latency"]
 
 _UNPACK = UDP_LAYOUTS[StatusLayout.UDP_V2].struct.unpack_from
 _TARGET_ID = 7  # x, y, reserved, power, flags, angle, target_status, target_num_id, …
-COMMAND_GAP = 0.012  # above the 10 ms pacing
 
 
 def _frame(target_num_id: int) -> bytes:
@@ -88,101 +89,66 @@ async def _device(on_datagram: Callable[[float], None]) -> tuple[_Device, int]:
     return device, int(device.transport.get_extra_info("sockname")[1])
 
 
-async def udp_status_latency(samples: int) -> tuple[list[float], list[float]]:
-    """Device sendto → waiter woken, driver and bare, in seconds."""
+async def udp_status_latency(samples: int) -> tuple[list[float], list[float], list[float]]:
+    """Device sendto → waiter woken, driver and bare, and the driver's status ages, seconds."""
     device, port = await _device(lambda _when: None)
     loop = asyncio.get_running_loop()
-    perf = time.perf_counter
-    driver: list[float] = []
-    bare: list[float] = []
+
+    async def send(k: int) -> None:
+        device.send(_frame(k))
+
     try:
         robot = await galileo_async.connect(f"udp://127.0.0.1:{port}", stale_timeout=None)
         try:
-            for k in range(2, samples + 2):
-                frame = _frame(k)
-
-                def wanted(status: GalileoStatus, k: int = k) -> bool:
-                    return status.target_num_id == k
-
-                waiter = asyncio.create_task(robot.wait_until(wanted, timeout=5))
-                await asyncio.sleep(0)  # registered before the frame is sent
-                t0 = perf()
-                device.send(frame)
-                await waiter
-                driver.append(perf() - t0)
+            driver, ages = await driver_status(robot, send, _target, samples)
         finally:
             await robot.close()
         transport, bare_host = await loop.create_datagram_endpoint(
             _Bare, remote_addr=("127.0.0.1", port)
         )
+
+        async def wait(k: int) -> None:
+            future: asyncio.Future[None] = loop.create_future()
+            bare_host.waiting = (k, future)
+            await future
+
         try:
             transport.sendto(REGISTRATION)
             await asyncio.sleep(0.01)  # the registration reaches the device first
-            for k in range(2, samples + 2):
-                frame = _frame(k)
-                future: asyncio.Future[None] = loop.create_future()
-                bare_host.waiting = (k, future)
-
-                async def wait(future: asyncio.Future[None] = future) -> None:
-                    await asyncio.wait_for(future, 5)
-
-                bare_waiter = asyncio.create_task(wait())
-                await asyncio.sleep(0)
-                t0 = perf()
-                device.send(frame)
-                await bare_waiter
-                bare.append(perf() - t0)
+            bare = await bare_status(send, wait, samples)
         finally:
             transport.close()
     finally:
         assert device.transport is not None
         device.transport.close()
-    return driver, bare
+    return driver, bare, ages
+
+
+def _target(status: GalileoStatus) -> int | None:
+    return status.target_num_id
 
 
 async def udp_command_latency(samples: int) -> tuple[list[float], list[float]]:
     """robot.forward() call → datagram at the device, driver and bare, in seconds."""
-    arrivals: list[float] = []
-    arrived = asyncio.Event()
-
-    def on_datagram(when: float) -> None:
-        arrivals.append(when)
-        arrived.set()
-
-    device, port = await _device(on_datagram)
+    arrivals = Arrivals()
+    device, port = await _device(arrivals)
     loop = asyncio.get_running_loop()
-    perf = time.perf_counter
-    driver: list[float] = []
-    bare: list[float] = []
-
-    async def arrival(before: int) -> float:
-        while len(arrivals) == before:
-            arrived.clear()
-            await arrived.wait()
-        return arrivals[before]
-
     try:
         robot = await galileo_async.connect(f"udp://127.0.0.1:{port}", stale_timeout=None)
         try:
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(arrivals)
-                t0 = perf()
-                await robot.forward(20)
-                driver.append(await asyncio.wait_for(arrival(before), 5) - t0)
+            driver = await timed_commands(lambda: robot.forward(20), arrivals, samples)
         finally:
             await robot.close()
         transport, _ = await loop.create_datagram_endpoint(
             asyncio.DatagramProtocol, remote_addr=("127.0.0.1", port)
         )
+        data = encode(Forward(20))
+
+        async def write() -> None:
+            transport.sendto(data)
+
         try:
-            data = encode(Forward(20))
-            for _ in range(samples):
-                await asyncio.sleep(COMMAND_GAP)
-                before = len(arrivals)
-                t0 = perf()
-                transport.sendto(data)
-                bare.append(await asyncio.wait_for(arrival(before), 5) - t0)
+            bare = await timed_commands(write, arrivals, samples)
         finally:
             transport.close()
     finally:

@@ -34,7 +34,7 @@ URLS = {
     "udp": "udp://127.0.0.1:1",
     "sim": "sim://",
     "ros": "ros://127.0.0.1:1",
-    "http": "http://127.0.0.1:1",
+    "http": "https://127.0.0.1:1",
 }
 #: A value each option takes where its default is None (TOML has no None).
 SAMPLES: dict[str, Any] = {
@@ -47,6 +47,7 @@ SAMPLES: dict[str, Any] = {
     "username": "admin",
     "password": "admin",
     "token": "a-token",
+    "ca_file": __file__,
 }
 
 

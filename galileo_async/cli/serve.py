@@ -7,6 +7,7 @@ import errno
 import json
 import logging
 import socket
+import ssl
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -59,6 +60,20 @@ def _url(scheme: str, address: tuple[str, int]) -> str:
     return f"{scheme}://{f'[{host}]' if ':' in host else host}:{port}"
 
 
+def _tls_context(cert: Path | None, key: Path | None, http: str | None) -> ssl.SSLContext | None:
+    """The server context of --tls-cert/--tls-key (both or neither, with --http only)."""
+    if cert is None and key is None:
+        return None
+    if cert is None or key is None or http is None:
+        fail("--tls-cert and --tls-key go together, with --http", ExitCode.USAGE)
+    context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    try:
+        context.load_cert_chain(cert, key)
+    except (OSError, ssl.SSLError) as exc:
+        fail(f"cannot load --tls-cert/--tls-key: {exc}", ExitCode.USAGE)
+    return context
+
+
 def sim(
     ctx: typer.Context,
     tcp: Annotated[
@@ -83,6 +98,11 @@ def sim(
     ws_port: Annotated[
         int | None, typer.Option("--ws-port", help="The WebSocket's port (default: HTTP + 1).")
     ] = None,
+    tls_cert: Annotated[
+        Path | None,
+        typer.Option(help="Serve --http over TLS (https://, wss://) with this PEM certificate."),
+    ] = None,
+    tls_key: Annotated[Path | None, typer.Option(help="The PEM key of --tls-cert.")] = None,
     udp_layout: Annotated[
         str, typer.Option(help="UDP status layout: udp_v2 (48 bytes) or udp_v1 (44).")
     ] = "udp_v2",
@@ -101,6 +121,7 @@ def sim(
     settings = settings_of(ctx)
     if tcp is not None and pty:
         fail("choose --tcp or --pty, not both", ExitCode.USAGE)
+    tls = _tls_context(tls_cert, tls_key, http)
     from ..sim import Simulator
 
     query = f"speed={speed}&layout={layout}&udp_layout={udp_layout}&firmware={firmware}&seed={seed}"
@@ -125,8 +146,10 @@ def sim(
                     face = await simulator.serve_udp(*address)
                 served.append((_url("udp", face.address), udp_layout))
             if http is not None:
-                web = await simulator.serve_http(*_udp_address(http), ws_port=ws_port)
-                where = _url("http", web.address)
+                web = await simulator.serve_http(
+                    *_udp_address(http), ws_port=ws_port, ssl_context=tls
+                )
+                where = _url("https" if tls else "http", web.address)
                 if web.ws_address[1] != web.address[1] + 1:
                     where += f"?ws_port={web.ws_address[1]}"
                 served.append((where, "JSON"))

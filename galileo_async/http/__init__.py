@@ -37,7 +37,16 @@ __all__ = [
     "status_from_json",
 ]
 
-_IGNORED = ("baudrate", "serial_options", "layout", "username", "password", "token", "ws_port")
+_IGNORED = (
+    "baudrate",
+    "serial_options",
+    "layout",
+    "username",
+    "password",
+    "token",
+    "ws_port",
+    "ca_file",
+)
 
 
 def open_http_link(url: str, store: StatusSink, **options: Any) -> HttpLink:

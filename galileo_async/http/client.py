@@ -11,11 +11,29 @@ import aiohttp
 from pydantic import SecretStr
 
 from ..errors import ConnectionLost, HttpError
+from .options import HttpAddress
 
-__all__ = ["API_PATH", "HttpApi"]
+__all__ = ["API_PATH", "HttpApi", "tls_context", "tls_hint"]
 
 #: Every endpoint lives under this path (galileo-proto http.md).
 API_PATH = "/api/v1"
+
+
+def tls_context(address: HttpAddress) -> ssl.SSLContext | None:
+    """The verifying TLS context of an https:// address (its ca_file, else the system's CAs)."""
+    if not address.secure:
+        return None
+    return ssl.create_default_context(cafile=address.ca_file)
+
+
+def tls_hint(exc: BaseException) -> str:
+    """What to tell the user when ``exc`` is a refused server certificate, else ``""``."""
+    if not isinstance(exc, aiohttp.ClientConnectorCertificateError):
+        return ""
+    return (
+        f" (certificate verify failed: {exc.certificate_error.__class__.__name__}"
+        f" {getattr(exc.certificate_error, 'verify_message', '')}; give ca_file= the CA's PEM file)"
+    )
 
 
 class HttpApi:
@@ -56,7 +74,10 @@ class HttpApi:
         if self._closed:
             raise ConnectionLost(f"{self.base_url}: the link is closed")
         if self._session is None or self._session.closed:
-            self._session = aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=self.timeout))
+            self._session = aiohttp.ClientSession(
+                timeout=aiohttp.ClientTimeout(total=self.timeout),
+                connector=aiohttp.TCPConnector(ssl=self._ssl),
+            )
         return self._session
 
     async def login(self) -> None:
@@ -98,9 +119,8 @@ class HttpApi:
         where = f"{method} {API_PATH}{endpoint}"
         try:
             async with self.session.request(
-                method, f"{self.base_url}{API_PATH}{endpoint}", params=query, json=body,
-                ssl=self._ssl,
-            ) as response:  # fmt: skip
+                method, f"{self.base_url}{API_PATH}{endpoint}", params=query, json=body
+            ) as response:
                 text = await response.text()
                 if response.status >= 400:
                     hint = " (token checking is on: give token= or username/password)"
@@ -116,7 +136,7 @@ class HttpApi:
             ) from None
         except aiohttp.ClientError as exc:
             raise HttpError(
-                f"{where}: {type(exc).__name__}", endpoint=endpoint, status=None
+                f"{where}: {type(exc).__name__}{tls_hint(exc)}", endpoint=endpoint, status=None
             ) from None
         try:
             return json.loads(text)

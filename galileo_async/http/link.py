@@ -23,7 +23,7 @@ from ..protocol.velocity import PoseGoal, Velocity
 from ..transports.base import BaseLink
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
 from ..transports.stats import StatusSink
-from .client import HttpApi
+from .client import HttpApi, tls_context, tls_hint
 from .options import (
     DEFAULT_PING_INTERVAL,
     DEFAULT_REQUEST_TIMEOUT,
@@ -83,6 +83,7 @@ class HttpLink(BaseLink):
             password=address.password,
             token=address.token,
             timeout=request_timeout,
+            ssl_context=tls_context(address),
         )
         self.ping_interval = ping_interval
         self.connect_timeout = connect_timeout
@@ -124,7 +125,7 @@ class HttpLink(BaseLink):
             status = getattr(exc, "status", None)
             raise HttpError(
                 f"cannot open the WebSocket {self.ws_url()} of {self.name}: "
-                f"{type(exc).__name__}{f' HTTP {status}' if status else ''}",
+                f"{type(exc).__name__}{f' HTTP {status}' if status else ''}{tls_hint(exc)}",
                 endpoint=STATUS_TOPIC,
                 status=status,
             ) from None

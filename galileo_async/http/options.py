@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qs, unquote, urlsplit
@@ -17,6 +18,7 @@ from ..options import (
     check_options,
     names_for,
 )
+from ..options.checks import check_ca_file
 
 __all__ = [
     "DEFAULT_HTTP_PORT",
@@ -49,6 +51,7 @@ class HttpAddress:
         password: SecretStr | None = None,
         token: SecretStr | None = None,
         ws_port: int = DEFAULT_WS_PORT,
+        ca_file: str | None = None,
     ) -> None:
         self.base_url = base_url
         self.host = host
@@ -57,6 +60,8 @@ class HttpAddress:
         self.password = password
         self.token = token
         self.ws_port = ws_port
+        #: The PEM file of the CAs https:// and wss:// trust (None: the system's).
+        self.ca_file = ca_file
 
     def __repr__(self) -> str:
         return f"<HttpAddress {self.base_url} user={self.username!r}>"
@@ -86,7 +91,7 @@ def _secret(name: str, value: object) -> SecretStr | None:
 
 
 def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAddress:
-    """``http[s]://[user:password@]host[:port][?token=…&ws_port=…]`` plus options → address.
+    """``http[s]://[user:password@]host[:port][?token=…&ws_port=…&ca_file=…]`` + options → address.
 
     Options win over the URL. InvalidArgument (never showing a secret) when malformed.
     """
@@ -101,7 +106,7 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
         raise InvalidArgument(f"bad port in {shown!r}") from None
     given: dict[str, Any] = {}
     for key, values in parse_qs(parts.query).items():
-        if key not in ("token", "ws_port", "username", "password"):
+        if key not in ("token", "ws_port", "username", "password", "ca_file"):
             raise InvalidArgument(f"unknown option {key!r} in {shown!r}")
         given[key] = values[-1]
     if parts.username:
@@ -112,6 +117,10 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
     username = given.get("username")
     if username is not None and not (isinstance(username, str) and username):
         raise InvalidArgument(f"username must be a non-empty string or None, got {username!r}")
+    ca_file = given.get("ca_file")
+    check_ca_file("ca_file", ca_file)
+    if ca_file is not None and scheme != "https":
+        raise InvalidArgument(f"ca_file applies to https:// only, not to {shown!r}")
     host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
     return HttpAddress(
         f"{scheme}://{host}:{port}",
@@ -121,6 +130,7 @@ def parse_http_url(url: str, options: Mapping[str, Any] | None = None) -> HttpAd
         password=_secret("password", given.get("password")),
         token=_secret("token", given.get("token")),
         ws_port=_port("ws_port", given.get("ws_port", DEFAULT_WS_PORT)),
+        ca_file=None if ca_file is None else os.fspath(ca_file),
     )
 
 

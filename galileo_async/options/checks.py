@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -130,6 +131,16 @@ def check_http_layout(name: str, value: object) -> None:
 def check_name(name: str, value: object) -> None:
     if value is not None and not (isinstance(value, str) and value):
         raise InvalidArgument(f"{name} must be a non-empty string or None, got {value!r}")
+
+
+def check_ca_file(name: str, value: object) -> None:
+    """None, or the path (str or os.PathLike) of a readable file of PEM CA certificates."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise InvalidArgument(f"{name} must be the path of a PEM CA file or None, got {value!r}")
+    if not os.path.isfile(value) or not os.access(value, os.R_OK):
+        raise InvalidArgument(f"{name} {str(value)!r} is not a readable file")
 
 
 def check_hosts(name: str, value: Any) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Mapping
 from typing import Annotated, Any, TypedDict, get_args, get_type_hints
 
@@ -34,6 +35,7 @@ from .checks import (
     DEFAULT_WS_PORT,
     FIRST_STATUS_TIMEOUT,
     check_baudrate,
+    check_ca_file,
     check_degrees,
     check_hosts,
     check_http_layout,
@@ -357,6 +359,16 @@ class ConnectOptions(TypedDict, total=False):
             DEFAULT_PING_INTERVAL,
             "seconds between the WebSocket pings of the link's own timer",
             check_seconds,
+            kinds=_HTTP,
+        ),
+    ]
+    ca_file: Annotated[
+        str | os.PathLike[str] | None,
+        Option(
+            None,
+            "https:// and wss:// trust the CAs in this PEM file (None: the system's); "
+            "the certificate and host name are always verified",
+            check_ca_file,
             kinds=_HTTP,
         ),
     ]

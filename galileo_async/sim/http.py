@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import ssl
 import uuid
 from collections.abc import Awaitable, Callable
 from typing import Any
@@ -57,8 +58,11 @@ class HttpFace:
         token_check: bool = False,
         username: str = "admin",
         password: str = "admin",
+        ssl_context: ssl.SSLContext | None = None,
     ) -> None:
         self.device = device
+        #: Both ports speak TLS (https://, wss://) with this context; None: plain.
+        self.ssl_context = ssl_context
         self.token_check = token_check
         self._login = (username, password)
         self.tokens: set[str] = set()
@@ -94,7 +98,7 @@ class HttpFace:
         runner = web.AppRunner(app, handle_signals=False, access_log=None)
         await runner.setup()
         self._runners.append(runner)
-        site = web.TCPSite(runner, host, port)
+        site = web.TCPSite(runner, host, port, ssl_context=self.ssl_context)
         await site.start()
         server = site._server  # the one asyncio.Server a TCPSite holds
         assert isinstance(server, asyncio.Server)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ssl
 from collections.abc import Awaitable, Callable
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -199,16 +200,18 @@ class Simulator:
         *,
         ws_port: int | None = None,
         token_check: bool = False,
+        ssl_context: ssl.SSLContext | None = None,
     ) -> HttpFace:
         """Serve the vendor's HTTP API on ``host:port`` and its WebSocket on ``ws_port``.
 
-        ``ws_port`` None: ``port + 1`` (0: any free port). Needs aiohttp (the extra http).
+        ``ws_port`` None: ``port + 1`` (0: any free port); ``ssl_context``: both over TLS.
+        Needs aiohttp (the extra http).
         """
         if self._device.closed:
             raise ConnectionRefusedError("the simulated robot is off")
         from .http import HttpFace  # optional: aiohttp
 
-        face = HttpFace(self._device, token_check=token_check)
+        face = HttpFace(self._device, token_check=token_check, ssl_context=ssl_context)
         self._http.append(face)
         await face.start(host, port, 0 if port == 0 and ws_port is None else ws_port)
         self._device.start()
