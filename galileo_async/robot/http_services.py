@@ -1,4 +1,4 @@
-"""What only the HTTP API can do: maps, saved targets, battery %, firmware, speech, pose goals.
+"""What only the HTTP API can do: maps, targets, battery %, firmware, speech, pose goals, speed.
 
 Each method raises NotSupported on a link that is not ``http://`` / ``https://``.
 """
@@ -133,6 +133,19 @@ class HttpServices:
         if not isinstance(text, str) or not text:
             raise InvalidArgument("say: text must be a non-empty string")
         await api.call("GET", "/system/tts", {"text": text})
+
+    async def navigation_speed(self) -> float:
+        """The fastest the robot drives while navigating, m/s (GET /system/config)."""
+        answer = await self._api("navigation_speed()").call("GET", "/system/config")
+        return float(answer["navigation_speed"])
+
+    async def set_navigation_speed(self, mps: float) -> float:
+        """Drive goals no faster than ``mps`` m/s (> 0; POST /system/config); the value set."""
+        api = self._api("set_navigation_speed()")
+        check_number("mps", mps, low=0.0, low_open=True)
+        body = {"navigation_speed": float(mps)}
+        answer = await api.call("POST", "/system/config", body=body)
+        return float(answer.get("navigation_speed", mps))
 
     async def goto_pose(
         self,
