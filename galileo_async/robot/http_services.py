@@ -73,11 +73,15 @@ class HttpServices:
     def _api(self, what: str) -> _Api:
         """The link's REST API; WrongEventLoop off the Robot's loop, NotSupported off http://."""
         self._ops.ensure_open()
-        api = getattr(self._link, "api", None)
-        if api is None or not callable(getattr(api, "call", None)):
+        if not self.has_http_api:
             raise NotSupported(f"{what} needs the robot's HTTP API: connect with http://host:3546")
-        result: _Api = api
+        result: _Api = getattr(self._link, "api")  # noqa: B009 (BaseLink has no api)
         return result
+
+    @property
+    def has_http_api(self) -> bool:
+        """True on an ``http://`` / ``https://`` link: the methods here are supported."""
+        return callable(getattr(getattr(self._link, "api", None), "call", None))
 
     async def maps(self) -> list[str]:
         """The names of the maps saved on the robot (GET /map/image)."""
