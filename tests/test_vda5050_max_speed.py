@@ -28,11 +28,17 @@ TOP = 0.8  # the simulator's max_speed and so its initial navigation_speed
 
 
 @contextlib.asynccontextmanager
-async def http_vehicle(broker: Broker) -> AsyncIterator[tuple[Robot, Any, Master]]:
-    """A simulated robot on http://, navigating, its vehicle and a master, all connected."""
+async def http_vehicle(
+    broker: Broker, link: str = "http"
+) -> AsyncIterator[tuple[Robot, Any, Master]]:
+    """A simulated robot on http:// (or socket://), navigating, its vehicle and a master."""
     async with Simulator(speed=40.0, targets=((1.5, 0.0), (30.0, 0.0))) as sim:
-        face = await sim.serve_http()
-        url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+        if link == "http":
+            face: Any = await sim.serve_http()
+            url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+        else:
+            face = await sim.serve_tcp()
+            url = f"socket://127.0.0.1:{face.sockets[0].getsockname()[1]}"
         async with (
             Master.connected(broker) as master,
             galileo.connect(url, map_targets=2) as robot,
@@ -93,5 +99,17 @@ async def test_edge_max_speed_restored_after_a_cancel(broker: Broker) -> None:
         await master.instant(("c1", "cancelOrder"))
         await master.next_state(lambda s: action_status(s, "c1") == "FINISHED")
         assert face.device.model.navigation_speed == pytest.approx(TOP)
+        assert robot.status is not None
+        assert not robot.status.goal_active
+
+
+async def test_edge_max_speed_still_refused_over_socket(broker: Broker) -> None:
+    async with http_vehicle(broker, "socket") as (robot, _, master):
+        factsheet = await master.wait_for("factsheet", lambda m: True)
+        honoured = [p["parameter"] for p in factsheet["protocolFeatures"]["optionalParameters"]]
+        assert "order.edges.maxSpeed" not in honoured
+        await master.send("order", slow_order("slow", 0.6))
+        refused = await master.next_state(lambda s: "orderError" in error_types(s))
+        assert refused["orderId"] == ""
         assert robot.status is not None
         assert not robot.status.goal_active
