@@ -36,6 +36,7 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "switch_map": ("map",),
     "say": ("hello",),
     "goto_pose": (1.0, 2.0),
+    "set_navigation_speed": (0.5,),
 }
 KEYWORDS: dict[str, dict[str, Any]] = {"shutdown_host": {"confirm": True}}
 

@@ -1,4 +1,4 @@
-"""What only the HTTP API can do: maps, saved targets, battery %, firmware, speech, pose goals.
+"""What only the HTTP API can do: maps, targets, battery %, firmware, speech, pose goals, speed.
 
 Each method raises NotSupported on a link that is not ``http://`` / ``https://``.
 """
@@ -73,11 +73,15 @@ class HttpServices:
     def _api(self, what: str) -> _Api:
         """The link's REST API; WrongEventLoop off the Robot's loop, NotSupported off http://."""
         self._ops.ensure_open()
-        api = getattr(self._link, "api", None)
-        if api is None or not callable(getattr(api, "call", None)):
+        if not self.has_http_api:
             raise NotSupported(f"{what} needs the robot's HTTP API: connect with http://host:3546")
-        result: _Api = api
+        result: _Api = getattr(self._link, "api")  # noqa: B009 (BaseLink has no api)
         return result
+
+    @property
+    def has_http_api(self) -> bool:
+        """True on an ``http://`` / ``https://`` link: the methods here are supported."""
+        return callable(getattr(getattr(self._link, "api", None), "call", None))
 
     async def maps(self) -> list[str]:
         """The names of the maps saved on the robot (GET /map/image)."""
@@ -133,6 +137,19 @@ class HttpServices:
         if not isinstance(text, str) or not text:
             raise InvalidArgument("say: text must be a non-empty string")
         await api.call("GET", "/system/tts", {"text": text})
+
+    async def navigation_speed(self) -> float:
+        """The fastest the robot drives while navigating, m/s (GET /system/config)."""
+        answer = await self._api("navigation_speed()").call("GET", "/system/config")
+        return float(answer["navigation_speed"])
+
+    async def set_navigation_speed(self, mps: float) -> float:
+        """Drive goals no faster than ``mps`` m/s (> 0; POST /system/config); the value set."""
+        api = self._api("set_navigation_speed()")
+        check_number("mps", mps, low=0.0, low_open=True)
+        body = {"navigation_speed": float(mps)}
+        answer = await api.call("POST", "/system/config", body=body)
+        return float(answer.get("navigation_speed", mps))
 
     async def goto_pose(
         self,

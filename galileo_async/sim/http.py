@@ -152,6 +152,8 @@ class HttpFace:
             },
             ("GET", "/system/status"): lambda q: {"status": self._system_status()},
             ("PUT", "/system/speed"): lambda q: self._speed(q),
+            ("GET", "/system/config"): lambda q: self._config(),
+            ("POST", "/system/config"): self._set_config,
             ("GET", "/system/shutdown"): lambda q: run(cmd.ShutdownHost(), {"result": True}),
             ("GET", "/system/tts"): self._say,
             ("GET", "/map/start"): lambda q: run(cmd.StartMapping(), {"result": True}),
@@ -227,6 +229,18 @@ class HttpFace:
     def _speed(self, query: dict[str, Any]) -> Any:
         self.device.model.set_speed(float(query["speed_x"]), float(query["speed_angle"]))
         return {"result": True}
+
+    def _config(self) -> dict[str, Any]:
+        model = self.device.model
+        return {
+            "navigation_speed": model.navigation_speed,
+            "max_control_speed": model.config.max_speed,
+        }
+
+    def _set_config(self, body: dict[str, Any]) -> Any:
+        if "navigation_speed" in body:
+            self.device.model.navigation_speed = float(body["navigation_speed"])
+        return self._config()
 
     def _start(self, query: dict[str, Any]) -> Any:
         name, path = str(query["map"]), str(query["path"])

@@ -65,6 +65,8 @@ class Body:
         self.x, self.y, self.theta = config.start_pose
         self.control_v = self.control_w = 0.0
         self.current_v = self.current_w = 0.0
+        #: The fastest a goal is driven, m/s (the HTTP config's navigation_speed).
+        self.navigation_speed = config.max_speed
 
     def distance_to(self, point: tuple[float, float]) -> float:
         """Metres from the robot to ``point``."""
@@ -78,7 +80,7 @@ class Body:
         """Command speeds toward ``point``; True (and placed on it, halted) on arrival."""
         config = self.config
         pose = (self.x, self.y, self.theta)
-        v, w, reaches = steer(pose, point, config.max_speed, config.max_turn_rate, dt)
+        v, w, reaches = steer(pose, point, self.navigation_speed, config.max_turn_rate, dt)
         self.control_v, self.control_w = v, w
         reaches = reaches or self.distance_to(point) <= config.arrival_distance
         if reaches and land:

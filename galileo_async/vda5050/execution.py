@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 
 import anyio
 
@@ -15,12 +16,17 @@ from ..robot import Robot
 from .models import Edge, Error, ErrorReference, Info, Node, reference
 from .order import OrderProgress, target_number
 
-__all__ = ["ROTATE_TIMEOUT", "Executor"]
+__all__ = ["ROTATE_TIMEOUT", "Executor", "can_limit_speed"]
 
 _log = logging.getLogger(__name__)
 
 #: Seconds the turn to a node's theta may take (then the order fails: navigationTimeout).
 ROTATE_TIMEOUT = 10.0
+
+
+def can_limit_speed(robot: Robot) -> bool:
+    """True when ``robot``'s link can set a navigation speed (an edge maxSpeed is honoured)."""
+    return robot.has_http_api
 
 
 class Executor:
@@ -64,7 +70,8 @@ class Executor:
         try:
             with anyio.CancelScope() as scope:
                 self._scope = scope
-                await self._drive(node)
+                async with self._speed_limit(edge):
+                    await self._drive(node)
                 self.progress.reached(node)
         except GalileoError as exc:
             if self.progress.order_id != order_id or not self.progress.active:
@@ -80,6 +87,26 @@ class Executor:
             self._scope = None
             self._idle.set()
             self._changed()
+
+    @contextlib.asynccontextmanager
+    async def _speed_limit(self, edge: Edge) -> AsyncIterator[None]:
+        """While driving ``edge``: navigation speed at most its maxSpeed, then as before."""
+        if edge.maxSpeed is None or not can_limit_speed(self.robot):
+            yield
+            return
+        previous = await self.robot.navigation_speed()
+        if edge.maxSpeed >= previous:
+            yield
+            return
+        await self.robot.set_navigation_speed(edge.maxSpeed)
+        try:
+            yield
+        finally:
+            with anyio.CancelScope(shield=True):
+                try:
+                    await self.robot.set_navigation_speed(previous)
+                except GalileoError as exc:
+                    _log.warning("navigation speed not restored to %g m/s: %s", previous, exc)
 
     async def _drive(self, node: Node) -> None:
         position = node.nodePosition

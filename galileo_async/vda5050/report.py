@@ -171,11 +171,16 @@ def significant(status: GalileoStatus | None) -> Hashable:
 
 
 def factsheet_sections(
-    config: VehicleConfig, action_types: Sequence[str], *, theta: bool = True
+    config: VehicleConfig,
+    action_types: Sequence[str],
+    *,
+    theta: bool = True,
+    max_speed: bool = False,
 ) -> dict[str, dict[str, object]]:
     """The factsheet's sections (typeSpecification … loadSpecification) of a Galileo robot.
 
-    ``theta``: node orientations are honoured (listed in optionalParameters).
+    ``theta``: node orientations are honoured; ``max_speed``: edge maxSpeed is (both listed
+    in optionalParameters).
     """
     # No blockingTypes: the 2.0 schema puts its enum on the array itself, so no list validates.
     actions = [
@@ -199,6 +204,14 @@ def factsheet_sections(
     ]
     if theta:
         optional.append({"parameter": "order.nodes.nodePosition.theta", "support": "SUPPORTED"})
+    if max_speed:
+        optional.append(
+            {
+                "parameter": "order.edges.maxSpeed",
+                "support": "SUPPORTED",
+                "description": "through the navigation speed of the HTTP API",
+            }
+        )
     return {
         "typeSpecification": {
             "seriesName": "Galileo",

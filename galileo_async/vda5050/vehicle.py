@@ -17,7 +17,7 @@ from ..robot import Robot
 from . import report
 from .actions import ActionRunner
 from .config import VehicleConfig
-from .execution import Executor
+from .execution import Executor, can_limit_speed
 from .models import (
     VERSIONS,
     Connection,
@@ -127,7 +127,9 @@ class Vehicle:
 
     def factsheet(self) -> Factsheet:
         """The factsheet message (the header is counted)."""
-        sections = report.factsheet_sections(self.config, list(report.INSTANT_ACTIONS))
+        sections = report.factsheet_sections(
+            self.config, list(report.INSTANT_ACTIONS), max_speed=can_limit_speed(self.robot)
+        )
         return Factsheet(**self._header("factsheet"), **sections)
 
     # --- publishing ----------------------------------------------------------------------
@@ -337,12 +339,6 @@ class Vehicle:
                 with contextlib.suppress(GalileoError):
                     await self.executor.cancel_order()
             await self.session.wait_online()
-
-
-def can_limit_speed(robot: Robot) -> bool:
-    """True when ``robot``'s link can set a navigation speed (an edge maxSpeed is honoured)."""
-    # The hook for links that can: a Robot offering set_navigation_speed(m/s).
-    return callable(getattr(robot, "set_navigation_speed", None))
 
 
 def _first_problem(exc: ValidationError) -> str:

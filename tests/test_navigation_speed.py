@@ -1,0 +1,56 @@
+"""set_navigation_speed over http:// against the simulator's HTTP face; elsewhere NotSupported."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+
+import pytest
+from test_http_link import WAIT, navigating, robot_on_http
+
+import galileo_async as galileo
+from galileo_async import InvalidArgument, NotSupported
+
+pytestmark = pytest.mark.timeout(60)
+
+
+async def test_navigation_speed_reaches_the_sim_and_limits_goals() -> None:
+    async with robot_on_http() as (_, robot, face):
+        assert await robot.navigation_speed() == pytest.approx(0.8)
+        assert await robot.set_navigation_speed(0.1) == pytest.approx(0.1)
+        assert face.device.model.navigation_speed == pytest.approx(0.1)
+        assert await robot.navigation_speed() == pytest.approx(0.1)
+        await navigating(robot)
+        speeds: list[float] = []
+
+        async def watch() -> None:
+            async for status in robot.statuses():
+                speeds.append(abs(status.current_speed_x or 0.0))
+
+        watcher = asyncio.ensure_future(watch())
+        try:
+            await robot.goto(0, timeout=WAIT * 3)
+        finally:
+            watcher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watcher
+        assert max(speeds) > 0.05  # it did drive
+        assert max(speeds) <= 0.1 + 1e-6
+
+
+async def test_bad_navigation_speeds_rejected_before_sending() -> None:
+    async with robot_on_http() as (_, robot, face):
+        before = face.requests
+        for bad in (math.nan, -0.1, 0.0, math.inf, "fast", True):
+            with pytest.raises(InvalidArgument):
+                await robot.set_navigation_speed(bad)  # type: ignore[arg-type]
+        assert face.requests == before
+
+
+async def test_navigation_speed_not_supported_elsewhere() -> None:
+    async with galileo.connect("sim://?speed=40") as robot:
+        with pytest.raises(NotSupported, match="http://"):
+            await robot.set_navigation_speed(0.1)
+        with pytest.raises(NotSupported, match="http://"):
+            await robot.navigation_speed()
