@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 from fake_device import make_status
-from test_cli_monitor_small import _keys, _until, tmux  # noqa: F401
+from test_cli_monitor_small import tmux  # noqa: F401
+from tmux_support import keys, until
 
 from galileo_async import connect_fleet
 from galileo_async.cli import ExitCode
@@ -169,8 +170,8 @@ async def test_fleet_status_at_80x24_keeps_a_row_per_robot(
 ) -> None:
     fleet = _fleet_file(tmp_path)
     command = f"{sys.executable} -m galileo_async --fleet {fleet} fleet status; echo exited-$?"
-    await _keys(tmux, "clear; " + command, "Enter")
-    screen = await _until(tmux, lambda s: re.search(r"exited-[0-9]", s) is not None)
+    await keys(tmux, "clear; " + command, "Enter")
+    screen = await until(tmux, lambda s: re.search(r"exited-[0-9]", s) is not None)
     assert "exited-7" in screen, screen
     lines = screen.splitlines()
     header = next(line for line in lines if "robot" in line and "link" in line)

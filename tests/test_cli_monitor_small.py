@@ -5,16 +5,14 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import subprocess
 import sys
-import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import anyio
 import pytest
-from peers import missing_peer
 from test_cli_served import GALILEO, WAIT
+from tmux_support import keys, tmux_server, until
 
 import galileo_async as galileo
 from galileo_async.errors import GoalCancelled
@@ -26,30 +24,8 @@ SIM_URL = "sim://?speed=4&visual_init_time=0.5"
 
 @pytest.fixture
 def tmux() -> Iterator[list[str]]:
-    """The tmux command of a server of this test's own, an 80x24 pane, killed afterwards."""
-    if shutil.which("tmux") is None:
-        missing_peer("tmux")
-    command = ["tmux", "-L", f"galileo-small-{os.getpid()}-{uuid.uuid4().hex[:8]}"]
-    subprocess.run([*command, "new-session", "-d", "-s", "main", "-x", str(COLUMNS),
-                    "-y", str(ROWS)], check=True)  # fmt: skip
-    try:
-        yield command
-    finally:
-        subprocess.run([*command, "kill-server"], check=False)
-
-
-async def _screen(tmux: list[str], *, escapes: bool = False) -> str:
-    flags = ["-e"] if escapes else []
-    done = await anyio.run_process([*tmux, "capture-pane", "-p", *flags, "-t", "main"])
-    return done.stdout.decode()
-
-
-async def _until(tmux: list[str], holds: Callable[[str], bool], *, escapes: bool = False) -> str:
-    """The screen once ``holds`` is true of it (a screen has no event: polled)."""
-    with anyio.fail_after(WAIT):
-        while not holds(screen := await _screen(tmux, escapes=escapes)):  # noqa: ASYNC110
-            await anyio.sleep(0.1)
-    return screen
+    """A tmux server of this test's own, an 80x24 pane."""
+    yield from tmux_server(COLUMNS, ROWS)
 
 
 def _coloured(screen: str, word: str, colour: str) -> bool:
@@ -60,33 +36,29 @@ def _coloured(screen: str, word: str, colour: str) -> bool:
     return False
 
 
-async def _keys(tmux: list[str], *keys: str) -> None:
-    await anyio.run_process([*tmux, "send-keys", "-t", "main", *keys])
-
-
 async def _start_monitor(tmux: list[str], url: str) -> None:
     monitor = f"{sys.executable} -m galileo_async -p {url} monitor; echo monitor-exited-$?"
-    await _keys(tmux, "clear; " + monitor, "Enter")
+    await keys(tmux, "clear; " + monitor, "Enter")
 
 
 async def test_monitor_at_80x24_shows_the_map_and_answers_its_keys(tmux: list[str]) -> None:
     await _start_monitor(tmux, f"'{SIM_URL}'")
-    screen = await _until(tmux, lambda s: "─ map ─" in s and "◆" in s)
+    screen = await until(tmux, lambda s: "─ map ─" in s and "◆" in s)
     assert "q quit" in screen
     lines = screen.splitlines()
     assert lines[0].startswith("galileo monitor")  # nothing scrolled off the top
-    await _keys(tmux, "xyz")  # not echoed over the screen
-    await _keys(tmux, "m")
-    screen = await _until(tmux, lambda s: "─ map ─" not in s)
+    await keys(tmux, "xyz")  # not echoed over the screen
+    await keys(tmux, "m")
+    screen = await until(tmux, lambda s: "─ map ─" not in s)
     assert "xyz" not in screen
-    await _keys(tmux, "m")
-    await _until(tmux, lambda s: "─ map ─" in s)
-    await _keys(tmux, "?")
-    await _until(tmux, lambda s: "show or hide the map" in s)
-    await _keys(tmux, "?")
-    await _until(tmux, lambda s: "─ map ─" in s)
-    await _keys(tmux, "q")
-    await _until(tmux, lambda s: "monitor-exited-0" in s)
+    await keys(tmux, "m")
+    await until(tmux, lambda s: "─ map ─" in s)
+    await keys(tmux, "?")
+    await until(tmux, lambda s: "show or hide the map" in s)
+    await keys(tmux, "?")
+    await until(tmux, lambda s: "─ map ─" in s)
+    await keys(tmux, "q")
+    await until(tmux, lambda s: "monitor-exited-0" in s)
 
 
 async def _goto_cancelled(robot: galileo.Robot) -> None:
@@ -100,16 +72,16 @@ async def test_monitor_colours_follow_the_states(tmux: list[str]) -> None:
         try:
             url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
             await _start_monitor(tmux, url)
-            await _until(tmux, lambda s: "nav closed" in s)
+            await until(tmux, lambda s: "nav closed" in s)
             async with galileo.connect(url, map_targets=6) as robot:
                 await robot.start_navigation(timeout=WAIT)
-                await _until(tmux, lambda s: _coloured(s, "open", "32"), escapes=True)
+                await until(tmux, lambda s: _coloured(s, "open", "32"), escapes=True)
                 async with anyio.create_task_group() as group:
                     group.start_soon(_goto_cancelled, robot)
-                    await _until(tmux, lambda s: _coloured(s, "working", "36"), escapes=True)
+                    await until(tmux, lambda s: _coloured(s, "working", "36"), escapes=True)
                     await robot.cancel()
-            await _keys(tmux, "q")
-            await _until(tmux, lambda s: "monitor-exited-0" in s)
+            await keys(tmux, "q")
+            await until(tmux, lambda s: "monitor-exited-0" in s)
         finally:
             server.close()
 

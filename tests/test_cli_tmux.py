@@ -7,17 +7,13 @@ arrow at different places as it drives, and the trail it leaves.
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
 import sys
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import anyio
 import pytest
-from peers import missing_peer
+from tmux_support import screen, tmux_server
 
 import galileo_async as galileo
 from galileo_async.cli.map_render import ARROWS
@@ -33,17 +29,8 @@ SIM_URL = "sim://?speed=4&visual_init_time=0.5"
 
 @pytest.fixture
 def tmux() -> Iterator[list[str]]:
-    """The tmux command of a server of this test's own, killed afterwards."""
-    if shutil.which("tmux") is None:
-        missing_peer("tmux")
-    # A server name of each test's own: a killed server's socket may linger a moment.
-    command = ["tmux", "-L", f"galileo-test-{os.getpid()}-{uuid.uuid4().hex[:8]}"]
-    subprocess.run([*command, "new-session", "-d", "-s", "main", "-x", str(COLUMNS),
-                    "-y", str(ROWS)], check=True)  # fmt: skip
-    try:
-        yield command
-    finally:
-        subprocess.run([*command, "kill-server"], check=False)
+    """A tmux server of this test's own."""
+    yield from tmux_server(COLUMNS, ROWS)
 
 
 def _map_rows(screen: str) -> list[str]:
@@ -69,11 +56,6 @@ def _robot_at(rows: list[str]) -> tuple[int, int] | None:
     return None
 
 
-async def _screen(tmux: list[str]) -> str:
-    done = await anyio.run_process([*tmux, "capture-pane", "-p", "-t", "main"])
-    return done.stdout.decode()
-
-
 async def test_monitor_map_shows_the_robot_moving(tmux: list[str], tmp_path: Path) -> None:
     async with Simulator.from_url(SIM_URL) as simulator:
         server = await simulator.serve_tcp()
@@ -97,7 +79,7 @@ async def test_monitor_map_shows_the_robot_moving(tmux: list[str], tmp_path: Pat
                     async with anyio.create_task_group() as group:
                         group.start_soon(robot.goto, 1)
                         while len(places) < 3 or not trail or not target_shown:
-                            rows = _map_rows(await _screen(tmux))
+                            rows = _map_rows(await screen(tmux))
                             spot = _robot_at(rows)
                             if spot is not None:
                                 places.add(spot)
@@ -116,11 +98,11 @@ async def test_demo_shows_the_map_as_the_robot_drives(tmux: list[str]) -> None:
     places: set[tuple[int, int]] = set()
     with anyio.fail_after(2 * WAIT):
         while len(places) < 2:
-            spot = _robot_at(_map_rows(await _screen(tmux)))
+            spot = _robot_at(_map_rows(await screen(tmux)))
             if spot is not None:
                 places.add(spot)
             await anyio.sleep(0.1)
         # A screen has no event to wait on: poll it until the demo ends, its steps all done.
-        while "total" not in await _screen(tmux):  # noqa: ASYNC110
+        while "total" not in await screen(tmux):  # noqa: ASYNC110
             await anyio.sleep(0.2)
-    assert "✔" in await _screen(tmux)
+    assert "✔" in await screen(tmux)
