@@ -10,7 +10,7 @@ from pathlib import Path
 
 import anyio
 import pytest
-from test_cli_served import WAIT, ServedSim
+from test_cli_served import WAIT, ServedSim, serving
 from typer.testing import CliRunner, Result
 
 from galileo_async import connect
@@ -35,11 +35,7 @@ def json_lines(text: str) -> list[dict[str, object]]:
 
 @pytest.fixture
 def served() -> Iterator[ServedSim]:
-    sim = ServedSim(speed=20.0)
-    try:
-        yield sim
-    finally:
-        sim.close()
+    yield from serving(20.0)
 
 
 def test_help_lists_every_command() -> None:

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import pytest
 from ports import refused_port
-from test_cli_served import GALILEO, WAIT, ServedSim, _read_until
+from test_cli_served import GALILEO, WAIT, ServedSim, _read_until, serving
 
 from galileo_async.cli import ExitCode
 
@@ -26,11 +26,7 @@ def galileo(*args: str, timeout: float = WAIT) -> subprocess.CompletedProcess[st
 
 @pytest.fixture
 def served() -> Iterator[ServedSim]:
-    sim = ServedSim(speed=20.0)
-    try:
-        yield sim
-    finally:
-        sim.close()
+    yield from serving(20.0)
 
 
 def test_goto_an_unknown_id_on_a_fresh_simulator_is_rejected_at_once() -> None:

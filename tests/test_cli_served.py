@@ -86,13 +86,18 @@ class ServedSim:
         self.loop.close()
 
 
-@pytest.fixture
-def served() -> Iterator[ServedSim]:
-    sim = ServedSim(speed=5.0)
+def serving(speed: float) -> Iterator[ServedSim]:
+    """A ServedSim at ``speed`` for a fixture's life: ``yield from serving(5.0)``."""
+    sim = ServedSim(speed=speed)
     try:
         yield sim
     finally:
         sim.close()
+
+
+@pytest.fixture
+def served() -> Iterator[ServedSim]:
+    yield from serving(5.0)
 
 
 def invoke(url: str, *args: str) -> Result:
