@@ -117,6 +117,7 @@ PARTS = {
     "galileo_async.fleet": "fleet",
     "galileo_async.vda5050": "vda5050",
     "galileo_async.cli": "cli",
+    "galileo_async.testing": "testing",
 }
 #: What each part may import besides itself. transports and ros know nothing of goals or
 #: state; state knows no transport; sim speaks from the device side on protocol and models
@@ -135,6 +136,8 @@ MAY_IMPORT = {
     "robot": {"base", "protocol", "transitions", "state", "transports", "options"},
     "fleet": {"base", "transitions", "state", "robot", "options"},
     "vda5050": {"base", "transitions", "robot"},
+    # Tests of applications: a Robot on the simulator, from both sides.
+    "testing": {"base", "protocol", "options", "sim", "robot"},
 }
 #: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
 #: the ROS link for ros:// inside the functions that need them (or for type checking).

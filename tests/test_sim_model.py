@@ -723,8 +723,8 @@ def test_public_names_are_pinned() -> None:
 
     assert sorted(galileo_async.sim.__all__) == sorted(
         [
-            "DEFAULT_TARGETS", "FRAME_RATE", "Connector", "DeviceStats", "Faults",
-            "FrameEncoder", "RobotModel", "SimConfig", "SimState", "Simulator", "Ticker",
+            "DEFAULT_TARGETS", "FRAME_RATE", "SETTABLE_FIELDS", "Connector", "DeviceStats",
+            "Faults", "FrameEncoder", "RobotModel", "SimConfig", "SimState", "Simulator", "Ticker",
             "parse_sim_url",
         ]
     )  # fmt: skip

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -85,12 +84,10 @@ def fleet_rows(
 ) -> list[FleetRow]:
     """A row per robot from its latest status and last event."""
     rows = []
-    now = time.monotonic()
     for name in fleet:
         status, robot = latest.get(name), fleet.get(name)
-        seen = None if robot is None else robot.link.last_frame_at
+        age = None if robot is None else robot.link.last_frame_age
         state = fleet.state(name)
-        age = None if seen is None else now - seen
         event = events.get(name) or _failure(fleet, name)
         if status is None:
             rows.append(FleetRow(name, state, age, "—", "—", "—", None, "—", None, None, None, None,

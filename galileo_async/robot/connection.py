@@ -64,7 +64,8 @@ class Connection:
         robot_options = {n: options.pop(n) for n in list(options) if OPTIONS[n].owner == "robot"}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
         store = StatusStore(
-            arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE)
+            arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE),
+            clock=asyncio.get_running_loop().time,
         )
         with options_checked():  # by __init__, once
             link = open_link(self.url, store, **options)

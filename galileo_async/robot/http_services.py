@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import asyncio
 import math
-import time
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -172,7 +171,8 @@ class HttpServices:
         check_timeout("timeout", timeout)
         check_timeout("poll_interval", poll_interval)
         body = {"x": float(x), "y": float(y), "theta": float(theta)}
-        started = time.monotonic()
+        loop = asyncio.get_running_loop()
+        started = loop.time()
         task = await api.call("POST", "/navigation/start_nav_task", body=body)
         task_id = str(task["id"])
 
@@ -206,4 +206,4 @@ class HttpServices:
         distance = None
         if status.current_pose_x is not None and status.current_pose_y is not None:
             distance = math.hypot(status.current_pose_x - x, status.current_pose_y - y)
-        return GoalResult(-2, distance, time.monotonic() - started, status)
+        return GoalResult(-2, distance, loop.time() - started, status)

@@ -52,6 +52,7 @@ from .operations import (
 from .options import check_robot_options
 from .progress import DEFAULT_PROGRESS_TIMEOUT
 from .runtime import (
+    OPEN_ROBOTS,
     ROBOT_DEFAULT,
     Deadline,
     RobotDefault,
@@ -126,6 +127,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         super().__init__(ops, GoalRunner(ops), DynamicTargets(ops, map_targets))
         self._link = link
         self._store = store
+        OPEN_ROBOTS.add(self)
         self.accept_timeout = float(accept_timeout)
         self.arrive_tolerance = float(arrive_tolerance)
         #: Default ``timeout`` of goto/goto_point and of wait_until (None: no limit).
@@ -362,6 +364,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         seconds at most), then the cancellation is raised.
         """
         self._ops.user_stopped("close()")
+        OPEN_ROBOTS.discard(self)
         task = self._close_task
         if task is None:
             stop_written = self._drives.end()  # queued first, and written before closing

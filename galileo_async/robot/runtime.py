@@ -6,7 +6,8 @@ import asyncio
 import enum
 import logging
 import sys
-from typing import Final, TypeVar
+import weakref
+from typing import Any, Final, TypeVar
 
 import anyio
 import anyio.lowlevel
@@ -15,6 +16,7 @@ from ..errors import AsyncioRequired
 
 __all__ = [
     "CLEANUP_TIMEOUT",
+    "OPEN_ROBOTS",
     "ROBOT_DEFAULT",
     "Deadline",
     "RobotDefault",
@@ -22,6 +24,9 @@ __all__ = [
     "or_default",
     "running_loop",
 ]
+
+#: Every Robot not yet closed (galileo_async.testing reports the ones a test left open).
+OPEN_ROBOTS: weakref.WeakSet[Any] = weakref.WeakSet()
 
 _log = logging.getLogger(__name__)
 

@@ -93,7 +93,9 @@ class Ticker:
 
     def _tick(self) -> None:
         assert self._loop is not None
-        due = int((self._loop.time() - self._origin) / self._period) - self._done
+        # The tolerance keeps a timer that runs exactly on time (a virtual clock) from
+        # computing one frame less and re-arming for the same instant for ever.
+        due = int((self._loop.time() - self._origin) / self._period + 1e-6) - self._done
         if due > MAX_CATCH_UP_FRAMES:  # the loop stalled: let simulated time slip
             self._origin += (due - MAX_CATCH_UP_FRAMES) * self._period
             due = MAX_CATCH_UP_FRAMES
@@ -172,6 +174,8 @@ class SimDevice:
         self.connections: dict[DeviceConnection, None] = {}
         #: Faces that encode frames themselves (the UDP port): handed each frame's values.
         self.listeners: dict[StatusListener, None] = {}
+        #: Called with every command the robot takes, in order (testing's command log).
+        self.command_listeners: list[Callable[[Command], Any]] = []
         self._ticker = ticker
         self._on_shutdown = on_shutdown
         self._concat_loss = config.effective_concat_loss
@@ -227,6 +231,8 @@ class SimDevice:
     def execute(self, commands: list[Command]) -> None:
         """Hand parsed commands to the model, in order; the host-shutdown command stops all."""
         for command in commands:
+            for listener in self.command_listeners:
+                listener(command)
             self.model.submit(command)
         if self.model.shutdown:
             self._shut_down()

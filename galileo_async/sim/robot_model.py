@@ -12,6 +12,7 @@ from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from ..protocol import commands as cmd
 from .config import FRAME_RATE, SimConfig
 from .motion import Body, turn_toward, wrap_angle
+from .script import Scripting
 from .services import ServiceCommands
 from .states import (
     ACTIVE,
@@ -39,7 +40,7 @@ WireValues = tuple[Any, ...]
 _UNKNOWN_POSE = (-1.0, -1.0, -1.0)
 
 
-class RobotModel(ServiceCommands, Body):
+class RobotModel(Scripting, ServiceCommands, Body):
     """One Galileo robot: feed it commands with ``submit`` and advance it with ``step``."""
 
     def __init__(self, config: SimConfig | None = None) -> None:
@@ -73,6 +74,8 @@ class RobotModel(ServiceCommands, Body):
         self._goal: tuple[float, float] | None = None
         self._abort_within: float | None = None
         self._abort_next = config.faults.planner_abort == "next"
+        self._reject_next = False
+        self._visual_lost_until: float | None = None
         self._goal_issued = False
         self._goal_started_at: float | None = None
         # Faults.freeze_after: the status the dead navigation stack left behind.
@@ -168,18 +171,6 @@ class RobotModel(ServiceCommands, Body):
             return
         self._handle(command)
 
-    def abort_next_goal(self) -> None:
-        """Make the planner give up half way on the next goal (fault injection)."""
-        self._abort_next = True
-
-    def set_busy(self, seconds: float) -> None:
-        """Be busy for ``seconds`` from now (at least)."""
-        self.busy_until = max(self.busy_until, self.time + seconds)
-
-    def hold_busy(self, seconds: float) -> None:
-        """Be busy for exactly ``seconds`` from now; 0 ends busy now (fault injection)."""
-        self.busy_until = self.time + seconds
-
     def _handle(self, command: cmd.Command) -> None:
         handler = self._handlers.get(type(command))
         self.commands_handled += 1
@@ -203,6 +194,7 @@ class RobotModel(ServiceCommands, Body):
         if self._visual_ready_at is not None and self.time + EPSILON >= self._visual_ready_at:
             self._visual_ready_at = None
             self.visual_status = 1
+        self.step_script()
         if self._pending and not self.busy:
             self._drain_pending()
         self._step_patrol()
@@ -260,8 +252,8 @@ class RobotModel(ServiceCommands, Body):
     def _drive_goal(self, dt: float) -> None:
         assert self._goal is not None
         fresh, self._fresh = self._fresh, False
-        if self._goal_fault_due(self.config.faults.block_after):
-            self.halt()  # blocked: the goal stays working
+        if self._goal_fault_due(self.config.faults.block_after) or self.visual_status == 2:
+            self.halt()  # blocked or lost: the goal stays working
             return
         if self.drive_to(self._goal, dt, land=self._abort_within is None):
             if fresh:  # even a goal the robot stands on shows as working once
@@ -320,7 +312,7 @@ class RobotModel(ServiceCommands, Body):
         self._rotate_goal = None
         if self.target_status in ACTIVE:
             self._drop_goal()
-        if target_id >= len(self.targets):
+        if target_id >= len(self.targets) or self.take_rejection():
             # Firmware reports the error as -1 and keeps the id (PROTOCOL.md §2.b).
             if self.config.real_firmware:
                 self.target_status = INVALID

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import ssl
+import weakref
 from collections.abc import Awaitable, Callable
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
 
 from ..errors import InvalidArgument
 from ..models import GalileoStatus, Pose
@@ -31,6 +34,9 @@ Connector = Callable[
 ]
 
 _CLOSE_TIMEOUT = 2.0
+#: Simulators reachable by their ``url`` in this process.
+_NAMED: weakref.WeakValueDictionary[str, Simulator] = weakref.WeakValueDictionary()
+_IDS = itertools.count(1)
 
 
 class SimState:
@@ -129,11 +135,41 @@ class Simulator:
         self._udp: list[UdpFace] = []
         self._http: list[HttpFace] = []
         self._closed = False
+        self._url: str | None = None
+        #: While True, new in-process connections are refused (a link that is down).
+        self.refuse_connections = False
 
     @classmethod
     def from_url(cls, url: str, *, ticker: Ticker | None = None, **overrides: Any) -> Simulator:
         """Build from ``sim://?speed=20&layout=v1&firmware=document&seed=1&targets=x,y;x,y``."""
         return cls(parse_sim_url(url).replace(**overrides), ticker=ticker)
+
+    @property
+    def url(self) -> str:
+        """``sim://simulator-N``: connect() to this very simulator (in this process only)."""
+        if self._url is None:
+            self._url = f"sim://simulator-{next(_IDS)}"
+            _NAMED[self._url] = self
+        return self._url
+
+    @classmethod
+    def named(cls, url: str) -> Simulator | None:
+        """The simulator whose ``url`` this is; None for a URL describing a new simulator."""
+        parts = urlsplit(url)
+        if not parts.netloc:
+            return None
+        simulator = _NAMED.get(f"sim://{parts.netloc}")
+        if simulator is None:
+            raise InvalidArgument(f"{url!r}: no simulator of that name in this process")
+        if parts.query or parts.path not in ("", "/"):
+            raise InvalidArgument(f"{url!r}: a named simulator takes no options")
+        return simulator
+
+    def drop_connections(self) -> None:
+        """Cut every in-process and TCP connection now (each host sees its link drop)."""
+        for connection in list(self._device.connections):
+            if connection.transport is not None:
+                connection.transport.abort()
 
     @property
     def state(self) -> SimState:
@@ -162,6 +198,8 @@ class Simulator:
         ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
             if self._device.closed:
                 raise ConnectionRefusedError("the simulated robot is off")
+            if self.refuse_connections:
+                raise ConnectionRefusedError("the simulated link is down")
             protocol = protocol_factory()
             transport, _ = create_transport_pair(
                 protocol, self._connection(), loop=loop, extra_a={"sim": self}

@@ -5,7 +5,6 @@ from __future__ import annotations
 import abc
 import asyncio
 import logging
-import time
 from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
@@ -24,7 +23,6 @@ __all__ = ["BaseLink", "frames_log"]
 _log = logging.getLogger(__name__)
 #: Raw frames in hex, both directions, at DEBUG only.
 frames_log = logging.getLogger("galileo_async.transports.frames")
-_monotonic = time.monotonic
 
 
 class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
@@ -169,6 +167,8 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
             raise GalileoConnectionError("the link is closed")
         if self._opened:
             return
+        # One clock for every timer of the link: its loop's (a virtual one in tests).
+        self.stats.clock = asyncio.get_running_loop().time
         await self._connect()
         self._opened = True
         self._writer_task = asyncio.create_task(self._writer(), name=f"{self!r} writer")
@@ -210,7 +210,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         stats.decoder.frames += 1
         stats.decoder.layout = status.layout
         # Only a timestamp per status: the watchdog re-arms itself from it (_check_stale).
-        stats.last_frame_at = _monotonic()
+        stats.last_frame_at = stats.clock()
         if self._state is not LinkState.UP:
             self._fresh_again()
         self.store.update(status)
@@ -231,7 +231,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
             self._backoff = None
             _log.info("status frames again: connection restored")
             self.store.connection_restored()
-        self._arm_watchdog(self._stale_deadline(_monotonic()))
+        self._arm_watchdog(self._stale_deadline(self.stats.clock()))
 
     def _on_lost(self, exc: BaseException | None) -> None:
         """The transport dropped (EOF, close or error): fail waiters, then reconnect."""
@@ -262,7 +262,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     def _on_connected(self) -> None:
         self.stats.connected = True
         self.stats.stale = False
-        self._connected_at = _monotonic()
+        self._connected_at = self.stats.clock()
         # A lost link stays lost until a valid frame comes (_fresh_again): a port reopens
         # fine when the node behind it is dead.
         self._arm_watchdog(self._stale_deadline(self._connected_at))
@@ -325,7 +325,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
                 queue.popleft()
                 self._make_room()
                 continue
-            now = time.monotonic()
+            now = self.stats.clock()
             if self._last_write is not None:
                 wait = self._last_write + self.min_command_interval - now
                 if wait > 0:
@@ -363,6 +363,6 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
                 error.__cause__ = exc
                 future.set_exception(error)
                 continue
-            self._last_write = time.monotonic()
+            self._last_write = self.stats.clock()
             self.stats.commands_sent += 1
             future.set_result(True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -32,6 +33,8 @@ class LinkStats:
     stale: bool
     state: LinkState
     last_frame_at: float | None = field(repr=False)
+    #: The clock of last_frame_at: the link's event loop time once it opened.
+    clock: Callable[[], float] = field(repr=False, compare=False)
 
     def __init__(
         self,
@@ -44,6 +47,7 @@ class LinkStats:
         stale: bool = False,
         state: LinkState = LinkState.CONNECTING,
         last_frame_at: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
         **decoder_counts: Any,
     ) -> None:
         """``decoder_counts``: DecoderStats fields (``frames=3``) when ``decoder`` is None."""
@@ -55,6 +59,7 @@ class LinkStats:
         self.stale = stale
         self.state = state
         self.last_frame_at = last_frame_at
+        self.clock = clock
 
     @property
     def frames(self) -> int:
@@ -88,10 +93,10 @@ class LinkStats:
 
     @property
     def last_frame_age(self) -> float | None:
-        """Seconds since the last valid frame (time.monotonic), or None before the first."""
+        """Seconds since the last valid frame (on ``clock``), or None before the first."""
         if self.last_frame_at is None:
             return None
-        return time.monotonic() - self.last_frame_at
+        return self.clock() - self.last_frame_at
 
 
 class StatusSink(Protocol):

@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
-import time
 import weakref
 from collections.abc import Awaitable, Callable
 from typing import Any, cast
@@ -22,7 +21,6 @@ __all__ = ["StreamLink"]
 
 _log = logging.getLogger(__name__)
 _DEBUG = logging.DEBUG
-_monotonic = time.monotonic
 _UP = LinkState.UP
 #: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
 READ_SIZE = 4096
@@ -93,7 +91,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         if statuses:
             # BaseLink._on_status for a whole read, inlined.
             stats = self._stats
-            stats.last_frame_at = _monotonic()
+            stats.last_frame_at = stats.clock()
             if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update
@@ -109,7 +107,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         statuses = self._decoder.feed_from(data, len(data))
         if statuses:
             stats = self._stats
-            stats.last_frame_at = _monotonic()
+            stats.last_frame_at = stats.clock()
             if self._link._state is not _UP:
                 self._link._fresh_again()
             update = self._update

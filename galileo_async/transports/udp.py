@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import time
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -171,7 +170,7 @@ class UdpLink(BaseLink):
         if statuses:
             # BaseLink._on_status for a whole datagram, the decoder having counted already.
             self._refused = None
-            stats.last_frame_at = time.monotonic()
+            stats.last_frame_at = stats.clock()
             if stats.stale:
                 self._fresh_again()
             update = self.store.update

@@ -143,6 +143,9 @@ def byte_connector(
     if kind == "sim":
         from ..sim import Simulator  # loaded only for sim:// URLs
 
+        named = Simulator.named(url)  # one built in this process: its owner closes it
+        if named is not None:
+            return named.connector(), None
         simulator = Simulator.from_url(url)
         return simulator.connector(), simulator
     # Anything else is a device path or a pyserial URL (rfc2217://, loop://, …).
@@ -168,6 +171,10 @@ def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink
     if simulator is not None:
         link.simulator = simulator
         link.add_closer(simulator.close)
+    elif kind == "sim":
+        from ..sim import Simulator
+
+        link.simulator = Simulator.named(url)
     return link
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import time
 
 from ..errors import LinkStale
 from .stats import LinkState, LinkStats, StatusSink
@@ -12,7 +11,6 @@ from .stats import LinkState, LinkStats, StatusSink
 __all__ = ["StaleWatchdog"]
 
 _log = logging.getLogger("galileo_async.transports.base")
-_monotonic = time.monotonic
 
 
 class StaleWatchdog:
@@ -52,7 +50,7 @@ class StaleWatchdog:
         return None if timeout is None else alive_at + timeout
 
     def _arm_watchdog(self, deadline: float | None) -> None:
-        """Check for silence at ``deadline`` (time.monotonic()) on one loop timer of this link.
+        """Check for silence at ``deadline`` (the link's clock: loop time) on one loop timer.
 
         Frames only set last_frame_at; the check re-arms itself from it when it runs, so a
         link moves its timer once per stale_timeout, not per frame.
@@ -60,10 +58,7 @@ class StaleWatchdog:
         self._cancel_watchdog()
         if deadline is None or self.stale_timeout is None or self._closing:
             return
-        loop = asyncio.get_running_loop()
-        # loop.time() need not be time.monotonic() (uvloop's is not): convert once.
-        when = loop.time() + (deadline - _monotonic())
-        self._watchdog = loop.call_at(when, self._check_stale)
+        self._watchdog = asyncio.get_running_loop().call_at(deadline, self._check_stale)
 
     def _cancel_watchdog(self) -> None:
         timer = self._watchdog
@@ -78,7 +73,7 @@ class StaleWatchdog:
             return
         last = self.stats.last_frame_at
         alive_since = self._connected_at if last is None else max(last, self._connected_at)
-        silent = time.monotonic() - alive_since
+        silent = self.stats.clock() - alive_since
         # A lost link reopened is not stale again: its outage is reported already.
         if self._state is LinkState.UP or self._state is LinkState.CONNECTING:
             if silent < timeout:  # a frame came since (or the timer ran early): not yet

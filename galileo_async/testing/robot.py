@@ -1,0 +1,100 @@
+"""simulated_robot(): a connected Robot and the device side of the same simulated robot."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from collections.abc import AsyncIterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Literal
+
+from .._checks import check_bool, check_int
+from ..errors import InvalidArgument
+from ..robot import Robot, connect
+from ..sim import DEFAULT_TARGETS, Simulator
+from .clock import VirtualClock
+from .device import SimulatedDevice
+
+if TYPE_CHECKING:
+    from ..options import ConnectOptions
+
+    if sys.version_info >= (3, 11):
+        from typing import Unpack
+    else:
+        from typing_extensions import Unpack
+
+__all__ = ["Clock", "map_of", "simulated_robot"]
+
+#: "virtual": time jumps ahead whenever the loop is idle (VirtualClock); "real": wall time.
+Clock = Literal["virtual", "real"]
+
+
+def map_of(count: int) -> tuple[tuple[float, float], ...]:
+    """The simulator's default map cut or extended to ``count`` targets (4 m ring beyond 6)."""
+    check_int("map_targets", count, 1, 255)
+    extra = count - len(DEFAULT_TARGETS)
+    ring = tuple(
+        (
+            round(4.0 * math.cos(math.tau * i / extra), 3),
+            round(4.0 * math.sin(math.tau * i / extra), 3),
+        )
+        for i in range(max(0, extra))
+    )
+    return (DEFAULT_TARGETS + ring)[:count]
+
+
+@contextlib.asynccontextmanager
+async def simulated_robot(
+    *,
+    firmware: Literal["real", "document"] = "real",
+    targets: Sequence[tuple[float, float]] | None = None,
+    navigating: bool = True,
+    clock: Clock = "virtual",
+    sim_options: Mapping[str, Any] | None = None,
+    **options: Unpack[ConnectOptions],
+) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
+    """``async with simulated_robot() as (robot, device)``: a Robot on a simulated robot.
+
+    ``firmware``: the simulated robot's ("real" or "document", PROTOCOL.md); ``layout``
+    (an option): its status layout, default "v2" (the Robot detects it, as on a real
+    port); ``map_targets`` (an option): its map size (default 6, or ``len(targets)``), and
+    the Robot's; ``targets``: the map's (x, y) points;
+    ``navigating``: navigation already open and tracking, as on a robot in service (no
+    command sent); ``clock``: "virtual" (VirtualClock on the running loop: driver timers and
+    the robot on one clock that jumps when idle) or "real"; ``sim_options``: more
+    galileo_async.sim.SimConfig fields (``seed``, ``start_pose``, fault names …);
+    ``options``: connect()'s. Everything is checked before anything starts
+    (InvalidArgument); on exit the Robot, the simulator and the clock are released.
+    """
+    check_bool("navigating", navigating)
+    layout = options.pop("layout", None) or "v2"
+    map_targets = options.get("map_targets")
+    if clock not in ("virtual", "real"):
+        raise InvalidArgument(f"clock must be 'virtual' or 'real', got {clock!r}")
+    if targets is not None:
+        targets = tuple((float(x), float(y)) for x, y in targets)
+        if map_targets is not None and map_targets != len(targets):
+            raise InvalidArgument(
+                f"map_targets={map_targets} contradicts the {len(targets)} targets given"
+            )
+    else:
+        targets = map_of(6 if map_targets is None else map_targets)
+    extra = dict(sim_options or {})
+    for name in ("firmware", "layout", "targets"):
+        if name in extra:
+            raise InvalidArgument(f"pass {name} as simulated_robot's own argument")
+    if clock == "virtual" and "speed" in extra:
+        raise InvalidArgument("speed: a virtual clock runs the robot as fast as it can already")
+    simulator = Simulator(firmware=firmware, layout=layout, targets=targets, **extra)
+    options["map_targets"] = len(targets)
+    virtual = VirtualClock.install() if clock == "virtual" else None
+    try:
+        async with simulator:
+            if navigating:
+                simulator.model.open_navigation()
+            device = SimulatedDevice(simulator, virtual)
+            async with connect(simulator.url, **options) as robot:
+                yield robot, device
+    finally:
+        if virtual is not None:
+            virtual.release()
