@@ -414,6 +414,10 @@ async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> No
             self.url, self.closed = url, False
 
         @classmethod
+        def named(cls, url: str) -> None:
+            return None  # a URL describing a new simulator
+
+        @classmethod
         def from_url(cls, url: str) -> FakeSimulator:
             made.append(cls(url))
             return made[-1]  # type: ignore[no-any-return]

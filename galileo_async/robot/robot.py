@@ -355,6 +355,9 @@ class Robot(Turning, RobotServices, HttpServices, Following):
             raise goal_superseded(exc, first_id) from exc
         return landed_at(result, x, y, self.arrive_tolerance)
 
+    def __repr__(self) -> str:
+        return f"<Robot on {self._link!r}, link {self.link_state.value}>"
+
     # --- lifecycle -----------------------------------------------------------------------
 
     async def close(self) -> None:

@@ -6,7 +6,6 @@ import asyncio
 import enum
 import logging
 import sys
-import weakref
 from typing import Any, Final, TypeVar
 
 import anyio
@@ -26,7 +25,8 @@ __all__ = [
 ]
 
 #: Every Robot not yet closed (galileo_async.testing reports the ones a test left open).
-OPEN_ROBOTS: weakref.WeakSet[Any] = weakref.WeakSet()
+#: Held strongly: a Robot dropped unclosed would otherwise vanish with its link still open.
+OPEN_ROBOTS: set[Any] = set()
 
 _log = logging.getLogger(__name__)
 

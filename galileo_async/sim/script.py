@@ -6,7 +6,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from .._checks import check_int, check_names, check_number
-from .states import EPSILON
+from .states import EPSILON, FREE
 
 #: Status values in WIRE_FIELDS order (robot_model.WireValues).
 _Values = tuple[Any, ...]
@@ -39,6 +39,8 @@ class Scripting:
         time: float
         busy_until: float
         nav_status: int
+        target_status: int
+        target_num_id: int
         visual_status: int
         x: float
         y: float
@@ -53,8 +55,13 @@ class Scripting:
         def halt(self) -> None: ...
 
     def open_navigation(self) -> None:
-        """Navigation open and tracking, as on a robot long in service (nothing busy)."""
+        """Navigation open and tracking, no goal shown (free, id -1), nothing busy.
+
+        As on a robot in service: its goal status left free by the last goal or cancel,
+        so a refused goal shows as -1 (PROTOCOL.md §2.b).
+        """
         self.nav_status, self.visual_status = 1, 1
+        self.target_status, self.target_num_id = FREE, -1
         self._visual_ready_at = None
 
     def abort_next_goal(self) -> None:

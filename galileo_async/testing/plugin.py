@@ -62,7 +62,8 @@ async def _simulation(
     check = LeakCheck()
     async with simulated_robot(**_sim_arguments(request)) as pair:
         yield pair
-    problems = await check.finish()
+        problems = await check.stop_tasks()  # before the Robot closes under them
+    problems += await check.finish()
     if problems:
         pytest.fail("the test left things behind:\n  " + "\n  ".join(problems), pytrace=False)
 
