@@ -28,9 +28,10 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested() -> None:
     # vda5050_vehicle.py needs a broker: tests/test_vda5050_links.py runs it.
+    # test_patrol_app.py is a pytest file: tests/test_testing_example.py runs it.
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
-        "vda5050_vehicle.py", "http_maps.py",
+        "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
 
@@ -55,6 +56,12 @@ def test_patrol_example_visits_three_targets_and_keeps_navigation() -> None:
     out = run_example("patrol.py")
     assert out.count("reached target") == 3
     assert "navigation still open: True" in out
+
+
+def test_patrol_app_example_does_two_laps() -> None:
+    out = run_example("patrol_app.py")
+    assert out.count("reached") == 6
+    assert "visited [1, 2, 3, 1, 2, 3], skipped [], 2 laps" in out
 
 
 def test_monitor_example_sees_statuses_and_events() -> None:
