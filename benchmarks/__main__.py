@@ -1,4 +1,4 @@
-"""``python -m benchmarks [--quick] [ingest latency fleet fleet_merged] [--fleet N,…]``.
+"""``python -m benchmarks [--quick] [ingest latency fleet fleet_merged virtual] [--fleet N,…]``.
 
 ``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050")
+BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual")
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
