@@ -11,6 +11,7 @@ from test_http_link import WAIT, navigating, robot_on_http
 
 import galileo_async as galileo
 from galileo_async import InvalidArgument, NotSupported
+from galileo_async.testing import SimulatedDevice
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -48,9 +49,12 @@ async def test_bad_navigation_speeds_rejected_before_sending() -> None:
         assert face.requests == before
 
 
-async def test_navigation_speed_not_supported_elsewhere() -> None:
-    async with galileo.connect("sim://?speed=40") as robot:
-        with pytest.raises(NotSupported, match="http://"):
-            await robot.set_navigation_speed(0.1)
-        with pytest.raises(NotSupported, match="http://"):
-            await robot.navigation_speed()
+async def test_navigation_speed_not_supported_elsewhere(
+    galileo_robot: galileo.Robot, galileo_device: SimulatedDevice
+) -> None:
+    # The simulated robot of galileo_async.testing, over sim://: no HTTP API behind it.
+    with pytest.raises(NotSupported, match="http://"):
+        await galileo_robot.set_navigation_speed(0.1)
+    with pytest.raises(NotSupported, match="http://"):
+        await galileo_robot.navigation_speed()
+    assert galileo_device.commands == []  # refused before anything was sent
