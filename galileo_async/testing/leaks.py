@@ -63,10 +63,10 @@ class LeakCheck:
         ]
         problems += await self._cancel(tasks)
         timers = _armed_timers(self._loop) - self._timers
+        if timers:  # described while armed: a cancelled handle forgets its callback
+            problems.append(f"{len(timers)} timer(s) left armed: {sorted(map(repr, timers))}")
         for timer in timers:
             timer.cancel()
-        if timers:
-            problems.append(f"{len(timers)} timer(s) left armed: {sorted(map(repr, timers))}")
         return problems
 
     @staticmethod
