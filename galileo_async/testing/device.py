@@ -83,7 +83,12 @@ class SimulatedDevice:
 
     # ------------------------------------------------------------------ script
     def reject_next_goal(self) -> None:
-        """Refuse the next goal the way the firmware refuses an unknown target id."""
+        """Refuse the next goal the way the firmware refuses an unknown target id.
+
+        Real firmware shows the refusal as target_status -1 with the id unchanged: on a
+        robot that has had no goal yet (-1 already) the Robot sees no change and raises
+        AcceptTimeout, as it would on the real robot; document firmware shows 3 (GoalRejected).
+        """
         self._model.reject_next_goal()
 
     def abort_next_goal(self) -> None:

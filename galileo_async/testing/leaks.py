@@ -51,10 +51,11 @@ class LeakCheck:
             await asyncio.gather(*tasks, return_exceptions=True)
             problems.append(f"{len(tasks)} task(s) left running: {_names(tasks)}")
         timers = _armed_timers(self._loop) - self._timers
+        described = sorted(map(repr, timers))  # before cancel(): a cancelled one hides its callback
         for timer in timers:
             timer.cancel()
         if timers:
-            problems.append(f"{len(timers)} timer(s) left armed: {sorted(map(repr, timers))}")
+            problems.append(f"{len(timers)} timer(s) left armed: {described}")
         return problems
 
 
