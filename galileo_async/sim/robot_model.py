@@ -312,7 +312,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
         self._rotate_goal = None
         if self.target_status in ACTIVE:
             self._drop_goal()
-        if target_id >= len(self.targets) or self.take_rejection():
+        if self.take_rejection() or target_id >= len(self.targets):
             # Firmware reports the error as -1 and keeps the id (PROTOCOL.md §2.b).
             if self.config.real_firmware:
                 self.target_status = INVALID

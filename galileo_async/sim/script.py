@@ -111,9 +111,9 @@ class Scripting:
 
     def place(self, x: float, y: float, theta: float) -> None:
         """Put the robot at (x, y) facing ``theta`` radians, at rest."""
-        x, y = check_number("x", x), check_number("y", y)
-        self.x, self.y = x, y
-        self.theta = math.remainder(check_number("heading", theta), math.tau)
+        x, y, theta = check_number("x", x), check_number("y", y), check_number("heading", theta)
+        self.x, self.y = x, y  # all checked first: a bad heading changes nothing
+        self.theta = math.remainder(theta, math.tau)
         self.halt()
 
     def set_fields(self, **values: Any) -> None:

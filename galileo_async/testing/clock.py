@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import heapq
 import selectors
 import time
 import weakref
@@ -25,6 +24,27 @@ _CLOCKS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VirtualClock] = (
 
 class UnsupportedLoop(GalileoError, RuntimeError):
     """The running event loop cannot take a virtual clock (not asyncio's selector loop)."""
+
+
+class _Shifted:
+    """A loop's time going on at the real rate from where a virtual clock left it."""
+
+    __slots__ = ("_base", "_shift")
+
+    def __init__(self, base: Callable[[], float], shift: float) -> None:
+        self._base = base
+        self._shift = shift
+
+    @classmethod
+    def of(cls, base: Callable[[], float], shift: float) -> Callable[[], float]:
+        """``base`` shifted by ``shift`` seconds (``base`` itself for no shift)."""
+        if isinstance(base, _Shifted):
+            shift += base._shift
+            base = base._base
+        return base if shift == 0 else cls(base, shift)
+
+    def __call__(self) -> float:
+        return self._base() + self._shift
 
 
 class _IdleSelector(selectors.BaseSelector):
@@ -67,7 +87,8 @@ class VirtualClock:
     passed, and timeouts fire in a deterministic order. While a thread works for the loop
     (``run_in_executor``, ``to_thread``, ``getaddrinfo``) time follows the real clock.
     Code that waits on real sockets to other processes sees time run ahead: use the real
-    clock there. Install with :meth:`install`; :meth:`release` puts the real clock back.
+    clock there. Install with :meth:`install`; :meth:`release` gives the loop back its
+    selector and the real clock's pace (its time never goes back).
     """
 
     def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
@@ -112,10 +133,13 @@ class VirtualClock:
         return self._users > 0
 
     def release(self) -> None:
-        """Give back one install(); the last one restores the loop's real clock and selector.
+        """Give back one install(); the last one gives the loop back the real clock's pace.
 
-        Timers still armed keep their distance from now: one due in 2 virtual seconds is
-        due in 2 real seconds afterwards.
+        The loop's time goes on from the virtual now at the real rate, never back: a
+        deadline taken meanwhile (anyio's cancel scopes compare it with the time) stays
+        right, and a timer due in 2 virtual seconds is due in 2 real seconds. The loop's
+        selector comes back, and its time is its own clock's again, shifted by the lead
+        the virtual clock took.
         """
         if self._users == 0:
             return
@@ -123,13 +147,12 @@ class VirtualClock:
         if self._users:
             return
         loop: Any = self._loop
-        shift = self._now - self._real_time()
-        for handle in loop._scheduled:
-            handle._when -= shift
-        heapq.heapify(loop._scheduled)
         loop._selector = self._real_selector
-        for name in ("time", "run_in_executor"):
-            loop.__dict__.pop(name, None)
+        loop.__dict__.pop("run_in_executor", None)
+        clock = _Shifted.of(self._real_time, self._now - self._real_time())
+        loop.__dict__.pop("time", None)
+        if clock != loop.time:  # not the loop's own method: keep it
+            loop.time = clock
         _CLOCKS.pop(self._loop, None)
         for waiter in self._settle:
             if not waiter.done():

@@ -83,7 +83,12 @@ class SimulatedDevice:
 
     # ------------------------------------------------------------------ script
     def reject_next_goal(self) -> None:
-        """Refuse the next goal the way the firmware refuses an unknown target id."""
+        """Refuse the next goal the way the firmware refuses an unknown target id.
+
+        Real firmware shows it as target_status -1 with the id unchanged (GoalRejected);
+        where -1 shows already (navigation just started, no goal yet) the Robot sees no
+        change and raises AcceptTimeout, as on the real robot. Document firmware: 3.
+        """
         self._model.reject_next_goal()
 
     def abort_next_goal(self) -> None:

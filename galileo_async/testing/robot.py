@@ -8,7 +8,7 @@ import sys
 from collections.abc import AsyncIterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
-from .._checks import check_bool, check_int
+from .._checks import check_bool, check_int, check_number
 from ..errors import InvalidArgument
 from ..robot import Robot, connect
 from ..sim import DEFAULT_TARGETS, Simulator
@@ -31,7 +31,7 @@ Clock = Literal["virtual", "real"]
 
 def map_of(count: int) -> tuple[tuple[float, float], ...]:
     """The simulator's default map cut or extended to ``count`` targets (4 m ring beyond 6)."""
-    check_int("map_targets", count, 1, 255)
+    check_int("map_targets", count, 0, 255)
     extra = count - len(DEFAULT_TARGETS)
     ring = tuple(
         (
@@ -41,6 +41,16 @@ def map_of(count: int) -> tuple[tuple[float, float], ...]:
         for i in range(max(0, extra))
     )
     return (DEFAULT_TARGETS + ring)[:count]
+
+
+def _points(targets: Sequence[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
+    """``targets`` as (x, y) pairs of finite floats; InvalidArgument for anything else."""
+    try:
+        return tuple((check_number("x", x), check_number("y", y)) for x, y in targets)
+    except (TypeError, ValueError):  # InvalidArgument is a ValueError
+        raise InvalidArgument(
+            f"targets must be (x, y) pairs of finite numbers, got {targets!r}"
+        ) from None
 
 
 @contextlib.asynccontextmanager
@@ -72,13 +82,17 @@ async def simulated_robot(
     if clock not in ("virtual", "real"):
         raise InvalidArgument(f"clock must be 'virtual' or 'real', got {clock!r}")
     if targets is not None:
-        targets = tuple((float(x), float(y)) for x, y in targets)
+        targets = _points(targets)
         if map_targets is not None and map_targets != len(targets):
             raise InvalidArgument(
                 f"map_targets={map_targets} contradicts the {len(targets)} targets given"
             )
     else:
         targets = map_of(6 if map_targets is None else map_targets)
+    if not isinstance(sim_options, (Mapping, type(None))):
+        raise InvalidArgument(
+            f"sim_options must be a mapping of SimConfig fields, got {sim_options!r}"
+        )
     extra = dict(sim_options or {})
     for name in ("firmware", "layout", "targets"):
         if name in extra:

@@ -1,0 +1,193 @@
+"""The pytest plugin (galileo_async.testing.plugin): fixtures, galileo_sim, leak checks."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from galileo_async import Robot
+from galileo_async.protocol import commands as c
+from galileo_async.testing import SimulatedDevice, VirtualClock
+
+pytest_plugins = ["pytester"]
+
+#: The worktree whose galileo_async the pytest runs below import.
+ROOT = Path(__file__).resolve().parents[1]
+#: Real seconds one pytest run below may take.
+RUN_TIMEOUT = 60.0
+
+
+@pytest.fixture
+def run(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> pytest.Pytester:
+    """A pytester whose runs import this worktree's galileo_async."""
+    path = os.environ.get("PYTHONPATH")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(ROOT), path])))
+    monkeypatch.delenv("PYTEST_ADDOPTS", raising=False)
+    return pytester
+
+
+def pytest_run(pytester: pytest.Pytester, *args: str) -> pytest.RunResult:
+    """Run pytest in a subprocess on the files written, small and bounded."""
+    return pytester.runpytest_subprocess(
+        "-p", "no:cacheprovider", "-q", "-rA", *args, timeout=RUN_TIMEOUT
+    )
+
+
+# ----------------------------------------------------------------------- in this suite
+
+
+@pytest.mark.galileo_sim(map_targets=4, accept_timeout=2.0)
+async def test_the_fixtures_are_two_halves_of_one_robot(
+    galileo_robot: Robot, galileo_device: SimulatedDevice
+) -> None:
+    assert VirtualClock.of() is not None
+    assert galileo_robot.map_targets == 4
+    assert galileo_robot.accept_timeout == 2.0
+    assert len(galileo_device.state.targets) == 4
+    assert (await galileo_robot.goto(3)).target_id == 3
+    assert galileo_device.received() == [c.Goto(3)]
+
+
+# ----------------------------------------------------------------------- in a pytest run
+
+STRICT_MODE_TESTS = """
+import asyncio
+
+import pytest
+
+from galileo_async.protocol import commands as c
+
+pytestmark = pytest.mark.asyncio
+
+
+async def test_fixtures(galileo_robot, galileo_device):
+    assert galileo_device.commands == []  # a fresh robot per test
+    assert (await galileo_robot.goto(0)).target_id == 0
+    assert galileo_device.received() == [c.Goto(0)]
+    await asyncio.sleep(3600)  # virtual: returns at once
+
+
+async def test_fixtures_again(galileo_robot, galileo_device):
+    assert galileo_device.commands == []
+    assert galileo_robot.status.target_num_id == -1  # not the last test's goal 0
+
+
+@pytest.mark.galileo_sim(
+    firmware="document", map_targets=3, layout="v1", accept_timeout=2.0,
+    sim_options={"power": 21.0},
+)
+async def test_marker(galileo_robot, galileo_device):
+    assert galileo_device.simulator.config.firmware == "document"
+    assert galileo_robot.map_targets == 3
+    assert len(galileo_device.state.targets) == 3
+    assert galileo_robot.accept_timeout == 2.0
+    assert galileo_robot.status.layout == "v1"
+    assert galileo_device.status.power == pytest.approx(21.0, abs=0.1)
+
+
+@pytest.mark.galileo_sim(navigating=False)
+class TestClassMarker:
+    async def test_navigation_closed(self, galileo_robot):
+        assert galileo_robot.status.nav_status == 0
+
+
+async def test_no_leaks_on_a_plain_test(galileo_no_leaks):
+    task = asyncio.create_task(asyncio.sleep(1))
+    await task
+"""
+
+
+def test_fixtures_and_marker_in_strict_mode_with_strict_markers(run: pytest.Pytester) -> None:
+    run.makeini("[pytest]\nasyncio_mode = strict\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(
+        test_sim=STRICT_MODE_TESTS,
+        # The control: --strict-markers is on, and refuses a marker nobody declared.
+        test_typo="import pytest\n\n@pytest.mark.galileo_simm\ndef test_x():\n    pass\n",
+    )
+    result = pytest_run(run, "--strict-markers", "--continue-on-collection-errors")
+    result.assert_outcomes(passed=5, errors=1)
+    result.stdout.fnmatch_lines(["ERROR test_typo.py*'galileo_simm' not found in `markers`*"])
+    assert "'galileo_sim' not found" not in result.stdout.str()
+
+
+LEAKING_TESTS = """
+import asyncio
+
+import pytest
+
+import galileo_async
+
+pytestmark = pytest.mark.asyncio
+KEPT = []
+
+
+async def test_leaves_a_robot(galileo_device):
+    KEPT.append(await galileo_async.connect(galileo_device.simulator.url))
+
+
+async def test_drops_an_open_robot(galileo_device):
+    await galileo_async.connect(galileo_device.simulator.url)  # no reference kept: still named
+
+
+async def test_leaves_a_task(galileo_robot):
+    asyncio.create_task(asyncio.Event().wait(), name="forgotten-task")
+
+
+async def test_leaves_a_timer(galileo_robot):
+    asyncio.get_running_loop().call_later(100, print, "forgotten-timer")
+
+
+async def test_plain_test_leaves_a_task(galileo_no_leaks):
+    asyncio.create_task(asyncio.Event().wait(), name="plain-task")
+"""
+
+
+def test_a_test_that_leaves_something_fails_at_teardown_naming_it(run: pytest.Pytester) -> None:
+    run.makeini("[pytest]\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(test_leaks=LEAKING_TESTS)
+    result = pytest_run(run)
+    result.assert_outcomes(passed=5, errors=5)
+    result.stdout.fnmatch_lines_random(
+        [
+            "*ERROR at teardown of test_leaves_a_robot*",
+            "*1 Robot(s) left open: <Robot on <StreamLink sim://simulator-*",
+            "*ERROR at teardown of test_drops_an_open_robot*",
+            "*1 Robot(s) left open: <Robot on <StreamLink sim://simulator-*",
+            "*ERROR at teardown of test_leaves_a_task*",
+            "*1 task(s) left running: forgotten-task*",
+            "*ERROR at teardown of test_leaves_a_timer*",
+            "*1 timer(s) left armed*forgotten-timer*",
+            "*ERROR at teardown of test_plain_test_leaves_a_task*",
+            "*1 task(s) left running: plain-task*",
+        ]
+    )
+
+
+AUTO_MODE_TESTS = """
+import pytest
+
+
+async def test_auto_mode(galileo_robot, galileo_device):
+    assert (await galileo_robot.goto(1)).target_id == 1
+    await galileo_device.advance(10)
+
+
+@pytest.mark.galileo_sim("document")
+async def test_positional(galileo_robot):
+    pass
+"""
+
+
+def test_auto_mode_and_a_marker_with_positional_arguments(run: pytest.Pytester) -> None:
+    run.makeini("[pytest]\nasyncio_mode = auto\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(test_auto=AUTO_MODE_TESTS)
+    result = pytest_run(run)
+    result.assert_outcomes(passed=1, errors=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*ERROR at setup of test_positional*",
+            "*galileo_sim takes keyword arguments only, got ('document',)*",
+        ]
+    )
