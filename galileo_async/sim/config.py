@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 from urllib.parse import parse_qsl, urlsplit
 
+from .._checks import check_number
 from ..errors import InvalidArgument
 from ..models import StatusLayout
 from ..protocol import LAYOUTS, UDP_LAYOUTS
@@ -32,13 +33,31 @@ _UDP_LAYOUTS = tuple(UDP_LAYOUTS)
 
 
 def _check_fraction(name: str, value: float) -> None:
-    if not 0.0 <= value <= 1.0:
-        raise InvalidArgument(f"{name} must be in 0..1, got {value!r}")
+    check_number(name, value, low=0.0, high=1.0)
 
 
 def _check_non_negative(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value >= 0.0):
-        raise InvalidArgument(f"{name} must be a finite number >= 0, got {value!r}")
+    check_number(name, value, low=0.0)
+
+
+def _check_point(name: str, value: object, size: int) -> tuple[float, ...]:
+    """``value`` as ``size`` finite floats; else InvalidArgument."""
+    try:
+        point = tuple(float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        point = ()
+    if len(point) != size or not all(map(math.isfinite, point)):
+        raise InvalidArgument(f"{name} must be {size} finite numbers, got {value!r}")
+    return point
+
+
+def _check_points(name: str, value: object, size: int) -> tuple[tuple[float, ...], ...]:
+    """``value`` as points of ``size`` finite floats each; else InvalidArgument."""
+    try:
+        items = list(value)  # type: ignore[call-overload]
+    except TypeError:
+        raise InvalidArgument(f"{name} must be a sequence of points, got {value!r}") from None
+    return tuple(_check_point(f"each of {name}", item, size) for item in items)
 
 
 @dataclass(frozen=True)
@@ -147,10 +166,11 @@ class SimConfig:
         object.__setattr__(self, "udp_layout", udp_layout)
         if self.firmware not in ("real", "document"):
             raise InvalidArgument(f"firmware must be 'real' or 'document', got {self.firmware!r}")
-        if not (math.isfinite(self.speed) and 0.0 < self.speed <= 1000.0):
-            raise InvalidArgument(f"speed must be in (0, 1000], got {self.speed!r}")
-        targets = tuple((float(x), float(y)) for x, y in self.targets)
-        if len(targets) > 256 or not all(map(math.isfinite, sum(targets, ()))):
+        check_number("speed", self.speed, low=0.0, low_open=True, high=1000.0)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
+            raise InvalidArgument(f"seed must be an int, got {self.seed!r}")
+        targets = _check_points("targets", self.targets, 2)
+        if len(targets) > 256:
             raise InvalidArgument("targets must be at most 256 finite (x, y) pairs")
         object.__setattr__(self, "targets", targets)
         for name in (
@@ -163,13 +183,9 @@ class SimConfig:
             if getattr(self, name) is not None:
                 _check_non_negative(name, getattr(self, name))
         for name, size in (("start_pose", 3), ("dock", 2)):
-            value = getattr(self, name)
-            if len(value) != size or not all(map(math.isfinite, value)):
-                raise InvalidArgument(f"{name} must be {size} finite numbers, got {value!r}")
+            object.__setattr__(self, name, _check_point(name, getattr(self, name), size))
         for name in ("max_speed", "max_turn_rate", "acceleration", "angular_acceleration"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise InvalidArgument(f"{name} must be > 0, got {value!r}")
+            check_number(name, getattr(self, name), low=0.0, low_open=True)
 
     @property
     def real_firmware(self) -> bool:
