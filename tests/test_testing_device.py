@@ -9,12 +9,14 @@ from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
+from cancel_ways import WAYS, stop_waiting
 
 from galileo_async import LinkState, NavStatus, Robot, TargetStatus, VisualStatus
 from galileo_async.errors import (
     AcceptTimeout,
     ConnectionLost,
     GalileoError,
+    GalileoTimeout,
     GoalAborted,
     GoalRejected,
     GoalStalled,
@@ -582,3 +584,60 @@ async def test_the_real_clock_has_no_advance_and_the_robot_still_works(
         result = await robot.goto(0)
     assert result.distance == pytest.approx(0.0, abs=0.3)
     assert device.received() == [c.Goto(0)]
+
+
+# ----------------------------------------------------------------------- next_command
+
+
+async def test_next_command_is_the_next_of_its_kind_with_its_time(
+    sim: tuple[Robot, SimulatedDevice],
+) -> None:
+    robot, device = sim
+    await device.advance(1.0)
+    waiting = asyncio.create_task(device.next_command(c.Goto))
+    await robot.cancel()  # a Cancel arrives first: not a Goto
+    goal = asyncio.create_task(robot.goto(1))
+    received = await waiting
+    assert received.command == c.Goto(1)
+    assert received.at == pytest.approx(device.time, abs=2 * FRAME)
+    assert received.at > 1.0
+    assert device.received() == [c.Cancel(), c.Goto(1)]
+    await goal
+
+
+async def test_next_command_without_kinds_takes_any(sim: tuple[Robot, SimulatedDevice]) -> None:
+    robot, device = sim
+    waiting = asyncio.create_task(device.next_command())
+    await robot.cancel()
+    assert (await waiting).command == c.Cancel()
+
+
+async def test_next_command_times_out_on_the_loop_clock(
+    sim: tuple[Robot, SimulatedDevice],
+) -> None:
+    _, device = sim
+    loop = asyncio.get_running_loop()
+    began = loop.time()
+    with pytest.raises(GalileoTimeout, match="no Goto arrived within 5"):
+        await device.next_command(c.Goto, timeout=5)
+    assert loop.time() - began == pytest.approx(5.0, abs=1e-6)
+    assert device._waiters == []  # nothing left to resolve
+
+
+@pytest.mark.parametrize("how", WAYS)
+async def test_next_command_cancelled_every_way_leaves_no_waiter(
+    sim: tuple[Robot, SimulatedDevice], how: str
+) -> None:
+    _, device = sim
+    await stop_waiting(how, lambda: device.next_command(c.Goto), after=2.0)
+    assert device._waiters == []
+
+
+@pytest.mark.parametrize("bad", [0, -1, math.nan, True, "1"])
+async def test_next_command_checks_its_timeout(
+    sim: tuple[Robot, SimulatedDevice], bad: object
+) -> None:
+    _, device = sim
+    with pytest.raises(InvalidArgument):
+        await device.next_command(timeout=bad)  # type: ignore[arg-type]
+    assert device._waiters == []

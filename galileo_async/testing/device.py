@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .._checks import check_seconds, check_timeout
-from ..errors import GalileoError
+from ..errors import GalileoError, GalileoTimeout
 from ..models import GalileoStatus, Pose
 from ..protocol import Command
 from ..sim import SimState, Simulator
@@ -43,7 +44,14 @@ class SimulatedDevice:
         self._model = model
 
         def record(command: Command) -> None:
-            self._log.append(ReceivedCommand(model.time, command, model.busy or model.pending > 0))
+            received = ReceivedCommand(model.time, command, model.busy or model.pending > 0)
+            self._log.append(received)
+            for kinds, waiter in list(self._waiters):
+                if not waiter.done() and (not kinds or isinstance(command, kinds)):
+                    waiter.set_result(received)
+
+        self._waiters: list[tuple[tuple[type[Command], ...], asyncio.Future[ReceivedCommand]]]
+        self._waiters = []
 
         simulator._device.command_listeners.append(record)
 
@@ -56,6 +64,25 @@ class SimulatedDevice:
     def received(self, *kinds: type[Command]) -> list[Command]:
         """The command objects received, in order; with ``kinds``, only those types."""
         return [r.command for r in self._log if not kinds or isinstance(r.command, kinds)]
+
+    async def next_command(self, *kinds: type[Command], timeout: float = 10.0) -> ReceivedCommand:
+        """The next command (of ``kinds``, if given) to arrive from now on.
+
+        GalileoTimeout after ``timeout`` seconds of loop time (virtual with the virtual clock).
+        """
+        check_seconds("timeout", timeout)
+        waiter: asyncio.Future[ReceivedCommand] = asyncio.get_running_loop().create_future()
+        entry = (kinds, waiter)
+        self._waiters.append(entry)
+        try:
+            return await asyncio.wait_for(waiter, timeout)
+        except asyncio.TimeoutError:
+            wanted = ", ".join(kind.__name__ for kind in kinds) or "any command"
+            raise GalileoTimeout(
+                f"next_command: no {wanted} arrived within {timeout} s", self.status
+            ) from None
+        finally:
+            self._waiters.remove(entry)
 
     def clear(self) -> None:
         """Forget the commands received so far."""
