@@ -137,7 +137,7 @@ MAY_IMPORT = {
     "fleet": {"base", "transitions", "state", "robot", "options"},
     "vda5050": {"base", "transitions", "robot"},
     # Tests of applications: a Robot on the simulator, from both sides.
-    "testing": {"base", "protocol", "options", "sim", "robot"},
+    "testing": {"base", "protocol", "options", "sim", "robot", "fleet"},
 }
 #: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
 #: the ROS link for ros:// inside the functions that need them (or for type checking).

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from .clock import UnsupportedLoop, VirtualClock
 from .device import ReceivedCommand, SimulatedDevice
+from .fleet import simulated_fleet
 from .leaks import LeakCheck
 from .robot import Clock, map_of, simulated_robot
 
@@ -22,5 +23,6 @@ __all__ = [
     "UnsupportedLoop",
     "VirtualClock",
     "map_of",
+    "simulated_fleet",
     "simulated_robot",
 ]

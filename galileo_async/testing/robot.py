@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     else:
         from typing_extensions import Unpack
 
-__all__ = ["Clock", "map_of", "simulated_robot"]
+__all__ = ["Clock", "build_simulator", "map_of", "simulated_robot"]
 
 #: "virtual": time jumps ahead whenever the loop is idle (VirtualClock); "real": wall time.
 Clock = Literal["virtual", "real"]
@@ -76,6 +76,35 @@ async def simulated_robot(
     ``options``: connect()'s. Everything is checked before anything starts
     (InvalidArgument); on exit the Robot, the simulator and the clock are released.
     """
+    connect_options: dict[str, Any] = dict(options)
+    simulator = build_simulator(
+        firmware=firmware, targets=targets, navigating=navigating, clock=clock,
+        sim_options=sim_options, options=connect_options,
+    )  # fmt: skip
+    virtual = VirtualClock.install() if clock == "virtual" else None
+    try:
+        async with simulator:
+            device = SimulatedDevice(simulator, virtual)
+            async with connect(simulator.url, **connect_options) as robot:
+                yield robot, device
+    finally:
+        if virtual is not None:
+            virtual.release()
+
+
+def build_simulator(
+    *,
+    firmware: str,
+    targets: Sequence[tuple[float, float]] | None,
+    navigating: bool,
+    clock: str,
+    sim_options: Mapping[str, Any] | None,
+    options: dict[str, Any],
+) -> Simulator:
+    """The Simulator simulated_robot() describes; ``options`` loses layout, gains map_targets.
+
+    InvalidArgument, nothing started, for any argument out of place.
+    """
     check_bool("navigating", navigating)
     layout = options.pop("layout", None) or "v2"
     map_targets = options.get("map_targets")
@@ -101,14 +130,6 @@ async def simulated_robot(
         raise InvalidArgument("speed: a virtual clock runs the robot as fast as it can already")
     simulator = Simulator(firmware=firmware, layout=layout, targets=targets, **extra)
     options["map_targets"] = len(targets)
-    virtual = VirtualClock.install() if clock == "virtual" else None
-    try:
-        async with simulator:
-            if navigating:
-                simulator.model.open_navigation()
-            device = SimulatedDevice(simulator, virtual)
-            async with connect(simulator.url, **options) as robot:
-                yield robot, device
-    finally:
-        if virtual is not None:
-            virtual.release()
+    if navigating:
+        simulator.model.open_navigation()
+    return simulator
