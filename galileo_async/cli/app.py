@@ -22,11 +22,13 @@ from .runner import (
     resolve_port,
     setup_logging,
 )
+from .usage import UsageErrorsAsJson
 
 __all__ = ["app", "main"]
 
 app = typer.Typer(
     name="galileo",
+    cls=UsageErrorsAsJson,  # usage errors are JSON when the command line has --json
     help=(
         "Drive and watch a Galileo navigation robot (serial, socket://, ros:// or the sim:// "
         "default)."

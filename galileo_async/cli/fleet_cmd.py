@@ -15,6 +15,7 @@ from ..fleet.fleet import RobotState
 from .fleet_view import SORT_KEYS, FleetView
 from .goals import aclose
 from .map_render import save_svg
+from .monitor_screen import keys_pressed
 from .render import event_text
 from .runner import ExitCode, fail, out_console, run, settings_of, timestamp
 from .watch import SvgOption, TargetsOption, map_model
@@ -114,7 +115,7 @@ def monitor(
     targets: TargetsOption = None,
     svg: SvgOption = None,
 ) -> None:
-    """Live: a row per robot, a summary line and the map of every robot."""
+    """Live: a row per robot, a summary line and the map of every robot (key q quits)."""
     settings, spec = settings_of(ctx), _spec(ctx)
     states = _view_options(sort, state)
     model = map_model(list(spec.ports.values()), targets or spec.targets)
@@ -152,14 +153,21 @@ async def _watch(fleet: Fleet, view: FleetView, duration: float | None) -> None:
             await aclose(stream)
 
     console = out_console()
-    view.width = console.width
+
+    def fit() -> None:
+        view.width = console.width
+        view.height = console.size.height if console.is_terminal else None
+
+    fit()
     async with anyio.create_task_group() as group:
         group.start_soon(follow_statuses)
         group.start_soon(follow_events)
-        with Live(view.screen(), console=console, auto_refresh=False) as live:
-            with anyio.move_on_after(duration if duration is not None else float("inf")):
-                while True:
-                    await anyio.sleep(1 / FLEET_REFRESH)
-                    view.width = console.width
-                    live.update(view.screen(), refresh=True)
+        with keys_pressed(view.press) as typed:
+            view.keys_hint = "q quit" if typed else ""
+            with Live(view.screen(), console=console, auto_refresh=False) as live:
+                with anyio.move_on_after(duration if duration is not None else float("inf")):
+                    while not view.quit:
+                        await anyio.sleep(1 / FLEET_REFRESH)
+                        fit()
+                        live.update(view.screen(), refresh=True)
         group.cancel_scope.cancel()

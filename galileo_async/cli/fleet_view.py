@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from rich.console import Group, RenderableType
 from rich.panel import Panel
@@ -21,6 +21,7 @@ from .render import rounded
 __all__ = [
     "COLUMNS",
     "DROP_ORDER",
+    "MIN_MAP_ROWS",
     "SORT_KEYS",
     "FleetRow",
     "FleetView",
@@ -147,6 +148,8 @@ COLUMNS = ("robot", "link", "age", "nav", "visual", "charge", "goal", "distance"
            "power", "last event")  # fmt: skip
 #: Least important first: what a narrow screen drops, one column at a time, until it fits.
 DROP_ORDER = ("age", "last event", "visual", "charge", "pose", "power", "distance", "nav")
+#: Map rows below which a short screen shows the table without the map.
+MIN_MAP_ROWS = 4
 
 
 def row_cells(row: FleetRow) -> dict[str, str | Text]:
@@ -195,7 +198,7 @@ class FleetView:
     def __init__(
         self, fleet: Fleet, model: MapModel, *, sort: str = "name", match: str = "",
         states: set[LinkState] | None = None, limit: int = 20, map_rows: int = 16,
-        width: int = 200,
+        width: int = 200, height: int | None = None,
     ) -> None:  # fmt: skip
         self.fleet = fleet
         self.model = model
@@ -206,6 +209,12 @@ class FleetView:
         self.map_rows = map_rows
         #: Columns of the screen: the table drops its least important columns to fit.
         self.width = width
+        #: Rows of the screen (None: not a terminal): the map shrinks to the rows left.
+        self.height = height
+        #: Hint of the keys shown under the table (the live monitor's: ``q quit``).
+        self.keys_hint = ""
+        #: Set once q was pressed (the live monitor then ends).
+        self.quit = False
         #: Newest statuses not yet on the map, and every robot's latest.
         self.changed: dict[str, GalileoStatus] = {}
         self.latest: dict[str, GalileoStatus] = {}
@@ -226,14 +235,28 @@ class FleetView:
         rows = self.rows(every)
         more = len(rows) - self.limit
         shown = f" · showing {self.limit} of {len(rows)} (--rows)" if more > 0 else ""
+        keys = f" · {self.keys_hint}" if self.keys_hint else ""
         title = f"galileo fleet · {summary_line(every)}"
         # The panel's border and padding take 4 columns.
         table = _table(rows, self.limit, self.width - 4)
-        return Panel(table, title=title, subtitle=f"sort {self.sort}{shown}")
+        return Panel(table, title=title, subtitle=f"sort {self.sort}{shown}{keys}")
+
+    def press(self, key: str) -> None:
+        """Apply one key typed in the live monitor: q quits, others are ignored."""
+        if key in ("q", "Q"):
+            self.quit = True
 
     def screen(self) -> RenderableType:
-        """Move the changed robots on the map, then the whole screen."""
+        """Move the changed robots on the map, then the screen: the map fits the rows left."""
         changed, self.changed = self.changed, {}
         for name, status in changed.items():
             self.model.update(name, status)
-        return Group(self.table(), map_panel(self.model, self.map_rows))
+        table = self.table()
+        map_rows = self.map_rows
+        if self.height is not None:
+            # The table's borders and header, the map's borders, one spare row.
+            robots = cast(Table, table.renderable).row_count
+            map_rows = min(map_rows, self.height - (robots + 3) - 2 - 1)
+            if map_rows < MIN_MAP_ROWS:
+                return table
+        return Group(table, map_panel(self.model, map_rows))
