@@ -47,8 +47,9 @@ class HttpFace:
     """REST on one port, /galileo/status as JSON on a WebSocket port; tasks follow the model.
 
     A navigation task is WORKING while the model shows its goal running (index, or -2 for a
-    pose), COMPLETE when it ends at the target, ERROR on a goal error or a goal refused,
-    CANCELLED when stopped or replaced. Token checking is off unless ``token_check``.
+    pose), COMPLETE when it ends on the target, ERROR when the planner gave up short of it, on
+    a goal error or a goal refused, CANCELLED when stopped or replaced. Token checking is off
+    unless ``token_check``.
     """
 
     def __init__(
@@ -357,7 +358,9 @@ class HttpFace:
         if shown == goal_id and status in (1, 2):
             task["current_task"]["state"] = "WORKING"
         elif shown == goal_id and status == 0 and task["current_task"]["state"] == "WORKING":
-            arrived = values[_DISTANCE] <= self.device.config.arrival_distance + 0.05
+            # The model lands on the target when it arrives (distance 0): any other end of a
+            # goal still shown is the planner giving up, however close it stopped.
+            arrived = values[_DISTANCE] <= self.device.config.arrival_distance
             self._end_nav("COMPLETE" if arrived else "ERROR")
         elif shown == goal_id and status in (3, -1):
             self._end_nav("ERROR")
