@@ -17,6 +17,7 @@ from aiohttp import WSMsgType, web
 
 from ..protocol import commands as cmd
 from ..protocol.names import ROS_FIELD_NAMES
+from .config import FRAME_RATE
 from .device import SimDevice
 from .robot_model import WIRE_FIELDS, WireValues
 
@@ -26,6 +27,9 @@ __all__ = ["MAPS", "VERSION", "HttpFace"]
 VERSION = {"version": "5.1.0", "code_name": "galileo-sim"}
 #: The simulated robot's maps and each map's paths; navigation starts on the first.
 MAPS: dict[str, tuple[str, ...]] = {"sim": ("path1",), "floor2": ("path1", "path2")}
+#: What /system/info reports besides the battery: sensor rates (Hz) and the robot.
+_RATES = {"camera_rgb": 30, "camera_depth": 30, "odom": 50, "imu": 100, "camera_processed": 30}
+_INFO = {**VERSION, "id": "SIM", "mac": "00:00:00:00:00:00", "port": 3546}
 #: The JSON name of each wire value, in WIRE_FIELDS order.
 _JSON_NAMES = tuple({v: k for k, v in ROS_FIELD_NAMES.items()}[f] for f in WIRE_FIELDS)
 _ID, _STATUS, _DISTANCE = (WIRE_FIELDS.index(f) for f in ("target_num_id", "target_status",
@@ -47,8 +51,11 @@ class HttpFace:
     """REST on one port, /galileo/status as JSON on a WebSocket port; tasks follow the model.
 
     A navigation task is WORKING while the model shows its goal running (index, or -2 for a
-    pose), COMPLETE when it ends at the target, ERROR on a goal error or a goal refused,
-    CANCELLED when stopped or replaced. Token checking is off unless ``token_check``.
+    pose), COMPLETE when it ends on the target, ERROR when the planner gave up short of it, on
+    a goal error or a goal refused, CANCELLED when stopped or replaced. The status shows a
+    task as the vendor's does (system_monitor noetic, galileo_status_service.py L251-264,
+    L305-317): looked at once every ``task_refresh`` s, until then the goal fields from before
+    it. Token checking is off unless ``token_check``.
     """
 
     def __init__(
@@ -69,14 +76,19 @@ class HttpFace:
         #: Every task made, by id; the last navigation task and the goal id it waits for.
         self.tasks: dict[str, dict[str, Any]] = {}
         self._nav: tuple[dict[str, Any], int] | None = None
+        #: Seconds between two looks of the status at the running task (0: every frame).
+        self.task_refresh = 1.0
+        #: Frames to the next look, the goal fields it saw, and those from before the task.
+        self._next_look = 0
+        self._view: tuple[int, int, float] | None = None
+        self._before: tuple[int, int, float] | None = None
         #: Texts /system/tts was asked to say, and the map and path in use.
         self.spoken: list[str] = []
         self.current = ("sim", "path1")
         #: Each open status WebSocket: its request and the statuses it has still to send.
         self.sockets: dict[web.WebSocketResponse, tuple[web.Request, asyncio.Queue[str]]] = {}
         self.requests = 0
-        #: WebSocket pings received (the vendor drops a client that does not ping), and
-        #: an event set at each.
+        #: WebSocket pings received (the vendor drops a client that does not ping); set at each.
         self.pings = 0
         self.pinged = asyncio.Event()
         self._runners: list[web.AppRunner] = []
@@ -141,15 +153,7 @@ class HttpFace:
         run = self._run
         return {
             ("GET", "/token"): self._token,
-            ("GET", "/system/info"): lambda q: {
-                "battery": self.battery(),
-                "camera_rgb": 30,
-                "camera_depth": 30,
-                "odom": 50,
-                "imu": 100,
-                "camera_processed": 30,
-                "info": {**VERSION, "id": "SIM", "mac": "00:00:00:00:00:00", "port": 3546},
-            },
+            ("GET", "/system/info"): lambda q: {"battery": self.battery(), **_RATES, "info": _INFO},
             ("GET", "/system/status"): lambda q: {"status": self._system_status()},
             ("PUT", "/system/speed"): lambda q: self._speed(q),
             ("GET", "/system/config"): lambda q: self._config(),
@@ -160,38 +164,29 @@ class HttpFace:
             ("GET", "/map/stop"): lambda q: run(cmd.StopMapping(), {"result": True}),
             ("GET", "/map/image"): lambda q: list(MAPS),
             ("GET", "/navigation/start"): self._start,
-            ("GET", "/navigation/stop"): lambda q: run(
-                cmd.StopNavigation(), {"result": True, "description": ""}
-            ),
-            ("GET", "/navigation/current_path"): lambda q: dict(
-                zip(("map", "path"), self.current, strict=True)
-            ),
+            ("GET", "/navigation/stop"):
+                lambda q: run(cmd.StopNavigation(), {"result": True, "description": ""}),
+            ("GET", "/navigation/current_path"):
+                lambda q: dict(zip(("map", "path"), self.current, strict=True)),
             ("GET", "/navigation/current_map"): lambda q: {"name": self.current[0], "md5sum": ""},
             ("GET", "/navigation/reload"): self._reload,
             ("GET", "/navigation/nav_points"): self._nav_points,
             ("GET", "/navigation/move_to_index"): lambda q: self._goal(
-                int(q["index"]), {"type": "nav_action", "index": int(q["index"])}
-            ),
+                int(q["index"]), {"type": "nav_action", "index": int(q["index"])}),
             ("POST", "/navigation/start_nav_task"): self._pose_goal,
             ("GET", "/navigation/stop_nav_task"): lambda q: self._stop_task(),
             ("GET", "/navigation/go_charge"): lambda q: run(
-                cmd.StartCharging(), self._keep(_task("charge task", {"type": "charge_action"}))
-            ),
-            ("GET", "/navigation/stop_charge"): lambda q: run(
-                cmd.StopCharging(), {"status": "OK", "task": None}
-            ),
-            ("GET", "/task"): lambda q: (
-                self.tasks[q["id"]] if "id" in q else list(self.tasks.values())
-            ),
+                cmd.StartCharging(), self._keep(_task("charge task", {"type": "charge_action"}))),
+            ("GET", "/navigation/stop_charge"):
+                lambda q: run(cmd.StopCharging(), {"status": "OK", "task": None}),
+            ("GET", "/task"):
+                lambda q: self.tasks[q["id"]] if "id" in q else list(self.tasks.values()),
             ("GET", "/task/pause"): lambda q: self._task_verb(q, cmd.Pause()),
             ("GET", "/task/resume"): lambda q: self._task_verb(q, cmd.Resume()),
             ("GET", "/task/stop"): lambda q: self._task_verb(q, cmd.Cancel()),
-            ("GET", "/navigation/pose"): lambda q: {
-                "x": model.x,
-                "y": model.y,
-                "angle": math.degrees(model.theta),
-            },
-        }
+            ("GET", "/navigation/pose"):
+                lambda q: {"x": model.x, "y": model.y, "angle": math.degrees(model.theta)},
+        }  # fmt: skip
 
     def battery(self) -> int:
         """The battery in percent, from the model's voltage between 20 V and full."""
@@ -231,11 +226,8 @@ class HttpFace:
         return {"result": True}
 
     def _config(self) -> dict[str, Any]:
-        model = self.device.model
-        return {
-            "navigation_speed": model.navigation_speed,
-            "max_control_speed": model.config.max_speed,
-        }
+        m = self.device.model
+        return {"navigation_speed": m.navigation_speed, "max_control_speed": m.config.max_speed}
 
     def _set_config(self, body: dict[str, Any]) -> Any:
         if "navigation_speed" in body:
@@ -266,9 +258,13 @@ class HttpFace:
     def _goal(self, goal_id: int, action: dict[str, Any]) -> Any:
         self._end_nav("CANCELLED")
         task = self._keep(_task("navigation task", action))
+        model = self.device.model
+        if self._before is None:
+            self._before = (model.target_num_id, model.target_status, model.target_distance)
         if goal_id >= 0:
             self.device.execute([cmd.Goto(goal_id)])
-        model = self.device.model
+        else:
+            model.goto_pose(action["x"], action["y"])
         running = model.target_num_id == goal_id and model.target_status in (1, 2)
         if running or (goal_id >= 0 and model.pending):
             task["current_task"]["state"] = "WORKING"
@@ -279,7 +275,6 @@ class HttpFace:
 
     def _pose_goal(self, query: dict[str, Any]) -> Any:
         x, y, theta = float(query["x"]), float(query["y"]), float(query["theta"])
-        self.device.model.goto_pose(x, y)
         return self._goal(-2, {"type": "nav_action", "x": x, "y": y, "theta": theta})
 
     def _stop_task(self) -> Any:
@@ -336,12 +331,14 @@ class HttpFace:
 
     def send_statuses(self, frames: list[WireValues]) -> None:
         """Each frame as one JSON message to every WebSocket; navigation tasks follow it."""
+        shown = []
         for values in frames:
             self._follow(values)
+            shown.append(self._shown(values))
         if not self.sockets or not frames:
             return
         seq = self.device.model.time_stamp
-        for values in frames:
+        for values in shown:
             message = dict(zip(_JSON_NAMES, values, strict=True))
             text = json.dumps({"header": {"seq": seq, "frame_id": ""}, **message})
             for _, outbox in self.sockets.values():
@@ -357,12 +354,33 @@ class HttpFace:
         if shown == goal_id and status in (1, 2):
             task["current_task"]["state"] = "WORKING"
         elif shown == goal_id and status == 0 and task["current_task"]["state"] == "WORKING":
-            arrived = values[_DISTANCE] <= self.device.config.arrival_distance + 0.05
+            # The model lands on the target when it arrives (distance 0): any other end of a
+            # goal still shown is the planner giving up, however close it stopped.
+            arrived = values[_DISTANCE] <= self.device.config.arrival_distance
             self._end_nav("COMPLETE" if arrived else "ERROR")
         elif shown == goal_id and status in (3, -1):
             self._end_nav("ERROR")
         elif not self.device.model.pending:
             self._end_nav("CANCELLED")
+
+    def _shown(self, values: WireValues) -> WireValues:
+        """``values`` with the goal fields the vendor's status shows while HTTP tasks run."""
+        self._next_look -= 1
+        if self._next_look <= 0:  # it asks for the current nav task at most once a second
+            self._next_look = max(1, round(self.task_refresh * FRAME_RATE))
+            self._view = None
+            if self._nav is None:
+                self._before = None  # none: the robot's own fields from now on
+            elif self._before is not None:  # its id, WORKING/PAUSED (else as before), distance
+                goal_id, status = self._nav[1], values[_STATUS]
+                running = values[_ID] == goal_id and status in (1, 2)
+                self._view = (goal_id, status if running else self._before[1], values[_DISTANCE])
+        fields = self._view or self._before
+        if fields is None:
+            return values
+        shown = list(values)
+        shown[_ID], shown[_STATUS], shown[_DISTANCE] = fields
+        return tuple(shown)
 
     def close(self) -> None:
         """Stop serving at once: every WebSocket dropped, every request refused."""
