@@ -74,16 +74,18 @@ class Wire:
 
 @contextlib.asynccontextmanager
 async def robot_and_wire(
-    *, navigating: bool = False, sim_options: dict[str, Any] | None = None, **options: Any
+    *, navigate: bool = False, sim_options: dict[str, Any] | None = None, **options: Any
 ) -> AsyncIterator[tuple[galileo.Robot, Wire]]:
     """A Robot on a simulated robot (virtual clock) and the log of what reached the robot."""
     async with simulated_robot(
         targets=TARGETS,
-        navigating=navigating,
+        navigating=False,
         sim_options=sim_options,
         min_command_interval=PACING,
         **options,
     ) as (robot, device):
+        if navigate:
+            await robot.start_navigation(timeout=WAIT)
         yield robot, Wire(device.simulator)
 
 
@@ -175,7 +177,7 @@ async def test_set_writes_at_once_not_at_the_next_tick() -> None:
 
 
 async def test_linear_and_angular_make_an_arc() -> None:
-    async with robot_and_wire(navigating=True) as (robot, _wire):
+    async with robot_and_wire(navigate=True) as (robot, _wire):
         async with robot.drive(0.4, 0.8, rate=10):
             await robot.wait_until(lambda s: (s.current_angle or 0.0) > 1.0, timeout=WAIT)
             status = robot.status
@@ -256,7 +258,7 @@ async def test_a_user_stop_inside_ends_the_session() -> None:
 @pytest.mark.parametrize("user_stop", ["cancel", "pause", "stop_navigation"])
 async def test_any_user_stop_inside_stops_the_wheels_at_once(user_stop: str) -> None:
     loop = asyncio.get_running_loop()
-    async with robot_and_wire(navigating=True) as (robot, wire):
+    async with robot_and_wire(navigate=True) as (robot, wire):
         async with robot.drive(0.4, 0.6, rate=20) as d:
             await asyncio.sleep(0.1)
             stopping = loop.time()
@@ -354,7 +356,7 @@ async def test_over_a_pty_too() -> None:
 
 
 async def test_a_goal_inside_a_drive_is_not_ready() -> None:
-    async with robot_and_wire(navigating=True) as (robot, wire):
+    async with robot_and_wire(navigate=True) as (robot, wire):
         async with robot.drive(0.2, rate=20):
             for call in (
                 lambda: robot.goto(FAR, timeout=WAIT),
@@ -373,7 +375,7 @@ async def test_a_goal_inside_a_drive_is_not_ready() -> None:
 
 
 async def test_drive_while_a_goal_runs_is_not_ready() -> None:
-    async with robot_and_wire(navigating=True) as (robot, wire):
+    async with robot_and_wire(navigate=True) as (robot, wire):
         goal = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
         await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING, timeout=WAIT)
         with pytest.raises(NotReady, match="goal 1 is active"):

@@ -70,7 +70,8 @@ async def busy_robot(
     **options: Any,
 ) -> AsyncIterator[tuple[SimulatedDevice, galileo.Robot, list[tuple[Command, bool]]]]:
     """A navigating simulated robot, busy (busy_status 1) until released, and its command log."""
-    async with simulated_robot(targets=TARGETS, **options) as (robot, device):
+    async with simulated_robot(targets=TARGETS, navigating=False, **options) as (robot, device):
+        await robot.start_navigation(timeout=WAIT)
         log = record_commands(device.simulator)
         device.busy(WAIT)
         await robot.wait_until(lambda s: s.is_busy, timeout=WAIT)
