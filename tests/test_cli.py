@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 import socket
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Coroutine, Iterator
 from pathlib import Path
+from typing import Any
 
 import anyio
 import pytest
@@ -15,6 +17,7 @@ from typer.testing import CliRunner, Result
 
 from galileo_async import connect
 from galileo_async.cli import ExitCode, app, connectors
+from galileo_async.testing import VirtualClock
 
 FAST = "sim://?speed=20"
 DOCUMENT = "sim://?speed=20&firmware=document"
@@ -22,11 +25,43 @@ DOCUMENT = "sim://?speed=20&firmware=document"
 DROPPING = FAST + "&disconnect_after=1"
 
 
-def invoke(*args: str, port: str | None = FAST, input: bytes | None = None) -> Result:
-    """Run ``galileo [--port port] args…`` in-process; GALILEO_PORT cleared."""
+def invoke(
+    *args: str, port: str | None = FAST, input: bytes | None = None, real_clock: bool = False
+) -> Result:
+    """Run ``galileo [--port port] args…`` in-process; GALILEO_PORT cleared.
+
+    With no port or a sim:// one (nothing outside this process) the command's event loop
+    runs on the virtual clock, unless ``real_clock``; with any other port, on the real one.
+    ``record`` takes the real clock: it writes through anyio's worker threads, which a
+    VirtualClock does not wait for (it would jump to the --duration deadline meanwhile).
+    """
     runner = CliRunner()
     full = (["--port", port] if port is not None else []) + list(args)
-    return runner.invoke(app, full, input=input, env={"GALILEO_PORT": None, "COLUMNS": "120"})
+    virtual = not real_clock and (port is None or port.startswith("sim://"))
+    with on_the_virtual_clock() if virtual else contextlib.nullcontext():
+        return runner.invoke(app, full, input=input, env={"GALILEO_PORT": None, "COLUMNS": "120"})
+
+
+@contextlib.contextmanager
+def on_the_virtual_clock() -> Iterator[None]:
+    """Every asyncio.run() meanwhile runs its coroutine on a VirtualClock (the CLI's one loop)."""
+    real_run = asyncio.run
+
+    async def virtually(main: Coroutine[Any, Any, Any]) -> Any:
+        clock = VirtualClock.install()
+        try:
+            return await main
+        finally:
+            clock.release()
+
+    def run(main: Coroutine[Any, Any, Any], **kwargs: Any) -> Any:
+        return real_run(virtually(main), **kwargs)
+
+    asyncio.run = run  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        asyncio.run = real_run
 
 
 def json_lines(text: str) -> list[dict[str, object]]:
@@ -358,7 +393,7 @@ def test_send_rejects_bad_commands(args: tuple[str, ...]) -> None:
 
 def test_record_then_decode(tmp_path: Path) -> None:
     capture = tmp_path / "capture.glc"
-    recorded = invoke("record", str(capture), "--duration", "0.3")
+    recorded = invoke("record", str(capture), "--duration", "0.3", real_clock=True)
     assert recorded.exit_code == 0, recorded.output
     assert capture.read_bytes().startswith(b"GALILEO-CAPTURE 1\n")
     decoded = invoke("--json", "decode", str(capture))
@@ -390,7 +425,7 @@ def test_record_reports_chunks_dropped_when_the_writer_falls_behind(
     monkeypatch.setattr(connectors, "RECORD_QUEUE_CHUNKS", 2)
     monkeypatch.setattr(connectors, "open_raw", burst)
     capture = tmp_path / "burst.bin"
-    result = invoke("record", str(capture), "--raw", "--duration", "5")
+    result = invoke("record", str(capture), "--raw", "--duration", "5", real_clock=True)
     assert capture.read_bytes() == b"\xcd" * 20
     assert "recorded 20 bytes in 2 chunks" in result.stdout
     assert "error: the file writer fell behind: dropped 3 chunks (30 bytes)" in result.stderr
@@ -410,7 +445,8 @@ def test_record_refuses_a_ros_url_before_opening_anything(tmp_path: Path) -> Non
 
 def test_record_raw_and_decode_from_stdin(tmp_path: Path) -> None:
     capture = tmp_path / "capture.bin"
-    assert invoke("record", str(capture), "--raw", "--duration", "0.2").exit_code == 0
+    recorded = invoke("record", str(capture), "--raw", "--duration", "0.2", real_clock=True)
+    assert recorded.exit_code == 0
     data = capture.read_bytes()
     assert data.startswith(b"\xcd\xeb\xd7")
     decoded = invoke("decode", "-", "--summary-only", input=data)
@@ -423,7 +459,8 @@ def test_record_raw_and_decode_from_stdin(tmp_path: Path) -> None:
 def test_decode_counts_garbage_and_lost_frames(tmp_path: Path) -> None:
     capture = tmp_path / "faulty.glc"
     port = "sim://?speed=20&garbage=0.3&drop=0.2&layout=v1&seed=3"
-    assert invoke("record", str(capture), "--duration", "0.3", port=port).exit_code == 0
+    recorded = invoke("record", str(capture), "--duration", "0.3", port=port, real_clock=True)
+    assert recorded.exit_code == 0
     decoded = invoke("decode", str(capture), "--json")
     summary = json_lines(decoded.stdout)[-1]["summary"]
     assert isinstance(summary, dict)

@@ -1,7 +1,8 @@
 """drive(): the speed kept alive at its rate, one stop on every exit, NotReady both ways.
 
-The Simulator over TCP loopback plays the robot; ``record_commands`` logs what reached it,
-in wire order.
+A simulated_robot() on the virtual clock plays the robot (one test drives it over a
+pty, the serial path, on the real clock); ``Wire`` logs what reached it, in order, with
+the loop time of its arrival, so rates and "at once" are checked exactly.
 """
 
 from __future__ import annotations
@@ -28,33 +29,64 @@ from galileo_async.protocol import (
     Velocity,
     speed_commands,
 )
-from galileo_async.sim import Simulator
+from galileo_async.sim import FRAME_RATE, Simulator
+from galileo_async.testing import simulated_robot
 
-#: Simulated seconds per real second: slow enough for a 3 s watchdog to sit between ticks.
+#: The pty test's simulated seconds per real second.
 SPEED = 10.0
 TARGETS: tuple[tuple[float, float], ...] = ((1.0, 0.0), (40.0, 0.0))
 FAR = 1
 DRIVE = (Forward, Backward, TurnLeft, TurnRight, Stop)
 Log = list[tuple[Command, bool]]
+#: Float slack on sums of loop times (the virtual clock lands exactly on each timer).
+EXACT = 1e-6
+#: The link's pacing: at least this long between two commands (connect's min_command_interval).
+PACING = 0.01
+
+
+class Wire:
+    """Every command the simulated robot received, with the loop time it arrived."""
+
+    def __init__(self, sim: Simulator) -> None:
+        self.arrivals: list[tuple[float, Command]] = []
+        loop = asyncio.get_running_loop()
+        model = sim.model
+        submit = model.submit
+
+        def recording(command: Command) -> None:
+            self.arrivals.append((loop.time(), command))
+            submit(command)
+
+        model.submit = recording  # type: ignore[method-assign]
+
+    def commands(self) -> list[Command]:
+        """Every command received, in order."""
+        return [command for _at, command in self.arrivals]
+
+    def drive(self) -> list[Command]:
+        """The drive commands received (speeds and stops), in order."""
+        return [command for command in self.commands() if isinstance(command, DRIVE)]
+
+    def times(self, command: Command) -> list[float]:
+        """The loop times at which ``command`` arrived."""
+        return [at for at, seen in self.arrivals if seen == command]
 
 
 @contextlib.asynccontextmanager
-async def robot_and_log(
-    *, navigate: bool = False, **sim_options: Any
-) -> AsyncIterator[tuple[galileo.Robot, Log]]:
-    """A Robot on a Simulator over TCP, and the log of commands the simulator received."""
-    options: dict[str, Any] = {"speed": SPEED, "targets": TARGETS, **sim_options}
-    async with Simulator(**options) as sim:
-        server = await sim.serve_tcp()
-        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-        async with galileo.connect(url, map_targets=len(TARGETS)) as robot:
-            if navigate:
-                await robot.start_navigation(timeout=WAIT)
-            yield robot, record_commands(sim)
-
-
-def drive_commands(log: Log) -> list[Command]:
-    return [command for command, _busy in log if isinstance(command, DRIVE)]
+async def robot_and_wire(
+    *, navigate: bool = False, sim_options: dict[str, Any] | None = None, **options: Any
+) -> AsyncIterator[tuple[galileo.Robot, Wire]]:
+    """A Robot on a simulated robot (virtual clock) and the log of what reached the robot."""
+    async with simulated_robot(
+        targets=TARGETS,
+        navigating=False,
+        sim_options=sim_options,
+        min_command_interval=PACING,
+        **options,
+    ) as (robot, device):
+        if navigate:
+            await robot.start_navigation(timeout=WAIT)
+        yield robot, Wire(device.simulator)
 
 
 async def stopped(robot: galileo.Robot) -> None:
@@ -63,12 +95,21 @@ async def stopped(robot: galileo.Robot) -> None:
     )
 
 
-def assert_one_stop_last(log: Log) -> None:
-    wire = drive_commands(log)
+def drive_commands(log: Log) -> list[Command]:
+    return [command for command, _busy in log if isinstance(command, DRIVE)]
+
+
+def assert_one_stop_last(wire: list[Command]) -> None:
     assert wire[-1] == Stop(), wire
     assert wire.count(Stop()) == 1, wire
     assert Forward(50) in wire, wire  # the session did drive first
     assert TurnLeft(40) in wire, wire
+
+
+def assert_stopped_at_once(wire: Wire, left: float) -> None:
+    """The first stop reached the robot within one pacing interval of ``left``."""
+    stop_at = wire.times(Stop())[0]
+    assert left - EXACT <= stop_at <= left + PACING + EXACT, stop_at - left
 
 
 async def drive_forever(robot: galileo.Robot) -> None:
@@ -80,29 +121,34 @@ async def drive_forever(robot: galileo.Robot) -> None:
 
 
 async def test_the_speed_is_re_sent_at_the_rate_then_one_stop() -> None:
-    async with robot_and_log() as (robot, log):
+    loop = asyncio.get_running_loop()
+    async with robot_and_wire() as (robot, wire):
         async with robot.drive(0.4, -0.6, rate=20) as d:
-            await asyncio.sleep(0.5)
+            opened = loop.time()
+            await asyncio.sleep(0.475)  # the first write and 9 ticks, one every 0.05 s
             assert d.active
+        left = loop.time()
         assert not d.active
         await stopped(robot)
-    wire = drive_commands(log)
-    # 0.5 s at 20 Hz: the first write and about 10 ticks, each both components.
-    ticks = wire.count(Forward(50))
-    assert 6 <= ticks <= 14, wire
-    assert wire.count(TurnRight(40)) == ticks
-    assert wire[:2] == [Forward(50), TurnRight(40)]  # linear first: c/d reads it
-    assert wire[-1] == Stop()
-    assert wire.count(Stop()) == 1
+    drive = wire.drive()
+    forwards = wire.times(Forward(50))
+    assert forwards == pytest.approx([opened + tick / 20 for tick in range(10)], abs=EXACT)
+    # Each write carries both components, the angular one pacing interval after.
+    turns = wire.times(TurnRight(40))
+    assert turns == pytest.approx([at + PACING for at in forwards], abs=EXACT)
+    assert drive[:2] == [Forward(50), TurnRight(40)]  # linear first: c/d reads it
+    assert drive[-1] == Stop()
+    assert drive.count(Stop()) == 1
+    assert_stopped_at_once(wire, left)
 
 
 async def test_the_keep_alive_beats_the_chassis_watchdog() -> None:
     # A chassis that stops 3 s after the last speed command (chitu-noetic, VENDOR.md §2.5).
-    async with robot_and_log(cmd_vel_timeout=3.0) as (robot, _log):
+    async with robot_and_wire(sim_options={"cmd_vel_timeout": 3.0}) as (robot, _wire):
         await robot.forward(50)
         await robot.wait_until(lambda s: s.control_speed_x == 0.0, timeout=WAIT)  # one-shot
         async with robot.drive(0.4, rate=5):
-            await asyncio.sleep(6.0 / SPEED)  # twice the watchdog's 3 s
+            await asyncio.sleep(6.0)  # twice the watchdog's 3 s
             status = robot.status
             assert status is not None
             assert status.control_speed_x == pytest.approx(0.4, abs=1e-3)
@@ -110,9 +156,10 @@ async def test_the_keep_alive_beats_the_chassis_watchdog() -> None:
 
 async def test_set_writes_at_once_not_at_the_next_tick() -> None:
     # At 2 Hz the first tick comes 0.5 s after the write that opened the block; set() is
-    # called at once, so a Forward(25) seen well before that was written by set() itself.
+    # called at once, so its Forward(25) must reach the robot within one pacing interval
+    # and show in the next frame.
     loop = asyncio.get_running_loop()
-    async with robot_and_log() as (robot, log), robot.drive(0.4, rate=2) as d:
+    async with robot_and_wire() as (robot, wire), robot.drive(0.4, rate=2) as d:
         opened = loop.time()
         d.set(linear=0.2)
         assert (d.linear, d.angular) == (0.2, 0.0)
@@ -120,14 +167,17 @@ async def test_set_writes_at_once_not_at_the_next_tick() -> None:
             lambda s: s.control_speed_x == pytest.approx(0.2, abs=1e-3), timeout=WAIT
         )
         confirmed = loop.time() - opened
-        forwards = [c for c in drive_commands(log) if isinstance(c, Forward)]
+        forwards = [c for c in wire.drive() if isinstance(c, Forward)]
     assert forwards[-1] == Forward(25), forwards
     assert Forward(50) not in forwards[1:], forwards  # no tick of the old speed came between
-    assert confirmed < 0.5, f"set()'s speed took {confirmed:.2f} s: written at the next tick?"
+    (written,) = wire.times(Forward(25))
+    written -= opened
+    assert 0.0 <= written <= PACING + EXACT, f"set()'s speed reached the robot after {written} s"
+    assert confirmed <= written + 1.0 / FRAME_RATE + EXACT, f"shown only after {confirmed} s"
 
 
 async def test_linear_and_angular_make_an_arc() -> None:
-    async with robot_and_log(navigate=True) as (robot, _log):
+    async with robot_and_wire(navigate=True) as (robot, _wire):
         async with robot.drive(0.4, 0.8, rate=10):
             await robot.wait_until(lambda s: (s.current_angle or 0.0) > 1.0, timeout=WAIT)
             status = robot.status
@@ -145,57 +195,73 @@ async def test_linear_and_angular_make_an_arc() -> None:
 
 @pytest.mark.parametrize("how", WAYS)
 async def test_every_cancellation_route_writes_one_stop_last(how: str) -> None:
-    async with robot_and_log() as (robot, log):
+    loop = asyncio.get_running_loop()
+    async with robot_and_wire() as (robot, wire):
+        started = loop.time()
         await stop_waiting(how, lambda: drive_forever(robot), after=0.2)
         await stopped(robot)
         await asyncio.sleep(0.2)  # four periods: nothing more may come
-    assert_one_stop_last(log)
+    assert_one_stop_last(wire.drive())
+    assert_stopped_at_once(wire, started + 0.2)
 
 
 async def test_an_exception_inside_writes_one_stop_and_propagates() -> None:
+    loop = asyncio.get_running_loop()
+
     async def failing() -> None:
         async with robot.drive(0.4, 0.6, rate=20):
             await asyncio.sleep(0.1)
+            raised.append(loop.time())
             raise RuntimeError("inside")
 
-    async with robot_and_log() as (robot, log):
+    raised: list[float] = []
+    async with robot_and_wire() as (robot, wire):
         with pytest.raises(RuntimeError, match="inside"):
             await failing()
         await stopped(robot)
         await asyncio.sleep(0.2)
-    assert_one_stop_last(log)
+    assert_one_stop_last(wire.drive())
+    assert_stopped_at_once(wire, raised[0])
 
 
 async def test_close_inside_writes_the_stop_before_closing() -> None:
-    async with robot_and_log() as (robot, log), robot.drive(0.4, 0.6, rate=20) as d:
+    loop = asyncio.get_running_loop()
+    async with robot_and_wire() as (robot, wire), robot.drive(0.4, 0.6, rate=20) as d:
         await asyncio.sleep(0.1)
+        closing = loop.time()
         await robot.close()
         assert not d.active
         with pytest.raises(CommandSuperseded):
             d.set(linear=0.1)
-    assert_one_stop_last(log)
+    assert_one_stop_last(wire.drive())
+    assert_stopped_at_once(wire, closing)
 
 
 async def test_a_user_stop_inside_ends_the_session() -> None:
-    async with robot_and_log() as (robot, log):
+    loop = asyncio.get_running_loop()
+    async with robot_and_wire() as (robot, wire):
         async with robot.drive(0.4, 0.6, rate=20) as d:
             await asyncio.sleep(0.1)
+            stopping = loop.time()
             await robot.stop()
             await asyncio.sleep(0.2)
             assert not d.active
             with pytest.raises(CommandSuperseded):
                 d.set(linear=0.1)
         await asyncio.sleep(0.1)
-    wire = drive_commands(log)
-    first_stop = wire.index(Stop())
-    assert set(wire[first_stop:]) == {Stop()}, wire  # the user's stop, then the exit's
+    drive = wire.drive()
+    first_stop = drive.index(Stop())
+    assert set(drive[first_stop:]) == {Stop()}, drive  # the user's stop, then the exit's
+    assert_stopped_at_once(wire, stopping)
 
 
 @pytest.mark.parametrize("user_stop", ["cancel", "pause", "stop_navigation"])
 async def test_any_user_stop_inside_stops_the_wheels_at_once(user_stop: str) -> None:
-    async with robot_and_log(navigate=True) as (robot, log):
+    loop = asyncio.get_running_loop()
+    async with robot_and_wire(navigate=True) as (robot, wire):
         async with robot.drive(0.4, 0.6, rate=20) as d:
             await asyncio.sleep(0.1)
+            stopping = loop.time()
             with contextlib.suppress(galileo.NotReady):  # pause() with no goal working
                 await getattr(robot, user_stop)()
             assert not d.active
@@ -203,9 +269,10 @@ async def test_any_user_stop_inside_stops_the_wheels_at_once(user_stop: str) -> 
             with pytest.raises(CommandSuperseded):
                 d.set(linear=0.1)
         await asyncio.sleep(0.1)
-    wire = drive_commands(log)
-    assert wire.count(Stop()) == 1, wire  # written once, at the user's stop
-    assert wire[-1] == Stop(), wire
+    drive = wire.drive()
+    assert drive.count(Stop()) == 1, drive  # written once, at the user's stop
+    assert drive[-1] == Stop(), drive
+    assert_stopped_at_once(wire, stopping)
 
 
 # --- validation, NotReady -----------------------------------------------------------
@@ -228,7 +295,7 @@ async def test_any_user_stop_inside_stops_the_wheels_at_once(user_stop: str) -> 
 async def test_bad_values_are_invalid_before_anything_is_sent(
     args: tuple[Any, ...], kwargs: dict[str, Any]
 ) -> None:
-    async with robot_and_log() as (robot, log):
+    async with robot_and_wire() as (robot, wire):
         with pytest.raises(InvalidArgument):
             robot.drive(*args, **kwargs)
         async with robot.drive(0.1, rate=20) as d:
@@ -236,7 +303,7 @@ async def test_bad_values_are_invalid_before_anything_is_sent(
                 with pytest.raises(InvalidArgument):
                     d.set(**bad)
             assert (d.linear, d.angular) == (0.1, 0.0)
-    assert all(command in (Forward(12), TurnLeft(0), Stop()) for command in drive_commands(log))
+    assert all(command in (Forward(12), TurnLeft(0), Stop()) for command in wire.drive())
 
 
 async def test_the_limits_are_connect_options() -> None:
@@ -246,38 +313,37 @@ async def test_the_limits_are_connect_options() -> None:
         with pytest.raises(InvalidArgument, match="max_angular_speed"):
             galileo.connect("sim://", max_angular_speed=bad)
     # A robot whose node runs max_vel 0.4 and max_theta 1.2 (a noetic build).
-    async with Simulator(speed=SPEED, max_speed=0.4, max_turn_rate=1.2) as sim:
-        server = await sim.serve_tcp()
-        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-        async with galileo.connect(url, max_linear_speed=0.4, max_angular_speed=1.2) as robot:
-            log = record_commands(sim)
-            with pytest.raises(InvalidArgument):
-                robot.drive(0.5)
-            async with robot.drive(0.4, 1.2):
-                await robot.wait_until(
-                    lambda s: (
-                        s.control_speed_x == pytest.approx(0.4, abs=1e-3)
-                        and s.control_speed_theta == pytest.approx(1.2, abs=1e-3)
-                    ),
-                    timeout=WAIT,
-                )
-    assert drive_commands(log)[:2] == [Forward(100), TurnLeft(100)]
+    async with robot_and_wire(
+        sim_options={"max_speed": 0.4, "max_turn_rate": 1.2},
+        max_linear_speed=0.4,
+        max_angular_speed=1.2,
+    ) as (robot, wire):
+        with pytest.raises(InvalidArgument):
+            robot.drive(0.5)
+        async with robot.drive(0.4, 1.2):
+            await robot.wait_until(
+                lambda s: (
+                    s.control_speed_x == pytest.approx(0.4, abs=1e-3)
+                    and s.control_speed_theta == pytest.approx(1.2, abs=1e-3)
+                ),
+                timeout=WAIT,
+            )
+    assert wire.drive()[:2] == [Forward(100), TurnLeft(100)]
 
 
 async def test_a_speed_the_percentages_cannot_carry_is_invalid() -> None:
     # The vendor divides the angular by |linear| from 1 m/s: 1.2 rad/s at 1.5 m/s needs 120 %.
-    async with Simulator(speed=SPEED, max_speed=2.0) as sim:
-        server = await sim.serve_tcp()
-        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-        async with galileo.connect(url, max_linear_speed=2.0) as robot:
-            log = record_commands(sim)
+    async with robot_and_wire(sim_options={"max_speed": 2.0}, max_linear_speed=2.0) as (
+        robot,
+        wire,
+    ):
+        with pytest.raises(InvalidArgument, match="exceed"):
+            robot.drive(1.5, 1.2)
+        async with robot.drive(1.5, 0.6) as d:
             with pytest.raises(InvalidArgument, match="exceed"):
-                robot.drive(1.5, 1.2)
-            async with robot.drive(1.5, 0.6) as d:
-                with pytest.raises(InvalidArgument, match="exceed"):
-                    d.set(angular=1.2)
-                assert (d.linear, d.angular) == (1.5, 0.6)
-    assert drive_commands(log)[-1] == Stop()
+                d.set(angular=1.2)
+            assert (d.linear, d.angular) == (1.5, 0.6)
+    assert wire.drive()[-1] == Stop()
 
 
 async def test_over_a_pty_too() -> None:
@@ -286,11 +352,11 @@ async def test_over_a_pty_too() -> None:
         await stop_waiting("cancel", lambda: drive_forever(robot), after=0.2)
         await stopped(robot)
         await asyncio.sleep(0.2)
-    assert_one_stop_last(log)
+    assert_one_stop_last(drive_commands(log))
 
 
 async def test_a_goal_inside_a_drive_is_not_ready() -> None:
-    async with robot_and_log(navigate=True) as (robot, log):
+    async with robot_and_wire(navigate=True) as (robot, wire):
         async with robot.drive(0.2, rate=20):
             for call in (
                 lambda: robot.goto(FAR, timeout=WAIT),
@@ -303,13 +369,13 @@ async def test_a_goal_inside_a_drive_is_not_ready() -> None:
                 async with robot.drive(0.1):
                     pass
         await robot.goto(0, timeout=WAIT)  # allowed again once the block is left
-    kinds = {type(command).__name__ for command, _busy in log}
+    kinds = {type(command).__name__ for command in wire.commands()}
     assert "ResetTargets" not in kinds
     assert "StartPatrol" not in kinds
 
 
 async def test_drive_while_a_goal_runs_is_not_ready() -> None:
-    async with robot_and_log(navigate=True) as (robot, log):
+    async with robot_and_wire(navigate=True) as (robot, wire):
         goal = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
         await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING, timeout=WAIT)
         with pytest.raises(NotReady, match="goal 1 is active"):
@@ -322,14 +388,14 @@ async def test_drive_while_a_goal_runs_is_not_ready() -> None:
         goal.cancel()
         with pytest.raises(asyncio.CancelledError):
             await goal
-    assert drive_commands(log) == []
+    assert wire.drive() == []
 
 
 async def test_a_velocity_command_is_refused_on_a_serial_link() -> None:
-    async with robot_and_log() as (robot, log):
+    async with robot_and_wire() as (robot, wire):
         with pytest.raises(InvalidArgument, match="ros://"):
             await robot.send(Velocity(0.1, 0.0))
-    assert log == []
+    assert wire.arrivals == []
 
 
 # --- the serial encoding -------------------------------------------------------------

@@ -1,4 +1,7 @@
-"""Every exit path closes the connection (issue #14 items 1, 2, 5), over real links."""
+"""Every exit path closes the connection (issue #14 items 1, 2, 5), over real links.
+
+``sim://`` runs on the virtual clock; the socket and scripted-robot links on the real one.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ from scripted_robot import ScriptedRobot
 import galileo_async as galileo
 from galileo_async.errors import GalileoConnectionError
 from galileo_async.sim import Simulator
+from galileo_async.testing import VirtualClock
 
 STEP = 5.0  # upper bound, in real seconds, for anything expected to happen
 SPEED = 20.0
@@ -208,11 +212,16 @@ async def test_leaving_connect_over_socket_closes(route: str) -> None:
 
 @pytest.mark.parametrize("route", ROUTES)
 async def test_leaving_connect_over_sim_closes(route: str) -> None:
-    seen: list[galileo.Robot] = []
-    await ROUTES[route](f"sim://?speed={SPEED}", seen)
-    assert seen
-    for robot in seen:
-        await assert_closed(robot)
+    # In-process only: the virtual clock runs the routes' timeouts and the sim's frames.
+    clock = VirtualClock.install()
+    try:
+        seen: list[galileo.Robot] = []
+        await ROUTES[route]("sim://", seen)
+        assert seen
+        for robot in seen:
+            await assert_closed(robot)
+    finally:
+        clock.release()
 
 
 # --- item 5: first_status_timeout is honoured, whatever stale_timeout is -----------------

@@ -1,8 +1,9 @@
 """A goal's exit cancel never cancels the goal started after it (DESIGN.md "Goal exits").
 
-The Simulator over TCP loopback plays the robot; ``record_commands`` logs what reached it,
-in wire order. Whatever way goto(3) is left, the goto(0) started right after succeeds, and
-on the wire the old goal's ``i 2`` either comes before ``g 0`` or is not sent at all.
+A simulated_robot() on the virtual clock plays the robot; ``record_commands`` logs what
+reached it, in wire order. Whatever way goto(3) is left, the goto(0) started right after
+succeeds, and on the wire the old goal's ``i 2`` either comes before ``g 0`` or is not
+sent at all.
 """
 
 from __future__ import annotations
@@ -15,13 +16,13 @@ from typing import Any
 import anyio
 import pytest
 from fake_device import MemoryConnector
-from sim_integration import SPEED, WAIT, record_commands, time_limit
+from sim_integration import WAIT, record_commands, time_limit
 
 import galileo_async as galileo
 from galileo_async import TargetStatus
 from galileo_async.protocol import Cancel, Command, Goto, Stop
-from galileo_async.sim import Simulator
 from galileo_async.state import StatusStore
+from galileo_async.testing import simulated_robot
 from galileo_async.transports import StreamLink
 
 #: Goal 3 is far away (a long trip to interrupt); goal 0 is near.
@@ -31,14 +32,11 @@ FAR, NEAR = 3, 0
 
 @contextlib.asynccontextmanager
 async def robot_and_log() -> AsyncIterator[tuple[galileo.Robot, list[tuple[Command, bool]]]]:
-    """A navigating Robot on a Simulator over TCP, and the log of commands it received."""
-    async with Simulator(speed=SPEED, targets=TARGETS) as sim:
-        server = await sim.serve_tcp()
-        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-        async with galileo.connect(url, map_targets=len(TARGETS)) as robot:
-            await robot.start_navigation(timeout=WAIT)
-            log = record_commands(sim)
-            yield robot, log
+    """A navigating Robot on a simulated robot, and the log of commands it received."""
+    async with simulated_robot(targets=TARGETS, navigating=False) as (robot, device):
+        await robot.start_navigation(timeout=WAIT)
+        log = record_commands(device.simulator)
+        yield robot, log
 
 
 async def far_goal_working(robot: galileo.Robot) -> None:

@@ -1,8 +1,8 @@
 """A user stop supersedes every drive or goal command that still waits to be written.
 
-The Simulator over TCP loopback plays the robot; ``hold_busy`` makes it report busy_status 1
-on demand, so a drive or goal command waits in the busy back-off. The simulator's command
-log is the witness of what reached the wire.
+A simulated_robot() on the virtual clock plays the robot; ``device.busy()`` makes it report
+busy_status 1 on demand, so a drive or goal command waits in the busy back-off. The
+simulator's command log is the witness of what reached the wire.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import anyio
 import pytest
 from cancel_ways import WAYS, stop_waiting
 from scripted_robot import DEFAULTS, READY, ScriptedRobot, connected, flush
-from sim_integration import FAR, MAP_TARGETS, RIGHT, SPEED, TARGETS, WAIT, record_commands
+from sim_integration import FAR, MAP_TARGETS, RIGHT, TARGETS, WAIT, record_commands
 
 import galileo_async as galileo
 from galileo_async import CommandSuperseded, GalileoError, GoalCancelled
@@ -32,7 +32,7 @@ from galileo_async.protocol import (
     TurnLeft,
     TurnRight,
 )
-from galileo_async.sim import Simulator
+from galileo_async.testing import SimulatedDevice, simulated_robot
 
 Call = Callable[[galileo.Robot], Awaitable[Any]]
 
@@ -59,22 +59,23 @@ STOPS: dict[str, Call] = {
 }
 #: Well under any wait the superseded call could have made (the busy hold is WAIT long).
 AT_ONCE = 1.0
+#: Float slack on loop times (the virtual clock stands still while callbacks run).
+EXACT = 1e-9
+#: A slow link's pacing: one write every PACING seconds keeps a command queued.
+PACING = 0.5
 
 
 @contextlib.asynccontextmanager
 async def busy_robot(
     **options: Any,
-) -> AsyncIterator[tuple[Simulator, galileo.Robot, list[tuple[Command, bool]]]]:
+) -> AsyncIterator[tuple[SimulatedDevice, galileo.Robot, list[tuple[Command, bool]]]]:
     """A navigating simulated robot, busy (busy_status 1) until released, and its command log."""
-    async with Simulator(speed=SPEED, targets=TARGETS) as sim:
-        server = await sim.serve_tcp()
-        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
-        async with galileo.connect(url, map_targets=MAP_TARGETS, **options) as robot:
-            await robot.start_navigation(timeout=WAIT)
-            log = record_commands(sim)
-            sim.model.hold_busy(WAIT * SPEED)
-            await robot.wait_until(lambda s: s.is_busy, timeout=WAIT)
-            yield sim, robot, log
+    async with simulated_robot(targets=TARGETS, navigating=False, **options) as (robot, device):
+        await robot.start_navigation(timeout=WAIT)
+        log = record_commands(device.simulator)
+        device.busy(WAIT)
+        await robot.wait_until(lambda s: s.is_busy, timeout=WAIT)
+        yield device, robot, log
 
 
 async def waiting(robot: galileo.Robot, call: Call) -> asyncio.Task[Any]:
@@ -85,10 +86,16 @@ async def waiting(robot: galileo.Robot, call: Call) -> asyncio.Task[Any]:
     return task
 
 
-async def superseded_at_once(task: asyncio.Task[Any], error: type[GalileoError], by: str) -> None:
-    """``task`` ends with ``error`` within AT_ONCE, naming the stop ``by``."""
+async def superseded_at_once(
+    task: asyncio.Task[Any], error: type[GalileoError], by: str, *, within: float = 0.0
+) -> None:
+    """``task`` ends with ``error`` naming the stop ``by``, ``within`` loop seconds (0: at once)."""
+    loop = asyncio.get_running_loop()
+    began = loop.time()
     with anyio.fail_after(AT_ONCE), pytest.raises(error) as caught:
         await task
+    took = loop.time() - began
+    assert took <= within + EXACT, f"superseded after {took} s"
     superseded = caught.value if error is CommandSuperseded else caught.value.__cause__
     assert isinstance(superseded, CommandSuperseded)
     assert superseded.superseded_by == by
@@ -108,11 +115,11 @@ async def written(robot: galileo.Robot, log: list[tuple[Command, bool]], command
 @pytest.mark.parametrize("name", SUPERSEDED)
 async def test_a_user_stop_supersedes_a_call_waiting_out_busy(name: str, stop: str) -> None:
     call, error = SUPERSEDED[name]
-    async with busy_robot() as (sim, robot, log):
+    async with busy_robot() as (device, robot, log):
         task = await waiting(robot, call)
         stopping = asyncio.ensure_future(STOPS[stop](robot))
         await superseded_at_once(task, error, stop)
-        sim.model.hold_busy(0.0)  # the robot is free again: the stop itself may end
+        device.busy(0)  # the robot is free again: the stop itself may end
         with contextlib.suppress(GalileoError):  # pause() without a goal is NotReady
             await stopping
         if stop != "close()":
@@ -123,12 +130,12 @@ async def test_a_user_stop_supersedes_a_call_waiting_out_busy(name: str, stop: s
 
 
 async def test_a_goal_called_after_cancel_still_runs() -> None:
-    async with busy_robot() as (sim, robot, log):
+    async with busy_robot() as (device, robot, log):
         task = await waiting(robot, lambda r: r.goto(FAR, timeout=WAIT))
         await robot.cancel(timeout=WAIT)
         with pytest.raises(GoalCancelled, match="cancelled before it was sent"):
             await task
-        sim.model.hold_busy(0.0)
+        device.busy(0)
         later = asyncio.ensure_future(robot.goto(FAR, timeout=WAIT))
         await written(robot, log, Goto(FAR))
         await robot.cancel(timeout=WAIT)
@@ -139,8 +146,8 @@ async def test_a_goal_called_after_cancel_still_runs() -> None:
 
 async def test_a_stop_between_the_steps_of_goto_point_stops_the_rest() -> None:
     # One write every 0.5 s: ``g i`` waits in the link's queue once ``g r 0`` is written.
-    async with busy_robot(min_command_interval=0.5) as (sim, robot, log):
-        sim.model.hold_busy(0.0)
+    async with busy_robot(min_command_interval=PACING) as (device, robot, log):
+        device.busy(0)
         await robot.wait_until(lambda s: not s.is_busy, timeout=WAIT)
         sent = robot.link.commands_sent
         task = asyncio.ensure_future(robot.goto_point(10.0, 0.0, timeout=WAIT))
@@ -155,8 +162,8 @@ async def test_a_stop_between_the_steps_of_goto_point_stops_the_rest() -> None:
 
 async def test_a_drive_command_queued_behind_the_pacing_is_dropped() -> None:
     # One write every 0.5 s: a drive command waits in the link's queue, past every check.
-    async with busy_robot(min_command_interval=0.5) as (sim, robot, log):
-        sim.model.hold_busy(0.0)
+    async with busy_robot(min_command_interval=PACING) as (device, robot, log):
+        device.busy(0)
         await robot.wait_until(lambda s: not s.is_busy, timeout=WAIT)
         await robot.stop()  # written now: the next write waits 0.5 s
         task = await waiting(robot, lambda r: r.forward(30, timeout=WAIT))
@@ -174,8 +181,9 @@ async def test_goals_waiting_for_the_first_status_are_superseded() -> None:
         goto = await waiting(robot, lambda r: r.goto(FAR, timeout=WAIT))
         point = await waiting(robot, lambda r: r.goto_point(1.0, 2.0, timeout=WAIT))
         await robot.stop()
-        await superseded_at_once(goto, GoalCancelled, "stop()")
-        await superseded_at_once(point, GoalCancelled, "stop()")
+        # Real time here (a scripted robot over TCP): at once is within AT_ONCE.
+        await superseded_at_once(goto, GoalCancelled, "stop()", within=AT_ONCE)
+        await superseded_at_once(point, GoalCancelled, "stop()", within=AT_ONCE)
         fake.set(**READY)
         await robot.wait_until(lambda s: s.navigating, timeout=WAIT)
         await flush(robot, fake)
@@ -191,11 +199,11 @@ async def test_a_stop_whose_own_caller_is_cancelled_at_once_still_supersedes(
     name: str, how: str
 ) -> None:
     call, error = SUPERSEDED[name]
-    async with busy_robot() as (sim, robot, log):
+    async with busy_robot() as (device, robot, log):
         task = await waiting(robot, call)
         await stop_waiting(how, robot.stop, after=0.0)  # the supersession came before any await
         await superseded_at_once(task, error, "stop()")
-        sim.model.hold_busy(0.0)
+        device.busy(0)
         await robot.forward(10)
         await written(robot, log, Forward(10))
         assert moving(log) == [Forward(10)]
@@ -205,10 +213,10 @@ async def test_a_stop_whose_own_caller_is_cancelled_at_once_still_supersedes(
 @pytest.mark.parametrize("name", CANCELLABLE)
 async def test_a_waiting_call_cancelled_by_its_caller_is_never_written(name: str, how: str) -> None:
     call, _error = SUPERSEDED[name]
-    async with busy_robot() as (sim, robot, log):
+    async with busy_robot() as (device, robot, log):
         await stop_waiting(how, lambda: call(robot), after=0.05)
         await robot.stop()
-        sim.model.hold_busy(0.0)
+        device.busy(0)
         await robot.forward(10)
         await written(robot, log, Forward(10))
         assert moving(log) == [Forward(10)]
@@ -217,13 +225,14 @@ async def test_a_waiting_call_cancelled_by_its_caller_is_never_written(name: str
 async def test_a_withdrawn_goal_cancels_the_goal_it_was_to_replace() -> None:
     # One write every 0.5 s: ``g RIGHT`` waits in the link's queue, where it already counts
     # as replacing goal FAR; withdrawn, it must not leave goal FAR driving unwatched.
-    async with busy_robot(min_command_interval=0.5) as (sim, robot, log):
-        sim.model.hold_busy(0.0)
+    async with busy_robot(min_command_interval=PACING) as (device, robot, log):
+        device.busy(0)
         first = asyncio.ensure_future(robot.goto(FAR, timeout=WAIT))
         await robot.wait_until(lambda s: s.target_num_id == FAR and s.goal_active, timeout=WAIT)
         second = await waiting(robot, lambda r: r.goto(RIGHT, timeout=WAIT))
         await robot.stop()
-        await superseded_at_once(second, GoalCancelled, "stop()")
+        # It ends once its cancel of goal FAR is written: one pacing interval after the stop.
+        await superseded_at_once(second, GoalCancelled, "stop()", within=PACING)
         with pytest.raises(GoalCancelled):
             await first
         await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
