@@ -125,6 +125,24 @@ async def test_time_follows_real_time_while_a_thread_works(clock: VirtualClock) 
     assert loop.time() - start == pytest.approx(100, abs=EXACT)
 
 
+async def test_anyio_worker_threads_make_time_follow_real_time(clock: VirtualClock) -> None:
+    loop = asyncio.get_running_loop()
+    start, real_start = loop.time(), time.perf_counter()
+    # anyio's own worker threads, not run_in_executor: idle, the loop would jump to 1 s.
+    with anyio.fail_after(1):
+        await anyio.to_thread.run_sync(time.sleep, 0.05)
+    elapsed, real_elapsed = loop.time() - start, time.perf_counter() - real_start
+    assert 0.01 < elapsed <= real_elapsed + 0.01
+    start = loop.time()
+    await asyncio.sleep(100)  # the thread done: jumps again
+    assert loop.time() - start == pytest.approx(100, abs=EXACT)
+
+
+async def test_anyio_worker_threads_without_a_clock_work_as_before() -> None:
+    assert VirtualClock.of() is None
+    assert await anyio.to_thread.run_sync(sum, [1, 2, 3]) == 6
+
+
 async def test_run_in_executor_also_makes_time_follow_real_time(clock: VirtualClock) -> None:
     loop = asyncio.get_running_loop()
     release = threading.Event()

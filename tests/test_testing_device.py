@@ -21,6 +21,7 @@ from galileo_async.errors import (
     GoalRejected,
     GoalStalled,
     InvalidArgument,
+    LinkStale,
     NotReady,
     OperationTimeout,
 )
@@ -641,3 +642,30 @@ async def test_next_command_checks_its_timeout(
     with pytest.raises(InvalidArgument):
         await device.next_command(timeout=bad)  # type: ignore[arg-type]
     assert device._waiters == []
+
+
+# ----------------------------------------------------------------------- mute
+
+
+@pytest.mark.parametrize("sim", [{"stale_timeout": 0.5}], indirect=True)
+async def test_mute_turns_the_link_stale_and_unmute_fresh(
+    sim: tuple[Robot, SimulatedDevice],
+) -> None:
+    robot, device = sim
+    events = recorded(robot)
+    loop = asyncio.get_running_loop()
+    await robot.wait_until(lambda s: True)
+    heard = robot.link.last_frame_at
+    assert heard is not None
+    device.mute()
+    stale = await robot.wait_link(LinkState.STALE, timeout=WAIT)
+    assert stale is LinkState.STALE
+    # Stale exactly stale_timeout after the last frame.
+    assert loop.time() - heard == pytest.approx(0.5, abs=1e-6)
+    assert kinds(events) == ["LinkStale"]  # once, however long the silence
+    with pytest.raises(LinkStale, match="cancel: sent"):
+        await robot.cancel()  # sent and received; only its confirmation cannot come
+    assert device.received() == [c.Cancel()]
+    device.unmute()
+    await robot.wait_link(LinkState.UP, timeout=WAIT)
+    assert kinds(events)[-1] == "LinkRestored"

@@ -83,9 +83,7 @@ async def test_a_fleet_goal_on_every_robot_takes_virtual_time_only() -> None:
         (2, {"sim_options": {"speed": 5}}, "speed"),
     ],
 )
-async def test_bad_arguments(
-    robots: Any, extra: dict[str, Any], message: str
-) -> None:
+async def test_bad_arguments(robots: Any, extra: dict[str, Any], message: str) -> None:
     before = set(OPEN_ROBOTS)
     with pytest.raises(InvalidArgument, match=message):
         async with simulated_fleet(robots, **extra):

@@ -176,6 +176,8 @@ class SimDevice:
         self.listeners: dict[StatusListener, None] = {}
         #: Called with every command the robot takes, in order (testing's command log).
         self.command_listeners: list[Callable[[Command], Any]] = []
+        #: True: the robot runs on but sends no frame (a serial node gone silent).
+        self.muted = False
         self._ticker = ticker
         self._on_shutdown = on_shutdown
         self._concat_loss = config.effective_concat_loss
@@ -240,7 +242,7 @@ class SimDevice:
     def advance(self, frames: int) -> None:
         """Step the model ``frames`` frames and send them to every connection and listener."""
         model = self.model
-        if not self.connections and not self.listeners:
+        if self.muted or (not self.connections and not self.listeners):
             for _ in range(frames):
                 model.tick()
             self.stats.frames += frames

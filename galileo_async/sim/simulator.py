@@ -14,6 +14,7 @@ from urllib.parse import urlsplit
 
 from ..errors import InvalidArgument
 from ..models import GalileoStatus, Pose
+from ..protocol import Command
 from .config import SimConfig, parse_sim_url
 from .device import DeviceConnection, DeviceStats, SimDevice, Ticker
 from .memory import create_transport_pair
@@ -164,6 +165,19 @@ class Simulator:
         if parts.query or parts.path not in ("", "/"):
             raise InvalidArgument(f"{url!r}: a named simulator takes no options")
         return simulator
+
+    @property
+    def muted(self) -> bool:
+        """True while the robot sends no frame (it runs on; connections stay open)."""
+        return self._device.muted
+
+    @muted.setter
+    def muted(self, value: bool) -> None:
+        self._device.muted = bool(value)
+
+    def on_command(self, listener: Callable[[Command], object]) -> None:
+        """Call ``listener`` with every command the robot takes, in order, before it acts."""
+        self._device.command_listeners.append(listener)
 
     def drop_connections(self) -> None:
         """Cut every in-process and TCP connection now (each host sees its link drop)."""

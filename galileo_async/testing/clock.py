@@ -22,6 +22,36 @@ _CLOCKS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, VirtualClock] = (
 )
 
 
+def _follow_anyio_threads() -> None:
+    """Count anyio's worker threads (to_thread.run_sync, open_file) as work for the loop.
+
+    anyio runs them on threads of its own, not run_in_executor: its asyncio backend's
+    entry point is wrapped once, and does what it did wherever no virtual clock runs.
+    Another anyio (no such entry point) is left as it is: its threads are not waited for.
+    """
+    try:
+        from anyio._backends._asyncio import AsyncIOBackend
+    except ImportError:
+        return
+    entry = AsyncIOBackend.__dict__.get("run_sync_in_worker_thread")
+    if not isinstance(entry, classmethod) or getattr(entry.__func__, "_follows_clock", False):
+        return
+    original = entry.__func__
+
+    async def run_sync_in_worker_thread(cls: Any, *args: Any, **kwargs: Any) -> Any:
+        clock = _CLOCKS.get(asyncio.get_running_loop())
+        if clock is None:
+            return await original(cls, *args, **kwargs)
+        clock._threads += 1
+        try:
+            return await original(cls, *args, **kwargs)
+        finally:
+            clock._threads -= 1
+
+    run_sync_in_worker_thread._follows_clock = True  # type: ignore[attr-defined]
+    AsyncIOBackend.run_sync_in_worker_thread = classmethod(run_sync_in_worker_thread)  # type: ignore[method-assign, assignment]
+
+
 class UnsupportedLoop(GalileoError, RuntimeError):
     """The running event loop cannot take a virtual clock (not asyncio's selector loop)."""
 
@@ -117,6 +147,7 @@ class VirtualClock:
         clock = _CLOCKS.get(loop)
         if clock is None:
             clock = cls(loop)
+            _follow_anyio_threads()
             clock._patch()
             _CLOCKS[loop] = clock
         clock._users += 1

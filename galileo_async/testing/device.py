@@ -53,7 +53,7 @@ class SimulatedDevice:
         self._waiters: list[tuple[tuple[type[Command], ...], asyncio.Future[ReceivedCommand]]]
         self._waiters = []
 
-        simulator._device.command_listeners.append(record)
+        simulator.on_command(record)
 
     # ------------------------------------------------------------------ what it saw
     @property
@@ -140,6 +140,14 @@ class SimulatedDevice:
     def thaw(self) -> None:
         """The navigation stack comes back where it froze."""
         self._model.thaw()
+
+    def mute(self) -> None:
+        """Send no more frames, the connection left open (the link turns stale); commands work."""
+        self.simulator.muted = True
+
+    def unmute(self) -> None:
+        """Send frames again (the link is fresh again with the next one)."""
+        self.simulator.muted = False
 
     def drop_link(self) -> None:
         """Cut the connection and refuse new ones until restore_link() (the driver retries)."""
