@@ -22,7 +22,9 @@ from galileo_async.models import GalileoStatus
 
 
 def at(x: float, y: float, theta: float = 0.0, **fields: object) -> GalileoStatus:
-    return make_status(current_pose_x=x, current_pose_y=y, current_angle=theta, **fields)
+    # Navigation open: no goal runs while it is closed (PROTOCOL.md §2.a).
+    pose = {"current_pose_x": x, "current_pose_y": y, "current_angle": theta}
+    return make_status(**({"nav_status": 1} | pose | fields))
 
 
 class Clock:

@@ -1,21 +1,10 @@
-"""GoalTracker: the statuses after ``g N`` in, a verdict out (no I/O), by transitions.goal_step."""
+"""GoalTracker: the statuses after ``g N`` in, a verdict out (no I/O), by a GoalMachine."""
 
 from __future__ import annotations
 
 from ..errors import GoalAborted, GoalCancelled, GoalError, GoalRejected
 from ..models import GalileoStatus, TargetStatus
-from ..transitions import (
-    ENDS,
-    KNOWN,
-    GoalChange,
-    HostGoal,
-    at_target,
-    end_distance,
-    goal_step,
-    run_starts,
-    running_distance,
-    valid_distance,
-)
+from ..transitions import ENDS, GoalChange, GoalMachine, HostGoal, at_target, end_distance
 
 __all__ = ["ALREADY_THERE_FRAMES", "ALREADY_THERE_TIME", "GoalTracker"]
 
@@ -33,7 +22,7 @@ class GoalTracker:
     ``before`` is the latest status when the command was sent: the first frames after
     ``g N`` may still show it (a cached status re-sent with a new counter, PROTOCOL.md §1),
     so only transitions away from it count, never levels that it already showed. The
-    verdicts are transitions.goal_step's, fed the same inputs as the store's events().
+    verdicts are transitions.goal_step's, through a GoalMachine as the store's events().
     """
 
     def __init__(
@@ -46,36 +35,29 @@ class GoalTracker:
     ) -> None:
         self.target_id = target_id
         self.arrive_tolerance = arrive_tolerance
-        #: What this host sent, as goal_step follows it (None once the goal ended).
-        self.host: HostGoal | None = HostGoal.sent(target_id, before, origin)
+        host = HostGoal.sent(target_id, before, origin)
+        #: The goal rule with its memory, as the store's events() keeps one.
+        self.machine = GoalMachine(host=host, arrive_tolerance=arrive_tolerance)
+        self.machine.start(before)
         # A goal sent again while it runs is running from the write (HostGoal.restarting).
-        self.accepted = not self.host.pending
+        self.accepted = not host.pending
         self.distance: float | None = None
         #: The goal ended because the robot already stood at the target (no working frame).
         self.already_there = False
         self._there_frames = 0  # frames in a row at the target since the send, none working
-        self._previous = before
-        # The last status with a valid distance, as the store keeps it (running_distance).
-        self._measured = before if before is not None and _measures(before) else None
+
+    @property
+    def host(self) -> HostGoal | None:
+        """What this host sent, as goal_step follows it (None once the goal ended)."""
+        return self.machine.host
+
+    @host.setter
+    def host(self, host: HostGoal | None) -> None:
+        self.machine.host = host
 
     def feed(self, status: GalileoStatus) -> bool:
         """Consume one status; True when the goal arrived, GoalError when it ended otherwise."""
-        prev = status if self._previous is None else self._previous
-        step = goal_step(
-            prev,
-            status,
-            host=self.host,
-            arrive_tolerance=self.arrive_tolerance,
-            last_distance=running_distance(self._measured, prev),
-        )
-        if status.target_status in KNOWN:
-            # An unknown value (newer firmware) is no change: the next compares with prev.
-            self._previous = status
-            if run_starts(prev, status):
-                self._measured = None
-            if _measures(status):
-                self._measured = status
-        self.host = step.host
+        step = self.machine.step(status)
         ours = status.target_num_id == self.target_id
         for change, target_id in step.changes:
             if target_id != self.target_id:
@@ -161,10 +143,6 @@ def settled(host: HostGoal) -> HostGoal:
 def cancelling(host: HostGoal) -> HostGoal:
     """``host`` once this host sent cancel (``i 2``) for it."""
     return host._replace(cancelled=True)
-
-
-def _measures(status: GalileoStatus) -> bool:
-    return valid_distance(status.target_distance) is not None
 
 
 def _name(value: TargetStatus | None) -> str:

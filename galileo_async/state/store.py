@@ -14,7 +14,7 @@ from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
 from ..models import GalileoStatus
-from ..transitions import DEFAULT_ARRIVE_TOLERANCE, HostGoal, derive_step, run_starts
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, HostGoal, step_events
 from .listeners import Listeners
 from .streams import (
     EventStream,
@@ -59,8 +59,8 @@ class StatusStore(Listeners):
     # Slots keep the attributes update() reads 30 times a second inside the object: one
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_arrive_tolerance", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_host_goal", "_link_error", "_measured",
+        "__weakref__", "_clock", "_event_key", "_event_refs",
+        "_event_streams", "_frame_waiters", "_goal", "_link_error",
         "_status_hooks", "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed",
         "last_update", "placeholder_frames", "status", "updates",
     )  # fmt: skip
@@ -80,12 +80,10 @@ class StatusStore(Listeners):
         self.last_update: float | None = None
         self.closed = False
         self._clock = clock
-        self._arrive_tolerance = arrive_tolerance
         self._event_key: tuple[Any, ...] | None = None
-        # The last status with a valid distance: the goal rule's memory (transitions.py).
-        self._measured: GalileoStatus | None = None
-        # What this host sent and the goal rule still follows (follow_goal).
-        self._host_goal: HostGoal | None = None
+        # The goal rule with its memory (transitions.GoalMachine), as each goto keeps one;
+        # its host: what this host sent and the rule still follows (follow_goal).
+        self._goal = GoalMachine(arrive_tolerance=arrive_tolerance)
         self._waiters: list[Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
         # update() reads the registries' snapshots from the store's own slots: at 1000
@@ -123,23 +121,18 @@ class StatusStore(Listeners):
             self._wake_frame_waiters()
         if self._event_refs or self._event_listeners:
             key = _EVENT_KEY(status)
-            if key != self._event_key:
-                self._event_key = key
+            if key == self._event_key:
+                self._goal.see(status)  # no field that makes an event changed
+            else:
                 prev = self.status
-                if prev is not None:
-                    events, self._host_goal = derive_step(
-                        prev, status, arrive_tolerance=self._arrive_tolerance,
-                        measured=self._measured, host=self._host_goal,
-                    )  # fmt: skip
-                    for event in events:
+                if prev is None:
+                    self._goal.start(status)
+                else:
+                    if self._event_key is None:  # the first status since somebody listens
+                        self._goal.start(prev)
+                    for event in step_events(prev, status, self._goal.step(status)):
                         self._emit(event)
-                    if run_starts(prev, status):
-                        # A goal run starts: its end must not borrow a distance of an
-                        # earlier run of the same goal.
-                        self._measured = None
-            distance = status.target_distance
-            if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
-                self._measured = status
+                self._event_key = key
         self.status = status
         self.updates = updates = self.updates + 1
         self.last_update = self._clock()
@@ -180,13 +173,13 @@ class StatusStore(Listeners):
 
     def follow_goal(self, host: HostGoal) -> None:
         """This host writes ``g N`` now: events() attributes what follows by the goal rule."""
-        self._host_goal = host
+        self._goal.host = host
 
     def revise_goal(self, origin: object, revise: Callable[[HostGoal], HostGoal | None]) -> None:
         """Apply ``revise`` to the followed goal if ``origin`` sent it (None: follow nothing)."""
-        host = self._host_goal
+        host = self._goal.host
         if host is not None and host.origin is origin:
-            self._host_goal = revise(host)
+            self._goal.host = revise(host)
 
     def emit(self, event: Event) -> None:
         """Hand ``event``, one the driver itself caused, to every events() consumer."""

@@ -1,8 +1,9 @@
-"""Transitions, pure (no I/O): two statuses in, events out; the goal rule, written once.
+"""The goal state machine, pure (no I/O): goal_step, and GoalMachine, its memory between frames.
 
-goal_step is the goal state machine: (prev, cur, what this host sent) → how goals changed.
-derive_events (the events() stream) and GoalTracker (goto, goto_point) are its two users, so
-every goal ends by one verdict with one name: GoalRejected ~ GoalRejectedEvent, …
+goal_step: (prev, cur, what this host sent) → how goals changed. GoalMachine feeds it each
+status of one stream against the last that told the goal state. events() (StatusStore,
+derive.step_events) and GoalTracker (goto, goto_point) each keep one GoalMachine, so every
+goal ends by one verdict with one name: GoalRejected ~ GoalRejectedEvent, …
 """
 
 from __future__ import annotations
@@ -10,30 +11,7 @@ from __future__ import annotations
 from enum import Enum
 from typing import NamedTuple
 
-from .events import (
-    BusyEnded,
-    BusyStarted,
-    ChargeStateChanged,
-    Event,
-    GoalAbortedEvent,
-    GoalAccepted,
-    GoalCancelledEvent,
-    GoalEvent,
-    GoalPaused,
-    GoalReached,
-    GoalRejectedEvent,
-    GoalResumed,
-    MappingStarted,
-    MappingStopped,
-    NavigationClosed,
-    NavigationOpened,
-    PatrolStarted,
-    PatrolStopped,
-    VisualInitialised,
-    VisualLost,
-    VisualRecovered,
-)
-from .models import GalileoStatus, TargetStatus, VisualStatus
+from ..models import GalileoStatus, TargetStatus
 
 __all__ = [
     "ACTIVE",
@@ -42,17 +20,17 @@ __all__ = [
     "FAILED",
     "KNOWN",
     "GoalChange",
+    "GoalMachine",
     "GoalStep",
     "GoalTransition",
     "HostGoal",
     "arrived",
     "at_target",
-    "derive_events",
-    "derive_step",
     "end_distance",
     "failed_newly",
     "goal_step",
     "goal_transition",
+    "informs",
     "run_starts",
     "running_distance",
     "valid_distance",
@@ -65,7 +43,7 @@ DEFAULT_ARRIVE_TOLERANCE = 0.3
 ACTIVE = (TargetStatus.WORKING, TargetStatus.PAUSED)
 #: target_status values of an error: 3 in the document, -1 on real firmware (PROTOCOL.md §1).
 FAILED = (TargetStatus.ERROR, TargetStatus.INVALID)
-#: The target_status values the goal rule knows; another (newer firmware) is no change.
+#: The target_status values the goal rule knows; another (newer firmware) tells nothing.
 KNOWN = frozenset(TargetStatus)
 
 
@@ -155,7 +133,14 @@ def _closed(status: GalileoStatus) -> bool:
 
 
 def _running(status: GalileoStatus) -> bool:
-    return status.target_status in ACTIVE
+    # Closing navigation cancels the goal (PROTOCOL.md §2.a): one still shown then is gone.
+    return status.target_status in ACTIVE and not _closed(status)
+
+
+def informs(status: GalileoStatus) -> bool:
+    """``status`` tells the goal state: a target_status the protocol names, or navigation
+    closed (no goal runs then); another value (newer firmware) is no information."""
+    return status.target_status in KNOWN or _closed(status)
 
 
 def goal_step(
@@ -167,7 +152,10 @@ def goal_step(
     last_distance: float | None = None,
 ) -> GoalStep:
     """THE goal state machine: how goals changed from prev to cur, given ``host`` (what this host
-    sent and follows; None: a watcher). An unknown target_status on either side is no change.
+    sent and follows; None: a watcher). A status that does not inform (informs) on either side
+    is no change (GoalMachine compares across it), but a goal this host sent and has not seen
+    working is judged by cur alone. A goal shown with navigation closed does not run: it ended
+    when navigation closed under it.
     ``last_distance``: the last valid distance of prev's goal before prev (running_distance)."""
     if host is not None and _closed(cur):  # closed navigation ends every goal, known or not
         gone = prev.target_num_id
@@ -175,7 +163,9 @@ def goal_step(
             ((GoalChange.CANCELLED, gone),) if _running(prev) and gone != host.target_id else ()
         )
         return GoalStep((*dropped, (GoalChange.CANCELLED, host.target_id)), None, None)
-    if prev.target_status not in KNOWN or cur.target_status not in KNOWN:
+    if not informs(cur):
+        return GoalStep((), None, host)
+    if not informs(prev) and (host is None or not host.pending):
         return GoalStep((), None, host)
     if host is not None and host.pending:
         if prev.target_num_id == host.target_id and _running(prev):
@@ -241,10 +231,11 @@ def _observed(prev: GalileoStatus, cur: GalileoStatus, tol: float, last: float |
     if not _running(prev):
         if _running(cur):
             return GoalStep(_accepted(cur, new_id), None, None)
-        if failed_newly(prev, cur) and has_id:
+        # Navigation closed: no goal runs, none is refused (an error shown is no new goal's).
+        if failed_newly(prev, cur) and has_id and not _closed(cur):
             return GoalStep(((GoalChange.REJECTED, new_id),), None, None)
         return GoalStep((), None, None)
-    if _closed(cur) and not _closed(prev):  # navigation closed under the goal: it is gone
+    if _closed(cur):  # navigation closed under the goal: it is gone, and ends here only
         return GoalStep(((GoalChange.CANCELLED, old_id),), None, None)
     if old_id != new_id:
         if _running(cur):
@@ -292,109 +283,71 @@ def goal_transition(
 
 def run_starts(prev: GalileoStatus, cur: GalileoStatus) -> bool:
     """``cur`` starts a run of its goal: the distances seen before belong to another run."""
-    return cur.target_status in ACTIVE and (
-        prev.target_status not in ACTIVE or prev.target_num_id != cur.target_num_id
-    )
+    return _running(cur) and (not _running(prev) or prev.target_num_id != cur.target_num_id)
 
 
 def running_distance(measured: GalileoStatus | None, prev: GalileoStatus) -> float | None:
     """The valid distance of ``measured`` (the last status with one) if it shows prev's goal run."""
-    if measured is None or measured.target_status not in ACTIVE:
+    if measured is None or not _running(measured):
         return None
     if measured.target_num_id != prev.target_num_id:
         return None
     return valid_distance(measured.target_distance)
 
 
-_INITIALISED = (VisualStatus.TRACKING, VisualStatus.LOST)
+class GoalMachine:
+    """goal_step with its memory, for one stream of statuses (GoalTracker; StatusStore's events()).
 
+    Each status is compared with the last one that informed (informs): one that does not, a
+    target_status newer firmware added, is neither an end nor a change. ``measured``, the last
+    informing status with a valid distance, gives the end its distance (running_distance).
+    """
 
-def derive_events(
-    prev: GalileoStatus | None,
-    cur: GalileoStatus,
-    *,
-    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
-    last_distance: float | None = None,
-    host: HostGoal | None = None,
-) -> list[Event]:
-    """Events for prev → cur (a field unknown on either side: no change); goals by goal_step."""
-    if prev is None:
-        return []
-    tolerance, last = arrive_tolerance, last_distance
-    return derive_step(prev, cur, arrive_tolerance=tolerance, last_distance=last, host=host)[0]
+    __slots__ = ("_latest", "arrive_tolerance", "host", "measured", "prev")
 
+    def __init__(
+        self, *, host: HostGoal | None = None, arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE
+    ) -> None:
+        self.arrive_tolerance = arrive_tolerance
+        #: What this host sent, as goal_step follows it (None: a watcher, or the goal ended).
+        self.host = host
+        #: The status the next is compared with (None: the next is the first).
+        self.prev: GalileoStatus | None = None
+        self.measured: GalileoStatus | None = None
+        self._latest = False  # prev is the last status given: see() follows it
 
-def derive_step(
-    prev: GalileoStatus,
-    cur: GalileoStatus,
-    *,
-    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
-    last_distance: float | None = None,
-    host: HostGoal | None = None,
-    measured: GalileoStatus | None = None,
-) -> tuple[list[Event], HostGoal | None]:
-    """derive_events, and the HostGoal after cur to keep; ``measured`` gives last_distance."""
-    if last_distance is None:
-        last_distance = running_distance(measured, prev)
-    out: list[Event] = []
-    _two_state(out, prev.nav_status, cur.nav_status, cur, NavigationOpened, NavigationClosed)
-    _visual(out, prev.visual_status, cur.visual_status, cur)
-    step = goal_step(
-        prev, cur, host=host, arrive_tolerance=arrive_tolerance, last_distance=last_distance
-    )
-    for change, target_id in step.changes:
-        out.append(_goal_event(change, target_id, step.distance, cur))
-    _two_state(out, prev.busy_status, cur.busy_status, cur, BusyStarted, BusyEnded)
-    old, new = prev.charge_status, cur.charge_status
-    if old is not None and new is not None and old != new:
-        out.append(ChargeStateChanged(status=cur, old=old, new=new))
-    _two_state(out, prev.loop_status, cur.loop_status, cur, PatrolStarted, PatrolStopped)
-    _two_state(out, prev.map_status, cur.map_status, cur, MappingStarted, MappingStopped)
-    return out, step.host
+    def start(self, status: GalileoStatus | None) -> None:
+        """Compare the next status with ``status`` (None: the next is the first); its valid
+        distance, if any, becomes the last one measured."""
+        self.prev = status
+        self._latest = status is not None
+        if status is not None and valid_distance(status.target_distance) is not None:
+            self.measured = status
 
+    def step(self, status: GalileoStatus) -> GoalStep:
+        """How goals changed from the last informing status to ``status``; remembers it."""
+        prev = status if self.prev is None else self.prev
+        step = goal_step(
+            prev,
+            status,
+            host=self.host,
+            arrive_tolerance=self.arrive_tolerance,
+            last_distance=running_distance(self.measured, prev),
+        )
+        self.host = step.host
+        self._latest = informs(status)
+        if self._latest:
+            if run_starts(prev, status):
+                self.measured = None  # its end must not borrow a distance of an earlier run
+            self.see(status)
+        return step
 
-def _two_state(
-    out: list[Event],
-    old: int | None,
-    new: int | None,
-    cur: GalileoStatus,
-    on: type[Event],
-    off: type[Event],
-) -> None:
-    if old is None or new is None or (old == 1) == (new == 1):
-        return
-    out.append(on(status=cur) if new == 1 else off(status=cur))
-
-
-def _visual(
-    out: list[Event], old: VisualStatus | None, new: VisualStatus | None, cur: GalileoStatus
-) -> None:
-    if old is None or new is None or old == new:
-        return
-    was, now = old in _INITIALISED, new in _INITIALISED
-    if now and not was:
-        out.append(VisualInitialised(status=cur))
-    elif new == VisualStatus.LOST or (was and not now and old != VisualStatus.LOST):
-        out.append(VisualLost(status=cur))
-    elif old == VisualStatus.LOST and new == VisualStatus.TRACKING:
-        out.append(VisualRecovered(status=cur))
-
-
-_SIMPLE_GOAL_EVENTS: dict[GoalChange, type[GoalEvent]] = {
-    GoalChange.ACCEPTED: GoalAccepted,
-    GoalChange.PAUSED: GoalPaused,
-    GoalChange.RESUMED: GoalResumed,
-    GoalChange.REJECTED: GoalRejectedEvent,
-}
-
-
-def _goal_event(
-    change: GoalChange, target_id: int | None, distance: float | None, cur: GalileoStatus
-) -> GoalEvent:
-    if change is GoalChange.REACHED or change is GoalChange.ABORTED:
-        end = GoalReached if change is GoalChange.REACHED else GoalAbortedEvent
-        return end(status=cur, target_id=target_id, distance=distance)
-    if change is GoalChange.CANCELLED or change is GoalChange.PREEMPTED:
-        preempted = change is GoalChange.PREEMPTED
-        return GoalCancelledEvent(status=cur, target_id=target_id, preempted=preempted)
-    return _SIMPLE_GOAL_EVENTS[change](status=cur, target_id=target_id)
+    def see(self, status: GalileoStatus) -> None:
+        """Remember ``status`` without a step: its goal fields are those of the last given."""
+        # Hot path (the store, on every frame with an events() consumer): the same fields
+        # inform alike, so only the last given status's verdict is looked at.
+        if self._latest:
+            self.prev = status
+            distance = status.target_distance
+            if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
+                self.measured = status
