@@ -105,6 +105,17 @@ def test_the_map_learns_the_arrivals_goto_and_events_report() -> None:
     assert 3 not in model.targets
 
 
+def test_an_arrival_behind_a_target_status_newer_firmware_adds_is_learned() -> None:
+    # The map follows goals with the same machine as events(): an unknown value (7) is
+    # no information, so the arrival after it is judged against the working frame.
+    model = MapModel()
+    model.update("a", at(1.0, 1.0, target_num_id=3, target_status=1, target_distance=0.2))
+    model.update("a", at(1.5, 1.0, target_num_id=3, target_status=7, target_distance=0.1))
+    model.update("a", at(1.6, 1.0, target_num_id=3, target_status=0, target_distance=0.0))
+    assert model.targets[3].source == "learned"
+    assert (model.targets[3].x, model.targets[3].y) == (1.6, 1.0)
+
+
 def test_targets_csv(tmp_path: Path) -> None:
     path = tmp_path / "targets.csv"
     path.write_text("id,x,y\n0, 1.5, -2\n# a comment\n\n7,3,4\n")

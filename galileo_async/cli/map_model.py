@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..errors import InvalidArgument
 from ..models import GalileoStatus, TargetStatus
-from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalChange, goal_step
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalChange, GoalMachine
 
 __all__ = [
     "MIN_SPAN",
@@ -90,7 +90,7 @@ class MapModel:
         self.trail_seconds = trail_seconds
         self.clock = clock
         self.arrive_tolerance = arrive_tolerance
-        self._last: dict[str, GalileoStatus] = {}  # each robot's previous status
+        self._machines: dict[str, GoalMachine] = {}  # each robot's goals, as events() sees them
         self.robots: dict[str, RobotTrack] = {}
         self.targets: dict[int, MapTarget] = {}
 
@@ -110,10 +110,13 @@ class MapModel:
     def update(self, name: str, status: GalileoStatus, now: float | None = None) -> None:
         """Move robot ``name`` to the status's pose; learn a target it is seen to arrive at.
 
-        Arrived means what goto() and events() mean (transitions.goal_step): a goal that ends
-        free within ``arrive_tolerance``.
+        Arrived means what goto() and events() mean (one transitions.GoalMachine per robot):
+        a goal that ends free within ``arrive_tolerance``.
         """
-        prev, self._last[name] = self._last.get(name), status
+        machine = self._machines.get(name)
+        if machine is None:
+            machine = self._machines[name] = GoalMachine(arrive_tolerance=self.arrive_tolerance)
+        step = machine.step(status)
         pose = status.pose
         if pose is None:
             return
@@ -132,9 +135,6 @@ class MapModel:
         goal = status.target_num_id
         working = status.target_status in (TargetStatus.WORKING, TargetStatus.PAUSED)
         track.goal = goal if goal is not None and goal >= 0 and working else None
-        if prev is None:
-            return
-        step = goal_step(prev, status, arrive_tolerance=self.arrive_tolerance)
         for change, target_id in step.changes:
             if change is GoalChange.REACHED and target_id is not None and target_id >= 0:
                 self.add_target(target_id, x, y, "learned")
@@ -142,7 +142,7 @@ class MapModel:
     def forget(self, name: str) -> None:
         """Take robot ``name`` off the map."""
         self.robots.pop(name, None)
-        self._last.pop(name, None)
+        self._machines.pop(name, None)
 
     def goals(self) -> set[int]:
         """Target ids some robot is driving to (or paused on the way to)."""
