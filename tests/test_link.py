@@ -405,6 +405,28 @@ def test_open_link_url_forms(monkeypatch: pytest.MonkeyPatch) -> None:
         open_link("ros://127.0.0.1:11311", store)
 
 
+async def test_a_link_keeps_its_loops_clock() -> None:
+    """One clock per link: asyncio's own (time.monotonic, called directly), else the loop's."""
+    from galileo_async.testing import VirtualClock
+
+    connector = MemoryConnector()
+    link = StreamLink(StatusStore(), connector)
+    await link.open()
+    assert link.stats.clock is time.monotonic
+    await link.close()
+    clock = VirtualClock.install()
+    try:
+        virtual = StreamLink(StatusStore(), MemoryConnector())
+        await virtual.open()
+        loop = asyncio.get_running_loop()
+        assert virtual.stats.clock() == loop.time()
+        await asyncio.sleep(3600)  # virtual: the link's clock went with it
+        assert virtual.stats.clock() == loop.time()
+        await virtual.close()
+    finally:
+        clock.release()
+
+
 async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> None:
     connector = MemoryConnector()
     made: list[Any] = []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import abc
 import asyncio
 import logging
+import time
 from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
@@ -168,7 +169,10 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         if self._opened:
             return
         # One clock for every timer of the link: its loop's (a virtual one in tests).
-        self.stats.clock = asyncio.get_running_loop().time
+        clock = asyncio.get_running_loop().time
+        if getattr(clock, "__func__", None) is asyncio.BaseEventLoop.time:
+            clock = time.monotonic  # what asyncio's own time() returns, without its frame
+        self.stats.clock = clock
         await self._connect()
         self._opened = True
         self._writer_task = asyncio.create_task(self._writer(), name=f"{self!r} writer")
