@@ -14,7 +14,7 @@ from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, Inv
 from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import open_link
+from ..transports import loop_clock, open_link
 from .options import check_connect_options
 from .robot import Robot
 from .runtime import finish_shielded, running_loop
@@ -65,7 +65,7 @@ class Connection:
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
         store = StatusStore(
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE),
-            clock=asyncio.get_running_loop().time,
+            clock=loop_clock(),
         )
         with options_checked():  # by __init__, once
             link = open_link(self.url, store, **options)

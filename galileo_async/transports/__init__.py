@@ -30,7 +30,7 @@ from .options import (
     LINK_OPTIONS,
     STREAM_OPTIONS,
 )
-from .stats import LinkState, LinkStats, StatusSink
+from .stats import LinkState, LinkStats, StatusSink, loop_clock
 from .stream import StreamLink
 from .urls import byte_connector, check_link_options, link_kind, open_link
 
@@ -57,6 +57,7 @@ __all__ = [
     "byte_connector",
     "check_link_options",
     "link_kind",
+    "loop_clock",
     "open_link",
     "parse_socket_url",
     "serial_connector",

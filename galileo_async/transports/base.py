@@ -5,7 +5,6 @@ from __future__ import annotations
 import abc
 import asyncio
 import logging
-import time
 from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
@@ -16,7 +15,7 @@ from ..protocol import Command
 from . import options as _options
 from .follow import LinkStateFollowers, LinkStateStream
 from .queue import CommandQueue, Pending
-from .stats import LinkState, LinkStats, StatusSink
+from .stats import LinkState, LinkStats, StatusSink, loop_clock
 from .watchdog import StaleWatchdog
 
 __all__ = ["BaseLink", "frames_log"]
@@ -169,10 +168,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         if self._opened:
             return
         # One clock for every timer of the link: its loop's (a virtual one in tests).
-        clock = asyncio.get_running_loop().time
-        if getattr(clock, "__func__", None) is asyncio.BaseEventLoop.time:
-            clock = time.monotonic  # what asyncio's own time() returns, without its frame
-        self.stats.clock = clock
+        self.stats.clock = loop_clock()
         await self._connect()
         self._opened = True
         self._writer_task = asyncio.create_task(self._writer(), name=f"{self!r} writer")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -11,7 +12,15 @@ from ..errors import GalileoConnectionError, LinkStale
 from ..models import GalileoStatus, LinkState, StatusLayout
 from ..protocol import DecoderStats
 
-__all__ = ["LinkState", "LinkStats", "StatusSink"]
+__all__ = ["LinkState", "LinkStats", "StatusSink", "loop_clock"]
+
+
+def loop_clock() -> Callable[[], float]:
+    """The running loop's clock: time.monotonic itself on asyncio's own loop (no frame)."""
+    clock = asyncio.get_running_loop().time
+    if getattr(clock, "__func__", None) is asyncio.BaseEventLoop.time:
+        return time.monotonic  # what asyncio's time() returns (a virtual clock is not this)
+    return clock
 
 
 @dataclass(slots=True, init=False)
