@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from test_goal_machine import frame as goal_frame
 
 from galileo_async import GalileoStatus, GoalAborted, GoalCancelled
 from galileo_async import events as ev
@@ -22,14 +23,7 @@ ENDS = ("GoalReached", "GoalAborted", "GoalRejected", "GoalCancelled")
 
 
 def status(nav: int = 1, target_id: int = 3, state: int = 1, distance: float = 2.0) -> Any:
-    return GalileoStatus(
-        nav_status=nav,
-        visual_status=1,
-        power=24.0,
-        target_num_id=target_id,
-        target_status=state,
-        target_distance=distance,
-    )
+    return goal_frame(nav, target_id, state, distance)
 
 
 def goal_events(
