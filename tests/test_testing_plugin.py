@@ -191,3 +191,50 @@ def test_auto_mode_and_a_marker_with_positional_arguments(run: pytest.Pytester) 
             "*galileo_sim takes keyword arguments only, got ('document',)*",
         ]
     )
+
+
+FLEET_TESTS = """
+import asyncio
+
+import pytest
+
+from galileo_async import LinkState
+from galileo_async.protocol import commands as c
+
+pytestmark = pytest.mark.asyncio
+
+
+async def test_default_fleet(galileo_fleet, galileo_devices):
+    assert list(galileo_fleet) == ["robot1", "robot2", "robot3"]
+    await galileo_fleet.get("robot2").goto(1)
+    assert galileo_devices["robot2"].received(c.Goto) == [c.Goto(1)]
+    assert galileo_devices["robot1"].commands == []
+
+
+@pytest.mark.galileo_fleet_sim(robots=["a", "b"], sim_options={"power": 21.0})
+async def test_marked_fleet(galileo_fleet, galileo_devices):
+    assert list(galileo_fleet) == ["a", "b"]
+    assert galileo_fleet.get("a").status.power == 21.0
+    galileo_devices["b"].drop_link()
+    await galileo_devices["b"].advance(1)
+    assert galileo_fleet.state("b") is LinkState.LOST
+    assert galileo_fleet.state("a") is LinkState.UP
+
+
+async def test_fleet_leaves_a_goto(galileo_fleet):
+    asyncio.create_task(galileo_fleet.get("robot1").goto(2), name="forgotten-goto")
+    await asyncio.sleep(0.5)
+"""
+
+
+def test_fleet_fixtures_and_their_marker(run: pytest.Pytester) -> None:
+    run.makeini("[pytest]\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(test_fleet=FLEET_TESTS)
+    result = pytest_run(run, "--strict-markers")
+    result.assert_outcomes(passed=3, errors=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*ERROR at teardown of test_fleet_leaves_a_goto*",
+            "*1 task(s) left running: forgotten-goto*",
+        ]
+    )

@@ -11,8 +11,10 @@ __all__ = ["LeakCheck"]
 
 #: Loop turns given to tasks that are already finishing before anything counts as left.
 _SETTLE_TURNS = 3
-#: Modules whose tasks belong to an open link (its writer, its reconnect loop).
-_LINK_MODULES = ("galileo_async.transports", "galileo_async.http", "galileo_async.ros")
+#: Modules whose tasks belong to an open link (its writer, its reconnect loop) or fleet.
+_LINK_MODULES = (
+    "galileo_async.transports", "galileo_async.http", "galileo_async.ros", "galileo_async.fleet",
+)  # fmt: skip
 
 
 def _armed_timers(loop: asyncio.AbstractEventLoop) -> set[asyncio.TimerHandle]:
@@ -31,7 +33,7 @@ class LeakCheck:
         self._robots = set(OPEN_ROBOTS)
 
     async def stop_tasks(self) -> list[str]:
-        """Cancel the tasks started since the snapshot and still running, but links' own.
+        """Cancel the tasks started since the snapshot and still running, but links' and fleets'.
 
         For the end of a test body, before the Robots it used close (a task left running
         might otherwise end with ConnectionLost and go unnoticed).

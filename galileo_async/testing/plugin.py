@@ -1,45 +1,60 @@
-"""The pytest plugin (entry point pytest11): galileo_robot, galileo_device, the galileo_sim marker.
+"""The pytest plugin (entry point pytest11): galileo_robot, galileo_device, galileo_fleet …
 
 ``galileo_robot`` and ``galileo_device`` are the two halves of one fresh
 simulated_robot() per test, on a virtual clock; ``@pytest.mark.galileo_sim(...)`` passes
-simulated_robot's arguments. A test that uses them fails when it leaves a Robot, task
-or timer behind; ``galileo_no_leaks`` gives any async test the same check. The fixtures
-need pytest-asyncio (the extra ``testing``); the plugin loads without it.
+simulated_robot's arguments. ``galileo_fleet`` and ``galileo_devices`` are those of one
+simulated_fleet() (``@pytest.mark.galileo_fleet_sim(...)``). A test that uses them fails
+when it leaves a Robot, task or timer behind; ``galileo_no_leaks`` gives any async test
+the same check. The fixtures need pytest-asyncio (the extra ``testing``); the plugin
+loads without it.
 """
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
-from typing import TYPE_CHECKING, Any
+import contextlib
+from collections.abc import AsyncIterator, Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import pytest
 
 if TYPE_CHECKING:
+    from ..fleet import Fleet
     from ..robot import Robot
     from .device import SimulatedDevice
 
-__all__ = ["galileo_device", "galileo_no_leaks", "galileo_robot", "galileo_simulation"]
+__all__ = [
+    "galileo_device", "galileo_devices", "galileo_fleet", "galileo_fleet_simulation",
+    "galileo_no_leaks", "galileo_robot", "galileo_simulation",
+]  # fmt: skip
 
 MARKER = "galileo_sim"
+FLEET_MARKER = "galileo_fleet_sim"
 _MARKER_HELP = (
     f"{MARKER}(firmware='real', layout='v2', map_targets=None, targets=None, "
     "navigating=True, clock='virtual', sim_options=None, **connect_options): "
     "the simulated robot behind the galileo_robot and galileo_device fixtures"
 )
+_FLEET_MARKER_HELP = (
+    f"{FLEET_MARKER}(robots=3, firmware='real', targets=None, navigating=True, "
+    "clock='virtual', sim_options=None, robot_sim_options=None, **options): "
+    "the simulated fleet behind the galileo_fleet and galileo_devices fixtures"
+)
+_Pair = TypeVar("_Pair")
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Declare the marker (so --strict-markers accepts it)."""
+    """Declare the markers (so --strict-markers accepts them)."""
     config.addinivalue_line("markers", _MARKER_HELP)
+    config.addinivalue_line("markers", _FLEET_MARKER_HELP)
 
 
-def _sim_arguments(request: pytest.FixtureRequest) -> dict[str, Any]:
-    """simulated_robot's arguments from the closest galileo_sim marker."""
-    marker = request.node.get_closest_marker(MARKER)
+def _sim_arguments(request: pytest.FixtureRequest, name: str = MARKER) -> dict[str, Any]:
+    """The keyword arguments of the closest ``name`` marker."""
+    marker = request.node.get_closest_marker(name)
     if marker is None:
         return {}
     if marker.args:
-        raise pytest.UsageError(f"{MARKER} takes keyword arguments only, got {marker.args!r}")
+        raise pytest.UsageError(f"{name} takes keyword arguments only, got {marker.args!r}")
     return dict(marker.kwargs)
 
 
@@ -53,19 +68,38 @@ async def _no_leaks() -> AsyncIterator[None]:
         pytest.fail("the test left things behind:\n  " + "\n  ".join(problems), pytrace=False)
 
 
-async def _simulation(
-    request: pytest.FixtureRequest,
-) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
+async def _checked(
+    simulation: Callable[..., contextlib.AbstractAsyncContextManager[_Pair]],
+    arguments: dict[str, Any],
+) -> AsyncIterator[_Pair]:
+    """``simulation(**arguments)`` for one test, with the leak check around it."""
     from .leaks import LeakCheck
-    from .robot import simulated_robot
 
     check = LeakCheck()
-    async with simulated_robot(**_sim_arguments(request)) as pair:
+    async with simulation(**arguments) as pair:
         yield pair
-        problems = await check.stop_tasks()  # before the Robot closes under them
+        problems = await check.stop_tasks()  # before the Robots close under them
     problems += await check.finish()
     if problems:
         pytest.fail("the test left things behind:\n  " + "\n  ".join(problems), pytrace=False)
+
+
+async def _simulation(
+    request: pytest.FixtureRequest,
+) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
+    from .robot import simulated_robot
+
+    async for pair in _checked(simulated_robot, _sim_arguments(request)):
+        yield pair
+
+
+async def _fleet_simulation(
+    request: pytest.FixtureRequest,
+) -> AsyncIterator[tuple[Fleet, dict[str, SimulatedDevice]]]:
+    from .fleet import simulated_fleet
+
+    async for pair in _checked(simulated_fleet, _sim_arguments(request, FLEET_MARKER)):
+        yield pair
 
 
 def _missing() -> Any:
@@ -76,13 +110,19 @@ def _missing() -> Any:
 
 
 galileo_simulation: Any
+galileo_fleet_simulation: Any
 galileo_no_leaks: Any
 try:
     import pytest_asyncio
 except ImportError:  # the plugin still loads; the fixtures say what is missing
     galileo_simulation = pytest.fixture(_missing, name="galileo_simulation")
+    galileo_fleet_simulation = pytest.fixture(_missing, name="galileo_fleet_simulation")
     galileo_no_leaks = pytest.fixture(_missing, name="galileo_no_leaks")
 else:
+    #: ``(fleet, devices)`` of one simulated_fleet() per test (the galileo_fleet_sim marker's).
+    galileo_fleet_simulation = pytest_asyncio.fixture(
+        _fleet_simulation, name="galileo_fleet_simulation"
+    )
     #: ``(robot, device)`` of one simulated_robot() per test (the galileo_sim marker's).
     galileo_simulation = pytest_asyncio.fixture(_simulation, name="galileo_simulation")
     #: Fails the test when it leaves a Robot, task or timer behind.
@@ -99,3 +139,19 @@ def galileo_robot(galileo_simulation: tuple[Robot, SimulatedDevice]) -> Robot:
 def galileo_device(galileo_simulation: tuple[Robot, SimulatedDevice]) -> SimulatedDevice:
     """The device side of galileo_robot's simulated robot: commands, faults, advance()."""
     return galileo_simulation[1]
+
+
+@pytest.fixture
+def galileo_fleet(
+    galileo_fleet_simulation: tuple[Fleet, dict[str, SimulatedDevice]],
+) -> Fleet:
+    """A Fleet of fresh simulated robots (robot1, robot2, robot3 unless marked), closed after."""
+    return galileo_fleet_simulation[0]
+
+
+@pytest.fixture
+def galileo_devices(
+    galileo_fleet_simulation: tuple[Fleet, dict[str, SimulatedDevice]],
+) -> dict[str, SimulatedDevice]:
+    """The device side of each robot of galileo_fleet, by name."""
+    return galileo_fleet_simulation[1]
