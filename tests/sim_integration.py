@@ -56,6 +56,7 @@ __all__ = [
     "robot_on_sim",
     "sim_reaches",
     "sim_seconds",
+    "speeds_of",
     "time_limit",
 ]
 
@@ -194,3 +195,21 @@ def record_commands(sim: Simulator) -> list[tuple[Command, bool]]:
 
     model.submit = recording  # type: ignore[method-assign]
     return log
+
+
+@contextlib.asynccontextmanager
+async def speeds_of(robot: galileo.Robot) -> AsyncIterator[list[float]]:
+    """The linear speeds of every status received meanwhile."""
+    speeds: list[float] = []
+
+    async def watch() -> None:
+        async for status in robot.statuses():
+            speeds.append(abs(status.current_speed_x or 0.0))
+
+    watcher = asyncio.ensure_future(watch())
+    try:
+        yield speeds
+    finally:
+        watcher.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await watcher

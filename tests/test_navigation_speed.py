@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import math
 
 import pytest
+from sim_integration import speeds_of
 from test_http_link import WAIT, navigating, robot_on_http
 
 import galileo_async as galileo
@@ -23,19 +22,8 @@ async def test_navigation_speed_reaches_the_sim_and_limits_goals() -> None:
         assert face.device.model.navigation_speed == pytest.approx(0.1)
         assert await robot.navigation_speed() == pytest.approx(0.1)
         await navigating(robot)
-        speeds: list[float] = []
-
-        async def watch() -> None:
-            async for status in robot.statuses():
-                speeds.append(abs(status.current_speed_x or 0.0))
-
-        watcher = asyncio.ensure_future(watch())
-        try:
+        async with speeds_of(robot) as speeds:
             await robot.goto(0, timeout=WAIT * 3)
-        finally:
-            watcher.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await watcher
         assert max(speeds) > 0.05  # it did drive
         assert max(speeds) <= 0.1 + 1e-6
 

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
+from sim_integration import speeds_of
 from test_vda5050_vehicle import action_status, vehicle_on
 from vda5050_support import (
     Broker,
@@ -49,24 +49,6 @@ async def http_vehicle(
             await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
             await master.wait_for("state", lambda s: s["operatingMode"] == "AUTOMATIC")
             yield robot, face, master
-
-
-@contextlib.asynccontextmanager
-async def speeds_of(robot: Robot) -> AsyncIterator[list[float]]:
-    """The linear speeds of every status received meanwhile."""
-    speeds: list[float] = []
-
-    async def watch() -> None:
-        async for status in robot.statuses():
-            speeds.append(abs(status.current_speed_x or 0.0))
-
-    watcher = asyncio.ensure_future(watch())
-    try:
-        yield speeds
-    finally:
-        watcher.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await watcher
 
 
 def slow_order(order_id: str, x: float) -> dict[str, Any]:
