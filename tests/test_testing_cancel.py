@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import asyncio
 import time
+from typing import Any
 
 import pytest
 from cancel_ways import WAYS, stop_waiting
 
 from galileo_async.robot.runtime import OPEN_ROBOTS
-from galileo_async.testing import VirtualClock, simulated_robot
+from galileo_async.testing import VirtualClock, simulated_fleet, simulated_robot
 
 #: Virtual seconds after which the wait is stopped: entering (before the first await),
 #: connecting (waiting for the first status), and half way through a 7 s goal.
@@ -61,4 +62,39 @@ async def test_a_stopped_advance_stops_the_clock_there_and_the_robot_goes_on(how
         assert VirtualClock.of(loop) is not None  # still inside: still virtual
         assert (await robot.goto(0)).target_id == 0
         await device.advance(1.0)
+    assert_released(loop, robots)
+
+
+@pytest.mark.parametrize("which", ["robot", "fleet"])
+@pytest.mark.parametrize("times", [1, 2])
+async def test_leaving_cancelled_while_it_closes_still_releases_everything(
+    which: str, times: int
+) -> None:
+    # The block's exit (Robot.close(), the simulator's close, the clock's release) is
+    # cancelled once or twice more while it runs: it finishes, then the cancellation goes on.
+    loop = asyncio.get_running_loop()
+    robots = set(OPEN_ROBOTS)
+    closed: list[bool] = []
+
+    async def use() -> None:
+        task = asyncio.current_task()
+        assert task is not None
+        if which == "robot":
+            context: Any = simulated_robot()
+        else:
+            context = simulated_fleet(2)
+        async with context as (handle, _):
+            if which == "fleet":
+                handle = handle.get("robot1")
+            await handle.goto(1)
+            # Land while the exit runs (at its first wait, and 1 ms into it), not before it.
+            loop.call_soon(task.cancel)
+            if times == 2:
+                loop.call_later(0.001, task.cancel)
+        closed.append(True)
+
+    task = asyncio.ensure_future(use())
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert closed == []  # the cancellation was raised after the exit, not swallowed
     assert_released(loop, robots)

@@ -367,7 +367,6 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         seconds at most), then the cancellation is raised.
         """
         self._ops.user_stopped("close()")
-        OPEN_ROBOTS.discard(self)
         task = self._close_task
         if task is None:
             stop_written = self._drives.end()  # queued first, and written before closing
@@ -385,6 +384,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
             await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:
             self._store.close()
+            OPEN_ROBOTS.discard(self)  # open until its link is closed
 
     async def __aenter__(self) -> Robot:
         return self

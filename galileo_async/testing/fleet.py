@@ -29,8 +29,7 @@ def _names(robots: int | Sequence[str]) -> list[str]:
     names = list(robots)
     if not names or len(names) > MAX_ROBOTS:
         raise InvalidArgument(f"robots must name 1..{MAX_ROBOTS} robots, got {len(names)}")
-    if not all(isinstance(name, str) and name for name in names):
-        raise InvalidArgument(f"robot names must be non-empty strings, got {names!r}")
+    # connect_fleet checks each name (before anything starts); a mapping cannot repeat one.
     if len(set(names)) != len(names):
         raise InvalidArgument(f"robot names must differ, got {names!r}")
     return names

@@ -12,7 +12,7 @@ __all__ = ["LeakCheck"]
 #: Loop turns given to tasks that are already finishing before anything counts as left.
 _SETTLE_TURNS = 3
 #: Modules whose tasks belong to an open link (its writer, its reconnect loop) or fleet.
-_LINK_MODULES = (
+_DRIVER_MODULES = (
     "galileo_async.transports", "galileo_async.http", "galileo_async.ros", "galileo_async.fleet",
 )  # fmt: skip
 
@@ -43,7 +43,7 @@ class LeakCheck:
         tasks = [
             task
             for task in asyncio.all_tasks(self._loop) - self._tasks - {current}
-            if not task.done() and not _of_a_link(task)
+            if not task.done() and not _of_the_driver(task)
         ]
         return await self._cancel(tasks)
 
@@ -86,10 +86,10 @@ class LeakCheck:
         return [f"{len(tasks)} task(s) left running: {_names(tasks)}"]
 
 
-def _of_a_link(task: asyncio.Task[Any]) -> bool:
+def _of_the_driver(task: asyncio.Task[Any]) -> bool:
     frame = getattr(task.get_coro(), "cr_frame", None)
     module = "" if frame is None else str(frame.f_globals.get("__name__", ""))
-    return module.startswith(_LINK_MODULES)
+    return module.startswith(_DRIVER_MODULES)
 
 
 def _names(tasks: list[asyncio.Task[Any]]) -> str:
