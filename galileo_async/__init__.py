@@ -23,7 +23,7 @@ from .models import (
 
 if TYPE_CHECKING:
     from .fleet import Fleet, FleetResult, RobotState, connect_fleet
-    from .robot import Connection, GoalResult, Robot, connect
+    from .robot import Connection, GoalResult, Robot, StopReport, connect
     from .ros.discovery import DiscoveredRobot, discover
 
 __version__ = "0.1.0"
@@ -47,6 +47,7 @@ __all__ = [
     "Robot",
     "RobotState",
     "StatusLayout",
+    "StopReport",
     "TargetStatus",
     "VisualStatus",
     "__version__",
@@ -69,6 +70,7 @@ _LAZY: dict[str, str] = {
     "Connection": "robot",
     "GoalResult": "robot",
     "Robot": "robot",
+    "StopReport": "robot",
     "connect": "robot",
 }
 

@@ -30,6 +30,7 @@ __all__ = [
     "OperationTimeout",
     "PortBusy",
     "TaskFailed",
+    "StopUnconfirmed",
     "UnconfirmedOperation",
     "WrongEventLoop",
 ]
@@ -129,6 +130,21 @@ class OperationTimeout(GalileoTimeout):
 
 class UnconfirmedOperation(GalileoTimeout):
     """A command was sent but the status never showed its effect in time."""
+
+
+class StopUnconfirmed(UnconfirmedOperation):
+    """stop() sent everything, but the status did not show ``unconfirmed`` in time.
+
+    ``unconfirmed`` names each part the robot did not confirm: "goal" (still working or
+    paused), "patrol" (loop_status still 1), "speed" (still moving), "task" (an HTTP nav
+    task still running).
+    """
+
+    def __init__(
+        self, message: str, status: GalileoStatus | None, *, unconfirmed: tuple[str, ...]
+    ) -> None:
+        super().__init__(message, status)
+        self.unconfirmed = unconfirmed
 
 
 # --- goals -------------------------------------------------------------------

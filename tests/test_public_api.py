@@ -20,6 +20,7 @@ PUBLIC = {
     "GoalStalled", "LinkState",
     "DuplicateVehicle",
     "HttpError", "NotSupported", "TaskFailed",
+    "StopReport", "StopUnconfirmed",
 }  # fmt: skip
 
 #: DESIGN.md's Robot contract: these names are kept.
@@ -29,7 +30,7 @@ ROBOT_COROUTINES = {
     "turn_left", "turn_right", "stop", "start_patrol", "stop_patrol", "set_patrol_dwell",
     "start_mapping", "stop_mapping", "save_map", "update_map", "start_charging",
     "stop_charging", "save_dock", "shutdown_host", "send", "wait_until", "close",
-    "wait_link",
+    "wait_link", "zero_speed",
 }  # fmt: skip
 
 

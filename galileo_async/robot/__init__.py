@@ -28,6 +28,7 @@ from .robot import (
     Robot,
     RobotDefault,
 )
+from .stopping import DEFAULT_STOP_TIMEOUT, StopReport
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -37,6 +38,7 @@ __all__ = [
     "DEFAULT_MAX_ANGULAR_SPEED",
     "DEFAULT_MAX_LINEAR_SPEED",
     "DEFAULT_PROGRESS_TIMEOUT",
+    "DEFAULT_STOP_TIMEOUT",
     "DEFAULT_TIMEOUT",
     "DEFAULT_WAIT_TIMEOUT",
     "FIRST_STATUS_TIMEOUT",
@@ -53,5 +55,6 @@ __all__ = [
     "Robot",
     "RobotDefault",
     "SpeedLimits",
+    "StopReport",
     "connect",
 ]

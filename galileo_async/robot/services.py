@@ -53,6 +53,7 @@ from .operations import (
     Require,
 )
 from .runtime import Deadline
+from .stopping import DEFAULT_STOP_TIMEOUT, StopReport
 from .targets import DynamicTargets
 
 __all__ = ["DEFAULT_ANGLE_TOLERANCE", "RobotServices"]
@@ -218,14 +219,25 @@ class RobotServices:
         """Write ``d`` once at ``percent`` (0-100) of max angular speed; as forward()."""
         await self._written(TurnRight(percent), "turn_right", timeout)
 
-    async def stop(self, brake: int = 100) -> None:
-        """Zero both speeds with ``brake`` (0-100); sent at once, even while busy or stale.
+    async def zero_speed(self, brake: int = 100) -> None:
+        """Write one ``Stop(brake)`` (both speeds 0); a goal or patrol drives on. Use stop().
 
-        A user stop: a drive or goal command called before it that still waits is never
-        written (Operations.user_stopped).
+        Sent at once, even while busy or stale; a user stop: a drive or goal command called
+        before it that still waits is never written (Operations.user_stopped).
         """
+        command = Stop(brake)
+        self._user_stop("zero_speed()")
+        await self._ops.send(command, what="zero_speed", even_stale=True)
+
+    async def stop(
+        self, brake: int = 100, *, timeout: float | None = DEFAULT_STOP_TIMEOUT
+    ) -> StopReport:
+        """Halt every motion, whoever started it; return once the status shows it stopped."""
+        command = Stop(brake)
+        check_timeout("timeout", timeout)
         self._user_stop("stop()")
-        await self._ops.send(Stop(brake), what="stop", even_stale=True)
+        await self._ops.send(command, what="stop", even_stale=True)
+        return StopReport(status=self._ops.store.status)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
 
