@@ -185,7 +185,11 @@ class GoalAborted(GoalError):
 
 
 class GoalCancelled(GoalError):
-    """The goal was cancelled, or preempted by a newer goal (``preempted`` is True)."""
+    """The goal was cancelled, or preempted by a newer goal (``preempted`` is True).
+
+    ``cancelled_by`` names this Robot's call that ended it ("stop()", "close()" …); None
+    when the robot showed the cancel (another host, cancel()) or a newer goal preempted it.
+    """
 
     def __init__(
         self,
@@ -194,9 +198,11 @@ class GoalCancelled(GoalError):
         target_id: int,
         preempted: bool = False,
         status: GalileoStatus | None = None,
+        cancelled_by: str | None = None,
     ) -> None:
         super().__init__(message, target_id=target_id, status=status)
         self.preempted = preempted
+        self.cancelled_by = cancelled_by
 
 
 class GoalStalled(GoalError):

@@ -376,7 +376,7 @@ async def working(robot: galileo.Robot, target_id: int) -> None:
 async def flush(robot: galileo.Robot, fake: ScriptedRobot) -> None:
     """Send Stop as a marker: once it arrives, everything sent before it has arrived too."""
     before = len(fake.of_type(Stop))
-    await robot.stop()
+    await robot.zero_speed()
     with anyio.fail_after(2):
         while len(fake.of_type(Stop)) == before:
             await fake.frames(1)

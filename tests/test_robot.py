@@ -336,7 +336,7 @@ async def test_teleop_commands() -> None:
         await robot.backward(20)
         await robot.turn_left(10)
         await robot.turn_right(100)
-        await robot.stop(30)
+        await robot.zero_speed(30)
         with anyio.fail_after(2):
             while len(fake.received) < 5:
                 await fake.frames(1)
@@ -348,8 +348,11 @@ async def test_teleop_arguments_are_checked_before_sending() -> None:
         for call in (robot.forward, robot.backward, robot.turn_left, robot.turn_right):
             with pytest.raises(InvalidArgument):
                 await call(101)
+        for stop in (robot.stop, robot.zero_speed):
+            with pytest.raises(InvalidArgument):
+                await stop(-1)
         with pytest.raises(InvalidArgument):
-            await robot.stop(-1)
+            await robot.stop(timeout=-1)
         await nothing_was_sent_before_marker(robot, fake)
 
 

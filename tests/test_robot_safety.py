@@ -18,6 +18,7 @@ from galileo_async import (
     LinkStale,
     NotReady,
     OperationTimeout,
+    StopUnconfirmed,
 )
 from galileo_async import events as ev
 from galileo_async import robot as robot_module
@@ -73,11 +74,14 @@ async def test_every_operation_on_a_stale_link_raises_before_sending() -> None:
             with pytest.raises(LinkStale, match="nothing was sent"):
                 await call(robot)
             assert fake.received == [], name
-        # stop() is still attempted: the transmit side may work while the robot is silent.
-        await robot.stop()
+        # stop() is still sent: the transmit side may work while the robot is silent; the
+        # status cannot confirm it.
+        with pytest.raises(StopUnconfirmed, match="stale") as info:
+            await robot.stop()
+        assert info.value.unconfirmed == ("goal", "patrol", "speed")
         await fake.command(Stop)
         await asyncio.sleep(0.05)  # room for a wrongly sent command to arrive after Stop
-    assert fake.received == [Stop(100)]
+    assert fake.received == [Cancel(), Stop(100)]
 
 
 async def test_cancel_on_a_stale_link_is_sent_then_reports_the_stale_link() -> None:

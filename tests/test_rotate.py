@@ -145,7 +145,7 @@ async def test_rotate_to_the_heading_the_robot_has_returns_at_once_without_sendi
         called_at = now()
         await robot.rotate_to(requested, timeout=WAIT)
         assert now() == called_at  # at once: real firmware would leave it waiting out WAIT
-        await robot.stop()  # a marker: whatever was sent before it has arrived
+        await robot.zero_speed()  # a marker: whatever was sent before it has arrived
         await robot.wait_until(lambda _s: bool(device.commands), timeout=WAIT)
         assert device.received() == [Stop(100)]
 

@@ -19,7 +19,7 @@ from scripted_robot import DEFAULTS, READY, ScriptedRobot, connected, flush
 from sim_integration import FAR, MAP_TARGETS, RIGHT, TARGETS, WAIT, record_commands
 
 import galileo_async as galileo
-from galileo_async import CommandSuperseded, GalileoError, GoalCancelled
+from galileo_async import CommandSuperseded, GalileoError, GoalCancelled, StopUnconfirmed
 from galileo_async.protocol import (
     AddTarget,
     Backward,
@@ -29,6 +29,7 @@ from galileo_async.protocol import (
     Goto,
     ResetTargets,
     Stop,
+    StopPatrol,
     TurnLeft,
     TurnRight,
 )
@@ -165,13 +166,15 @@ async def test_a_drive_command_queued_behind_the_pacing_is_dropped() -> None:
     async with busy_robot(min_command_interval=PACING) as (device, robot, log):
         device.busy(0)
         await robot.wait_until(lambda s: not s.is_busy, timeout=WAIT)
-        await robot.stop()  # written now: the next write waits 0.5 s
+        await robot.zero_speed()  # written now: the next write waits 0.5 s
         task = await waiting(robot, lambda r: r.forward(30, timeout=WAIT))
-        await robot.stop()
+        stopping = asyncio.ensure_future(robot.stop())
         await superseded_at_once(task, CommandSuperseded, "stop()")
+        await stopping
         await robot.forward(10)  # queued after the stop: written after it
         await written(robot, log, Forward(10))
-        assert [command for command, _ in log] == [Stop(100), Stop(100), Forward(10)]
+        sent = [command for command, _ in log]
+        assert sent == [Stop(100), Cancel(), Stop(100), Forward(10)]
 
 
 async def test_goals_waiting_for_the_first_status_are_superseded() -> None:
@@ -180,14 +183,17 @@ async def test_goals_waiting_for_the_first_status_are_superseded() -> None:
         assert robot.awaiting_robot
         goto = await waiting(robot, lambda r: r.goto(FAR, timeout=WAIT))
         point = await waiting(robot, lambda r: r.goto_point(1.0, 2.0, timeout=WAIT))
-        await robot.stop()
+        # Placeholders cannot show the robot stopped: the stop is sent, then unconfirmed.
+        stopping = asyncio.ensure_future(robot.stop(timeout=0.2))
         # Real time here (a scripted robot over TCP): at once is within AT_ONCE.
         await superseded_at_once(goto, GoalCancelled, "stop()", within=AT_ONCE)
         await superseded_at_once(point, GoalCancelled, "stop()", within=AT_ONCE)
+        with pytest.raises(StopUnconfirmed, match="only placeholder frames"):
+            await stopping
         fake.set(**READY)
         await robot.wait_until(lambda s: s.navigating, timeout=WAIT)
         await flush(robot, fake)
-        assert fake.received == [Stop(100), Stop(100)]
+        assert fake.received == [StopPatrol(), Cancel(), Stop(100), Stop(100)]
 
 
 CANCELLABLE = ("forward", "goto")

@@ -42,6 +42,7 @@ STATUS_TOPIC = "/galileo/status"
 _FIXED: dict[type[cmd.Command], tuple[str, str]] = {
     cmd.Cancel: ("GET", "/navigation/stop_nav_task"),
     cmd.StopNavigation: ("GET", "/navigation/stop"),
+    cmd.StopPatrol: ("DELETE", "/navigation/loop_task"),
     cmd.StartCharging: ("GET", "/navigation/go_charge"),
     cmd.StopCharging: ("GET", "/navigation/stop_charge"),
     cmd.ShutdownHost: ("GET", "/system/shutdown"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING
@@ -76,12 +77,12 @@ class DriveSlot:
         """True while a session's block runs and no user stop ended it."""
         return self.session is not None and self.session.active
 
-    def end(self) -> asyncio.Future[bool] | None:
-        """End the session now, its one stop queued; that stop's write future, if any."""
+    def end(self, by: str = "close()") -> asyncio.Future[bool] | None:
+        """End the session now (``by`` the user stop that did), its one stop queued; its future."""
         session = self.session
         if session is None:
             return None
-        session.end()
+        session.end(by)
         return session.stop_written
 
 
@@ -111,6 +112,9 @@ class DriveSession:
         self._ended = False
         self._left = False
         self._stop_written: asyncio.Future[bool] | None = None
+        self._end_callbacks: list[Callable[[], None]] = []
+        #: The user stop that ended the session ("stop()", "close()" …), if one did.
+        self.ended_by: str | None = None
         #: Speed commands this session wrote (queued and not replaced by a newer one).
         self.writes = 0
 
@@ -142,7 +146,7 @@ class DriveSession:
         if not self._entered or self._left:
             raise GalileoError("drive: set() is only valid inside the drive block")
         if not self._live():
-            by = "close()" if self._ops.closed else "a user stop"
+            by = self.ended_by or ("close()" if self._ops.closed else self._ops.stopped_by)
             raise CommandSuperseded(
                 f"drive: {by} ended the drive session; nothing was written", superseded_by=by
             )
@@ -193,15 +197,26 @@ class DriveSession:
         if error is not None and exc_type is None:
             raise ConnectionLost(f"drive: the stop could not be written: {error}") from error
 
-    def end(self) -> GalileoError | None:
+    def on_end(self, callback: Callable[[], None]) -> None:
+        """Call ``callback`` once when the session ends (a user stop, close() or leaving)."""
+        if self._ended:
+            callback()
+        else:
+            self._end_callbacks.append(callback)
+
+    def end(self, by: str | None = None) -> GalileoError | None:
         """End the session and queue its one stop, now; the error if it could not be queued.
 
-        Idempotent: only the first call queues a stop. Robot.close() calls it before the
-        link closes.
+        ``by`` names the user stop that ended it ("stop()"). Idempotent: only the first call
+        queues a stop. Robot.close() calls it before the link closes.
         """
         if self._ended or not self._entered:
             return None
         self._ended = True
+        self.ended_by = by
+        callbacks, self._end_callbacks = self._end_callbacks, []
+        for callback in callbacks:
+            callback()
         if self._task is not None:
             self._task.cancel()
         stop: Command = Velocity(0.0, 0.0) if self._ops.link.carries_velocity else Stop()

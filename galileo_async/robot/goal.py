@@ -64,6 +64,12 @@ class GoalRunner:
         self._ops = ops
         self._running: _Goal | None = None
 
+    @property
+    def running(self) -> int | None:
+        """The target id of this Robot's goal being followed (written), or None."""
+        goal = self._running
+        return goal.target_id if goal is not None and goal.written else None
+
     def cancelling(self) -> None:
         """Robot.cancel() was called: the running goal's end is a cancel, not a planner abort."""
         if self._running is not None:
@@ -87,7 +93,7 @@ class GoalRunner:
         try:
             return await ops.send(
                 command, what=f"goto({goal.target_id})", deadline=deadline, require=GOAL_READY,
-                then=goal, supersedable=True, stops_at=stops_at,
+                then=goal, supersedable=True, stops_at=stops_at, halt=goal.halted,
             )  # fmt: skip
         except _LEAVING as exc:
             # Leaving while the robot may still drive (also a queued goal a user stop withdrew:
@@ -111,6 +117,8 @@ class GoalRunner:
                 )
             raise
         finally:
+            if goal.halted_by is not None and goal.tracker is not None and goal.tracker.accepted:
+                left = cancelling  # stop() sent the cancel: its end is that cancel
             ops.store.revise_goal(goal, left)
             if self._running is goal:
                 self._running = None
@@ -132,7 +140,7 @@ class _Goal:
     """One goto of a Robot: the Follower of its ``g N``."""
 
     __slots__ = (
-        "_runner", "accept_timeout", "arrive_tolerance", "preempted",
+        "_runner", "accept_timeout", "arrive_tolerance", "halted_by", "preempted",
         "progress_timeout", "target_id", "tracker", "written",
     )  # fmt: skip
 
@@ -153,6 +161,18 @@ class _Goal:
         self.written = False
         #: A newer goal of this Robot was started.
         self.preempted = False
+        #: The call of this Robot that halted the goal ("stop()"), if one did.
+        self.halted_by: str | None = None
+
+    def halted(self, by: str) -> GoalCancelled:
+        """The error that ends this goal's goto at once: ``by`` (stop()) cancels the goal."""
+        self.halted_by = by
+        return GoalCancelled(
+            f"goal {self.target_id} was cancelled by {by}",
+            target_id=self.target_id,
+            status=self._runner._ops.store.status,
+            cancelled_by=by,
+        )
 
     def sending(self, before: GalileoStatus | None) -> None:
         """The goal starts now; ``before`` is the latest status as ``g N`` is written."""

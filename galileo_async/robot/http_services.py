@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from .._checks import check_number, check_timeout
-from ..errors import GalileoTimeout, InvalidArgument, NotSupported, TaskFailed
+from ..errors import GalileoTimeout, GoalCancelled, InvalidArgument, NotSupported, TaskFailed
 from ..state.store import StatusStore
 from ..transports import BaseLink
 from .goal import GoalResult
@@ -163,7 +163,8 @@ class HttpServices:
 
         TaskFailed (a GoalError, with the task's ``state``) when it ends CANCELLED or ERROR;
         GalileoTimeout after ``timeout`` s. A call cancelled or timed out stops the task
-        (GET /navigation/stop_nav_task) before it ends.
+        (GET /navigation/stop_nav_task) before it ends; stop() ends it at once with
+        GoalCancelled (``cancelled_by`` "stop()"), its own cancel stopping the task.
         """
         api = self._api("goto_pose()")
         for name, value in (("x", x), ("y", y), ("theta", theta)):
@@ -186,9 +187,32 @@ class HttpServices:
         async def stop_task() -> None:
             await api.call("GET", "/navigation/stop_nav_task")
 
+        halted: asyncio.Future[Any] = loop.create_future()
+
+        def halt(by: str) -> None:
+            if not halted.done():
+                halted.set_exception(
+                    GoalCancelled(
+                        f"goto_pose({x}, {y}, {theta}): task {task_id} was cancelled by {by}",
+                        target_id=-2,
+                        status=self._store.status,
+                        cancelled_by=by,
+                    )  # fmt: skip
+                )
+
+        unregister = self._ops.moving(halt, task=task_id)
+        polling = asyncio.ensure_future(asyncio.wait_for(ended(), timeout))
         try:
-            task = await asyncio.wait_for(ended(), timeout)
+            await asyncio.wait((polling, halted), return_when=asyncio.FIRST_COMPLETED)
+            if halted.done():  # stop() sent the cancel itself
+                polling.cancel()
+                await asyncio.gather(polling, return_exceptions=True)
+                await halted
+            task = await polling
+        except GoalCancelled:
+            raise
         except BaseException as exc:
+            polling.cancel()
             stopping = asyncio.ensure_future(stop_task())
             await finish_shielded(stopping, "goto_pose: stopping the task")
             if isinstance(exc, asyncio.TimeoutError):
@@ -197,6 +221,10 @@ class HttpServices:
                     self._store.status,
                 ) from None
             raise
+        finally:
+            unregister()
+            if not halted.done():
+                halted.cancel()
         status = self._store.status
         if task["state"] != "COMPLETE" or status is None:
             raise TaskFailed(

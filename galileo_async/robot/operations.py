@@ -44,6 +44,7 @@ __all__ = [
     "ROTATE_TIMEOUT",
     "Confirm",
     "Follower",
+    "Halt",
     "Operations",
     "Require",
     "Sent",
@@ -61,6 +62,8 @@ CANCEL_SEND_TIMEOUT = 1.0
 LEAVING = (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost, CommandSuperseded)
 
 Predicate = Callable[[GalileoStatus], bool]
+#: Makes the error that ends a call awaiting motion, from the stop's name ("stop()").
+Halt = Callable[[str], GalileoError]
 _R = TypeVar("_R")
 _R_co = TypeVar("_R_co", covariant=True)
 
@@ -172,20 +175,20 @@ class Operations(Supersession):
     async def send(
         self, command: Command, *, what: str, deadline: Deadline,
         require: Require | None = None, unless: None = None, then: Follower[_R],
-        supersedable: bool = False, stops_at: int | None = None,
+        supersedable: bool = False, stops_at: int | None = None, halt: Halt | None = None,
     ) -> _R: ...  # fmt: skip
     @overload
     async def send(
         self, command: Command, *, what: str, deadline: Deadline,
         require: Require | None = None, unless: Predicate, then: Follower[_R],
-        supersedable: bool = False, stops_at: int | None = None,
+        supersedable: bool = False, stops_at: int | None = None, halt: Halt | None = None,
     ) -> _R | None: ...  # fmt: skip
 
     async def send(
         self, command: Command, *, what: str, deadline: Deadline | None = None,
         require: Require | None = None, unless: Predicate | None = None,
         then: Follower[_R] | None = None, even_stale: bool = False,
-        supersedable: bool = False, stops_at: int | None = None,
+        supersedable: bool = False, stops_at: int | None = None, halt: Halt | None = None,
     ) -> _R | None:  # fmt: skip
         """Send ``command`` once, the one way a Robot does; ``what`` names it in errors.
 
@@ -202,7 +205,9 @@ class Operations(Supersession):
 
         A ``supersedable`` command (drive and goal commands) that a user stop finds waiting
         anywhere before its write (user_stopped) is never written: CommandSuperseded, at
-        once; ``stops_at``: ``stops`` when the user's call began (default: now).
+        once; ``stops_at``: ``stops`` when the user's call began (default: now). With
+        ``halt`` the call awaits motion: stop() (halt_motions) ends its follow at once with
+        the error ``halt(by)`` makes.
         """
         self.ensure_open()
         if not even_stale:
@@ -231,8 +236,13 @@ class Operations(Supersession):
                 if written is not None and written.done():
                     await written  # superseded: raises before the follower starts anything
                 then.sending(self.store.status)
-                await self.link.send(command, written=written)
-                return await then.follow(watch, Sent(what, deadline, self.store.status))
+                unregister = None if halt is None else self.moving(lambda by: watch.halt(halt(by)))
+                try:
+                    await self.link.send(command, written=written)
+                    return await then.follow(watch, Sent(what, deadline, self.store.status))
+                finally:
+                    if unregister is not None:
+                        unregister()
         finally:
             if written is not None:
                 self.settled(written)

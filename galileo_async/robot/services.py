@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 from .._checks import check_int, check_number, check_timeout
 from ..errors import (
+    CommandSuperseded,
     GalileoTimeout,
     InvalidArgument,
     LinkStale,
@@ -53,7 +54,7 @@ from .operations import (
     Require,
 )
 from .runtime import Deadline
-from .stopping import DEFAULT_STOP_TIMEOUT, StopReport
+from .stopping import DEFAULT_STOP_TIMEOUT, StopReport, stop_motion
 from .targets import DynamicTargets
 
 __all__ = ["DEFAULT_ANGLE_TOLERANCE", "RobotServices"]
@@ -178,9 +179,14 @@ class RobotServices:
         command = RotateTo(round(check_number("degrees", degrees)))
         check_timeout("timeout", timeout)
         what = f"rotate_to({degrees})"
+
+        def halted(by: str) -> CommandSuperseded:
+            return CommandSuperseded(f"{what}: ended by {by}", superseded_by=by)
+
         await self._ops.send(
             command, what=what, deadline=Deadline(timeout), require=_ROTATE_READY,
             unless=_facing(degrees, self.angle_tolerance), then=_Rotation(what),
+            supersedable=True, halt=halted,
         )  # fmt: skip
 
     # --- dynamic targets -------------------------------------------------------------
@@ -232,12 +238,25 @@ class RobotServices:
     async def stop(
         self, brake: int = 100, *, timeout: float | None = DEFAULT_STOP_TIMEOUT
     ) -> StopReport:
-        """Halt every motion, whoever started it; return once the status shows it stopped."""
+        """Halt every motion, whoever started it; return once the status shows it stopped.
+
+        Ends this Robot's drive()/turn_to() sessions and every call of it awaiting motion
+        at once (goto, goto_point, goto_pose: GoalCancelled; rotate_to, turn_to: CommandSuperseded;
+        each naming "stop()"), then writes, even while busy or stale: ``m 6`` (stop patrol)
+        unless the status shows none, ``i 2`` (cancel the goal; on http:// the nav task), and
+        a stop of both speeds with ``brake`` (0-100). Returns a StopReport once a status shows
+        no goal working or paused, no patrol and no speed (a layout without speeds, UDP,
+        cannot show one); StopUnconfirmed naming each part still shown after ``timeout`` s,
+        or at once on a stale link. ConnectionLost: the link is lost and nothing was sent.
+        """
         command = Stop(brake)
         check_timeout("timeout", timeout)
+        self._ops.ensure_open()
+        drive, goal = self._drives.active, self._goals.running
         self._user_stop("stop()")
-        await self._ops.send(command, what="stop", even_stale=True)
-        return StopReport(status=self._ops.store.status)
+        self._goals.cancelling()  # the running goal's end is a cancel, not a planner abort
+        tasks = self._ops.halt_motions("stop()")
+        return await stop_motion(self._ops, command, timeout, goal=goal, drive=drive, tasks=tasks)
 
     # --- patrol, mapping, charging, host -------------------------------------------------
 
@@ -330,7 +349,7 @@ class RobotServices:
     def _user_stop(self, what: str) -> None:
         """A user stop: withdraw waiting drive/goal commands, end the drive session (its stop)."""
         self._ops.user_stopped(what)
-        self._drives.end()
+        self._drives.end(what)
 
     def _refuse_while_driving(self, what: str) -> None:
         """NotReady inside an active drive block: a goal and the drive's speeds would fight."""

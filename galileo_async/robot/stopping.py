@@ -1,12 +1,36 @@
-"""StopReport: what Robot.stop() found moving and stopped."""
+"""Robot.stop(): what it sends, what confirms it, and the StopReport it returns."""
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
+from ..errors import (
+    ConnectionLost,
+    GalileoConnectionError,
+    GalileoTimeout,
+    LinkStale,
+    StopUnconfirmed,
+)
 from ..models import GalileoStatus
+from ..protocol import Cancel, Command, Stop, StopPatrol
 
-__all__ = ["DEFAULT_STOP_TIMEOUT", "StopReport"]
+if TYPE_CHECKING:
+    from .operations import Operations
+
+__all__ = [
+    "DEFAULT_STOP_TIMEOUT",
+    "STILL_ANGULAR",
+    "STILL_LINEAR",
+    "StopReport",
+    "in_motion",
+    "standing_still",
+    "stop_motion",
+]
+
+_log = logging.getLogger(__name__)
 
 #: Seconds stop() waits for the status to show the robot stopped (goal, patrol, speed).
 DEFAULT_STOP_TIMEOUT = 5.0
@@ -47,3 +71,95 @@ class StopReport:
 
     def __str__(self) -> str:
         return ", ".join(self.stopped) or "nothing was moving"
+
+
+#: Below these speeds (m/s, rad/s) the status shows the robot standing still.
+STILL_LINEAR = 0.01
+STILL_ANGULAR = 0.02
+
+
+def standing_still(status: GalileoStatus) -> bool | None:
+    """True when the status shows no speed (measured, else commanded); None: no speed field."""
+    linear = status.current_speed_x
+    angular = status.current_speed_theta
+    if linear is None and angular is None:
+        linear, angular = status.control_speed_x, status.control_speed_theta
+    if linear is None and angular is None:
+        return None  # the layout has no speed (UDP): it cannot show one
+    return abs(linear or 0.0) <= STILL_LINEAR and abs(angular or 0.0) <= STILL_ANGULAR
+
+
+def in_motion(status: GalileoStatus) -> tuple[str, ...]:
+    """The parts of ``status`` that show motion: "goal", "patrol", "speed"; () when stopped."""
+    parts: list[str] = []
+    if status.goal_active:
+        parts.append("goal")
+    if status.patrolling:
+        parts.append("patrol")
+    if standing_still(status) is False:
+        parts.append("speed")
+    return tuple(parts)
+
+
+async def stop_motion(
+    ops: Operations,
+    stop: Stop,
+    timeout: float | None,
+    *,
+    goal: int | None,
+    drive: bool,
+    tasks: list[str | None],
+) -> StopReport:
+    """Write stop()'s commands and wait for a status showing the robot stopped; see Robot.stop.
+
+    The user stop (supersession, drive sessions, halted calls) is done by the caller.
+    """
+    before = ops.store.status
+    # (command, needed): a command not needed is sent only in case the status is behind,
+    # and its failure (e.g. an HTTP call refused: no task) does not fail stop().
+    commands: list[tuple[Command, bool]] = []
+    if before is None or before.loop_status != 0:  # patrolling, or it cannot be seen
+        # A patrol would start its next leg as soon as the goal ends: stopped first.
+        commands.append((StopPatrol(), before is not None and before.patrolling))
+    goal_shown = before is None or before.goal_active or goal is not None
+    commands += [(Cancel(), goal_shown), (stop, True)]
+    failed: GalileoConnectionError | None = None
+    for command, needed in commands:
+        try:
+            await ops.send(command, what="stop", even_stale=True)
+        except ConnectionLost:
+            raise
+        except GalileoConnectionError as exc:  # the rest are still sent
+            _log.warning("stop: %s was not carried: %s", command, exc)
+            if needed and failed is None:
+                failed = exc
+    if failed is not None:
+        raise failed
+    report = StopReport(
+        goal=before.target_num_id if before is not None and before.goal_active else goal,
+        patrol=before is not None and before.patrolling,
+        drive=drive,
+        task=next((task for task in tasks if task is not None), None),
+        moving=before is not None and standing_still(before) is False,
+    )
+    try:
+        status = await ops.store.wait_until(lambda s: not in_motion(s), timeout)
+    except (GalileoTimeout, LinkStale) as exc:
+        raise _unconfirmed(ops, timeout, exc) from None
+    return dataclasses.replace(report, status=status)
+
+
+def _unconfirmed(ops: Operations, timeout: float | None, exc: Exception) -> StopUnconfirmed:
+    latest = ops.store.status
+    parts = ("goal", "patrol", "speed") if latest is None else in_motion(latest)
+    if isinstance(exc, LinkStale):
+        why = f"the link is stale ({exc}), so the status cannot show it"
+        parts = parts or ("goal", "patrol", "speed")
+    elif latest is None:
+        came = "only placeholder frames came" if ops.store.awaiting_robot else "no status came"
+        why = f"{came} within {timeout} s, so nothing could be confirmed"
+    else:
+        why = f"the status still showed {', '.join(parts)} after {timeout} s"
+    return StopUnconfirmed(
+        f"stop: sent, but {why}", latest, unconfirmed=parts or ("goal", "patrol", "speed")
+    )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 
 from ..errors import CommandSuperseded, GoalCancelled
 
@@ -20,6 +21,14 @@ class Supersession:
         self._stopped_by = ""
         # The write futures of the waiting drive and goal commands, with their sends' names.
         self._withdrawable: dict[asyncio.Future[bool], str] = {}
+        # How to end each call that awaits motion now (goto, rotate_to …), with the id of the
+        # HTTP task it follows, if any; keyed by a token.
+        self._motions: dict[object, tuple[Callable[[str], None], str | None]] = {}
+
+    @property
+    def stopped_by(self) -> str:
+        """The latest user stop's name ("stop()", "cancel()" …), or "a user stop" before one."""
+        return self._stopped_by or "a user stop"
 
     def ensure_loop(self) -> None:
         """Raise WrongEventLoop unless called on the Robot's loop (Operations has it)."""
@@ -51,6 +60,26 @@ class Supersession:
         self._withdrawable[written] = what
         return written
 
+    def moving(self, halt: Callable[[str], None], *, task: str | None = None) -> Callable[[], None]:
+        """Register a call awaiting motion (following HTTP ``task``); ``halt(by)`` ends it now.
+
+        Returns the function that unregisters it.
+        """
+        token = object()
+        self._motions[token] = (halt, task)
+
+        def done() -> None:
+            self._motions.pop(token, None)
+
+        return done
+
+    def halt_motions(self, by: str) -> list[str | None]:
+        """End every call awaiting motion now (stop()); the HTTP task each followed, or None."""
+        motions, self._motions = self._motions, {}
+        for halt, _task in motions.values():
+            halt(by)
+        return [task for _halt, task in motions.values()]
+
     def settled(self, written: asyncio.Future[bool]) -> None:
         """The send of ``written`` is over, written or not."""
         self._withdrawable.pop(written, None)
@@ -61,7 +90,9 @@ class Supersession:
 def goal_superseded(exc: CommandSuperseded, target_id: int) -> GoalCancelled:
     """The GoalCancelled of a goal a user stop superseded before its ``g N`` was written."""
     return GoalCancelled(
-        f"goal {target_id} was cancelled before it was sent: {exc}", target_id=target_id
+        f"goal {target_id} was cancelled before it was sent: {exc}",
+        target_id=target_id,
+        cancelled_by=exc.superseded_by,
     )
 
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 from typing import Protocol
 
 import anyio
 
 from .._checks import check_number, check_timeout
-from ..errors import GalileoError, GalileoTimeout
+from ..errors import CommandSuperseded, GalileoError, GalileoTimeout
 from ..models import GalileoStatus
 from ..state.store import StatusStream
 from .drive import DriveSession, SpeedLimits
@@ -57,8 +58,9 @@ def _error(status: GalileoStatus, degrees: float) -> float | None:
 async def turn_in_place(robot: Turnable, degrees: float, *, limit: float | None) -> None:
     """Turn to ``degrees`` (map frame) with drive(); stop within ``robot.angle_tolerance``.
 
-    The stop is written on every exit (drive()'s guarantee), a user stop included, which
-    raises CommandSuperseded here. GalileoTimeout after ``limit`` seconds (None: none).
+    The speed is updated at the drive session's rate (5 Hz), not on every status. The stop
+    is written on every exit (drive()'s guarantee); a user stop ends the turn at once with
+    CommandSuperseded naming it. GalileoTimeout after ``limit`` seconds (None: none).
     """
     target = check_number("degrees", degrees)
     check_timeout("timeout", limit)
@@ -68,17 +70,29 @@ async def turn_in_place(robot: Turnable, degrees: float, *, limit: float | None)
     if off is not None and abs(off) <= tolerance:
         return
     fastest = min(MAX_TURN_RATE, robot.speed_limits.angular)
+    loop = asyncio.get_running_loop()
     try:
         with anyio.fail_after(limit):
             async with robot.drive(0.0, 0.0) as session:
-                async for status in robot.statuses():
-                    off = _error(status, target)
-                    if off is None:
-                        continue  # the heading is unknown in this frame
-                    if abs(off) <= tolerance:
-                        return
-                    rate = min(max(TURN_GAIN * math.radians(abs(off)), MIN_TURN_RATE), fastest)
-                    session.set(angular=math.copysign(rate, off))
+                # A user stop ends the session: the wait for the next status ends with it.
+                with anyio.CancelScope() as ended:
+                    session.on_end(ended.cancel)
+                    next_set = loop.time()
+                    async for status in robot.statuses():
+                        off = _error(status, target)
+                        if off is None:
+                            continue  # the heading is unknown in this frame
+                        if abs(off) <= tolerance:
+                            return
+                        now = loop.time()
+                        if now < next_set:
+                            continue  # the session's rate, not the status rate (30 Hz)
+                        next_set = now + 1.0 / session.rate
+                        rate = min(max(TURN_GAIN * math.radians(abs(off)), MIN_TURN_RATE), fastest)
+                        session.set(angular=math.copysign(rate, off))
+                if ended.cancelled_caught:
+                    by = session.ended_by or "a user stop"
+                    raise CommandSuperseded(f"turn_to({degrees}): ended by {by}", superseded_by=by)
     except TimeoutError as exc:
         if isinstance(exc, GalileoError):
             raise

@@ -175,6 +175,7 @@ class HttpFace:
                 int(q["index"]), {"type": "nav_action", "index": int(q["index"])}),
             ("POST", "/navigation/start_nav_task"): self._pose_goal,
             ("GET", "/navigation/stop_nav_task"): lambda q: self._stop_task(),
+            ("DELETE", "/navigation/loop_task"): lambda q: run(cmd.StopPatrol(), {"result": True}),
             ("GET", "/navigation/go_charge"): lambda q: run(
                 cmd.StartCharging(), self._keep(_task("charge task", {"type": "charge_action"}))),
             ("GET", "/navigation/stop_charge"):

@@ -344,6 +344,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
             self.target_status = WORKING
 
     def _cancel(self, _: object) -> None:
+        self._rotate_goal = None  # the document's angle goal ends with the goal
         if self.target_status in (WORKING, PAUSED, ERROR) or (
             self.target_status == INVALID and (self._goal_issued or self.nav_status == 1)
         ):

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar
 
-from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout
+from ..errors import ConnectionLost, GalileoConnectionError, GalileoError, GalileoTimeout
 from ..events import Event
 from ..models import GalileoStatus
 from .waiters import expire
@@ -193,15 +193,24 @@ class Subscribers(Generic[_T]):
 class Watch(BoundedQueue[GalileoStatus]):
     """Every status after registration (bounded: oldest dropped); raises pushed link errors."""
 
-    __slots__ = ("_source",)
+    __slots__ = ("_source", "halted")
 
     def __init__(self, source: StatusSource, registry: Subscribers[Any], maxlen: int) -> None:
         super().__init__(registry, maxlen)
         self._source = source
+        #: Raised by every next() from halt() on, before any buffered status.
+        self.halted: GalileoError | None = None
+
+    def halt(self, exc: GalileoError) -> None:
+        """End the watch with ``exc`` now: next() raises it, buffered statuses unread (stop())."""
+        self.halted = exc
+        self._wake()
 
     async def next(self, timeout: float | None = None) -> GalileoStatus:
         """The next status; GalileoTimeout after ``timeout`` s, link errors as pushed."""
         while True:
+            if self.halted is not None:
+                raise self.halted
             if self.buffer:
                 return self.buffer.popleft()
             if self.error is not None:
