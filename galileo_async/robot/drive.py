@@ -133,8 +133,13 @@ class DriveSession:
         """True inside the block until it is left or a user stop ends it."""
         return self._entered and self._live()
 
-    def set(self, *, linear: float | None = None, angular: float | None = None) -> None:
+    def set(
+        self, *, linear: float | None = None, angular: float | None = None, write: bool = True
+    ) -> None:
         """Change the speed (an omitted one is kept); written now, then kept alive.
+
+        ``write=False``: not written now; the next keep-alive (within 1/rate s) carries it,
+        so a caller that sets a speed on every status still writes at ``rate`` Hz.
 
         InvalidArgument for an out-of-range value (nothing changes), CommandSuperseded
         after a user stop ended the session, ConnectionLost while the link is down.
@@ -152,7 +157,8 @@ class DriveSession:
             )
         self._encode(*new)  # InvalidArgument here changes nothing
         self._linear, self._angular = new
-        self._write()
+        if write:
+            self._write()
 
     # --- the block ---------------------------------------------------------------------
 

@@ -197,7 +197,7 @@ class HttpServices:
                         target_id=-2,
                         status=self._store.status,
                         cancelled_by=by,
-                    )  # fmt: skip
+                    )
                 )
 
         unregister = self._ops.moving(halt, task=task_id)

@@ -159,8 +159,6 @@ class Operations(Supersession):
         self.loop = asyncio.get_running_loop()
         #: Set by Robot.close(): nothing is sent any more.
         self.closed = False
-        # Exit cancels still being written; held here so they finish and close() awaits them.
-        self._cancels: set[asyncio.Future[None]] = set()
         #: Goals started through this object (goal_started); an abandoned goal's follow-up
         #: does nothing once a newer goal was started.
         self.goals_started = 0
@@ -371,9 +369,7 @@ class Operations(Supersession):
             return
         # Its own task: asyncio's task.cancel() (even twice) cannot stop the wait, which an
         # anyio shield alone does not prevent; the task bounds itself by CANCEL_SEND_TIMEOUT.
-        task = asyncio.ensure_future(self._await_cancel(written))
-        self._cancels.add(task)
-        task.add_done_callback(self._cancels.discard)
+        task = self.hold(self._await_cancel(written))
         with anyio.CancelScope(shield=True):
             await asyncio.shield(task)
 
@@ -386,8 +382,8 @@ class Operations(Supersession):
 
     async def aclose(self) -> None:
         """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
-        if self._cancels:
-            await asyncio.wait(set(self._cancels), timeout=CANCEL_SEND_TIMEOUT)
+        if self.held:
+            await asyncio.wait(set(self.held), timeout=CANCEL_SEND_TIMEOUT)
 
 
 def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import logging
 from dataclasses import dataclass
@@ -123,16 +124,10 @@ async def stop_motion(
         commands.append((StopPatrol(), before is not None and before.patrolling))
     goal_shown = before is None or before.goal_active or goal is not None
     commands += [(Cancel(), goal_shown), (stop, True)]
-    failed: GalileoConnectionError | None = None
-    for command, needed in commands:
-        try:
-            await ops.send(command, what="stop", even_stale=True)
-        except ConnectionLost:
-            raise
-        except GalileoConnectionError as exc:  # the rest are still sent
-            _log.warning("stop: %s was not carried: %s", command, exc)
-            if needed and failed is None:
-                failed = exc
+    # Its own task, held by Operations: a caller cancelled meanwhile (a timeout, Ctrl-C, a
+    # failing sibling) cannot keep the rest of the stop from being written.
+    sending = ops.hold(_send(ops, commands))
+    failed = await asyncio.shield(sending)
     if failed is not None:
         raise failed
     report = StopReport(
@@ -147,6 +142,23 @@ async def stop_motion(
     except (GalileoTimeout, LinkStale) as exc:
         raise _unconfirmed(ops, timeout, exc) from None
     return dataclasses.replace(report, status=status)
+
+
+async def _send(
+    ops: Operations, commands: list[tuple[Command, bool]]
+) -> GalileoConnectionError | None:
+    """Send each command in order; the first failure of a needed one (ConnectionLost raises)."""
+    failed: GalileoConnectionError | None = None
+    for command, needed in commands:
+        try:
+            await ops.send(command, what="stop", even_stale=True)
+        except ConnectionLost:
+            raise
+        except GalileoConnectionError as exc:  # the rest are still sent
+            _log.warning("stop: %s was not carried: %s", command, exc)
+            if needed and failed is None:
+                failed = exc
+    return failed
 
 
 def _unconfirmed(ops: Operations, timeout: float | None, exc: Exception) -> StopUnconfirmed:

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
+from typing import Any, TypeVar
 
 from ..errors import CommandSuperseded, GoalCancelled
 
 __all__ = ["Supersession", "goal_superseded"]
+
+_R = TypeVar("_R")
 
 
 class Supersession:
@@ -21,6 +24,9 @@ class Supersession:
         self._stopped_by = ""
         # The write futures of the waiting drive and goal commands, with their sends' names.
         self._withdrawable: dict[asyncio.Future[bool], str] = {}
+        #: Sends that must finish though their caller was cancelled (exit cancels, stop());
+        #: held here so that they do, and close() awaits them.
+        self.held: set[asyncio.Future[Any]] = set()
         # How to end each call that awaits motion now (goto, rotate_to …), with the id of the
         # HTTP task it follows, if any; keyed by a token.
         self._motions: dict[object, tuple[Callable[[str], None], str | None]] = {}
@@ -80,11 +86,24 @@ class Supersession:
             halt(by)
         return [task for _halt, task in motions.values()]
 
+    def hold(self, work: Coroutine[Any, Any, _R]) -> asyncio.Task[_R]:
+        """Run ``work`` as a task its caller's cancellation does not stop (held until done)."""
+        task = asyncio.ensure_future(work)
+        self.held.add(task)
+        task.add_done_callback(self.held.discard)
+        task.add_done_callback(_retrieved)
+        return task
+
     def settled(self, written: asyncio.Future[bool]) -> None:
         """The send of ``written`` is over, written or not."""
         self._withdrawable.pop(written, None)
         if written.done() and not written.cancelled():
             written.exception()  # retrieved: a failure nobody awaited is not logged
+
+
+def _retrieved(task: asyncio.Future[Any]) -> None:
+    if not task.cancelled():
+        task.exception()  # a failure whose caller was cancelled is not logged as unretrieved
 
 
 def goal_superseded(exc: CommandSuperseded, target_id: int) -> GoalCancelled:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import math
 from typing import Protocol
 
@@ -70,26 +69,22 @@ async def turn_in_place(robot: Turnable, degrees: float, *, limit: float | None)
     if off is not None and abs(off) <= tolerance:
         return
     fastest = min(MAX_TURN_RATE, robot.speed_limits.angular)
-    loop = asyncio.get_running_loop()
     try:
         with anyio.fail_after(limit):
             async with robot.drive(0.0, 0.0) as session:
                 # A user stop ends the session: the wait for the next status ends with it.
                 with anyio.CancelScope() as ended:
                     session.on_end(ended.cancel)
-                    next_set = loop.time()
                     async for status in robot.statuses():
                         off = _error(status, target)
                         if off is None:
                             continue  # the heading is unknown in this frame
                         if abs(off) <= tolerance:
                             return
-                        now = loop.time()
-                        if now < next_set:
-                            continue  # the session's rate, not the status rate (30 Hz)
-                        next_set = now + 1.0 / session.rate
                         rate = min(max(TURN_GAIN * math.radians(abs(off)), MIN_TURN_RATE), fastest)
-                        session.set(angular=math.copysign(rate, off))
+                        # The first speed at once; later ones ride on the keep-alive, so the
+                        # turn writes at the session's rate, not at the status rate (30 Hz).
+                        session.set(angular=math.copysign(rate, off), write=not session.angular)
                 if ended.cancelled_caught:
                     by = session.ended_by or "a user stop"
                     raise CommandSuperseded(f"turn_to({degrees}): ended by {by}", superseded_by=by)
