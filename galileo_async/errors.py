@@ -29,8 +29,8 @@ __all__ = [
     "OperationFailed",
     "OperationTimeout",
     "PortBusy",
-    "TaskFailed",
     "StopUnconfirmed",
+    "TaskFailed",
     "UnconfirmedOperation",
     "WrongEventLoop",
 ]

@@ -168,7 +168,7 @@ async def test_a_patrol_the_firmware_does_not_stop_is_reported(
     sim: tuple[Robot, SimulatedDevice],
 ) -> None:
     # The document's firmware ignores 'm' 6: stop() says so instead of returning.
-    robot, device = sim
+    robot, _device = sim
     await robot.start_patrol()
     await robot.wait_until(lambda s: s.patrolling, timeout=WAIT)
     with pytest.raises(StopUnconfirmed) as info:
@@ -186,7 +186,8 @@ async def test_stop_ends_a_drive_session(sim: tuple[Robot, SimulatedDevice]) -> 
         with pytest.raises(CommandSuperseded) as info:
             session.set(linear=0.3)
         assert info.value.superseded_by == "stop()"
-    assert report.drive and report.moving
+    assert report.drive
+    assert report.moving
     assert report.goal is None
     assert str(report) == "drive ended, speed zeroed"
     assert device.received(Stop)[-1] == Stop(50)
