@@ -85,3 +85,27 @@ async def test_drive_publishes_twists_at_the_rate_and_a_zero_twist_at_exit(
         assert await listener.next() == (0.0, 0.0)
         with pytest.raises(asyncio.TimeoutError):  # nothing after the stop
             await listener.next(timeout=0.3)
+
+
+async def test_stop_inside_drive_publishes_one_zero_twist_and_ends_the_session(
+    tmp_path: Path,
+) -> None:
+    async with (
+        RosMaster.running(tmp_path) as master,
+        RobotNode.running(master),
+        listening(master) as listener,
+        connect(master.url, connect_timeout=5.0) as robot,
+    ):
+        await robot.start_navigation(timeout=10)
+        async with robot.drive(0.3, 0.0, rate=10) as session:
+            assert await listener.next() == (0.3, 0.0)  # the subscriber is connected
+            report = await robot.stop()
+            assert report.drive
+            assert not session.active
+            # Twists already on the wire may still arrive; then the zero one, then nothing.
+            while await listener.next() != (0.0, 0.0):
+                pass
+            with pytest.raises(asyncio.TimeoutError):
+                await listener.next(timeout=0.5)
+        with pytest.raises(asyncio.TimeoutError):  # leaving the block adds nothing
+            await listener.next(timeout=0.3)

@@ -290,3 +290,36 @@ async def test_a_stop_over_ros_supersedes_drive_and_goal_waiting_out_busy(
     assert seen
     assert not [s for s in seen if s.control_speed_x == pytest.approx(0.3)]
     assert not [s for s in seen if s.target_num_id == FAR]
+
+
+def _standing(status: GalileoStatus) -> bool:
+    return (
+        not status.goal_active
+        and not status.patrolling
+        and abs(status.current_speed_x or 0.0) < 0.01
+        and abs(status.control_speed_x or 0.0) < 0.01
+    )
+
+
+async def test_stop_over_ros_cancels_the_goal_and_ends_goto(robot: Robot) -> None:
+    await robot.start_navigation(timeout=10)
+    goal = asyncio.ensure_future(robot.goto(FAR, timeout=20))
+    await robot.wait_until(lambda s: (s.current_speed_x or 0.0) > 0.1, timeout=5)
+    report = await robot.stop()
+    with pytest.raises(GoalCancelled) as caught:
+        await asyncio.wait_for(goal, 1.0)
+    assert caught.value.cancelled_by == "stop()"
+    assert report.goal == FAR
+    assert report.status is not None
+    assert _standing(report.status)  # the robot node's own status
+
+
+async def test_stop_over_ros_ends_the_patrol(robot: Robot) -> None:
+    # drive() over ros:// and stop(): test_ros_drive.py (the /cmd_vel listener).
+    await robot.start_navigation(timeout=10)
+    await robot.start_patrol(timeout=5)
+    await robot.wait_until(lambda s: (s.current_speed_x or 0.0) > 0.1, timeout=5)
+    report = await robot.stop()
+    assert report.patrol
+    assert report.status is not None
+    assert _standing(report.status)
