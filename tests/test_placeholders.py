@@ -24,10 +24,10 @@ from scripted_robot import (
 )
 
 from galileo_async.cli import ExitCode
-from galileo_async.errors import NotReady
+from galileo_async.errors import NotReady, StopUnconfirmed, UnconfirmedOperation
 from galileo_async.events import Event, NavigationOpened
 from galileo_async.models import GalileoStatus
-from galileo_async.protocol import V2_DEFAULTS
+from galileo_async.protocol import V2_DEFAULTS, Cancel, Stop, StopPatrol
 from galileo_async.state import StatusStore
 
 STEP = 2.0  # upper bound for anything that should happen promptly
@@ -206,3 +206,18 @@ async def test_cli_status_waits_for_the_first_report() -> None:
     assert code == 0, err
     assert "waiting for the navigation system" in err
     assert json.loads(out)["status"]["power"] == 24.0
+
+
+async def test_cancel_and_stop_on_placeholders_say_the_robot_has_not_reported() -> None:
+    async with connected(ScriptedRobot(**DEFAULTS)) as (robot, fake):
+        assert robot.awaiting_robot
+        with pytest.raises(UnconfirmedOperation) as cancelled:
+            await robot.cancel(timeout=0.2)
+        assert "only placeholder frames" in str(cancelled.value)
+        assert "still active" not in str(cancelled.value)
+        with pytest.raises(StopUnconfirmed) as stopped:
+            await robot.stop(timeout=0.2)
+        assert "only placeholder frames" in str(stopped.value)
+        assert stopped.value.unconfirmed == ("goal", "patrol", "speed")
+        await fake.command(Stop)
+    assert fake.received == [Cancel(), StopPatrol(), Cancel(), Stop(100)]

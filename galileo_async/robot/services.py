@@ -163,6 +163,12 @@ class RobotServices:
         try:
             await self._ops.store.wait_until(lambda s: not s.goal_active, timeout=timeout)
         except GalileoTimeout as exc:
+            if exc.status is None:  # placeholders only: nothing is known of a goal
+                raise UnconfirmedOperation(
+                    f"cancel: sent, but the navigation system has not reported within "
+                    f"{timeout} s (only placeholder frames came), so no status can show it",
+                    None,
+                ) from None
             raise UnconfirmedOperation(
                 f"cancel: sent, but a goal was still active after {timeout} s", exc.status
             ) from None
