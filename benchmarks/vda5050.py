@@ -145,7 +145,7 @@ async def _toggle(robot: Robot, index: int, count: int) -> None:
     while True:
         await robot.forward(30)
         await anyio.sleep(TOGGLE_PERIOD / 2)
-        await robot.stop()
+        await robot.zero_speed()
         await anyio.sleep(TOGGLE_PERIOD / 2)
 
 

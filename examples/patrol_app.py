@@ -101,7 +101,8 @@ async def patrol(
                 await visit(target)
             report.laps += 1
     except _EndPatrol:
-        with contextlib.suppress(galileo.GalileoConnectionError):  # a lost link cannot carry it
+        # A lost link cannot carry the stop, and a silent one cannot show it done.
+        with contextlib.suppress(galileo.GalileoConnectionError, galileo.StopUnconfirmed):
             await robot.stop()
     return report
 
