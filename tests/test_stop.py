@@ -301,3 +301,37 @@ async def test_a_stop_whose_caller_stops_waiting_still_stops_the_robot(how: str)
         assert standing(device)
         assert device.received(Cancel, Stop) == [Cancel(), Stop(100)]
     assert set(OPEN_ROBOTS) <= robots
+
+
+async def test_stop_from_another_task_ends_the_drive_block_at_once(
+    sim: tuple[Robot, SimulatedDevice],
+) -> None:
+    robot, device = sim
+    inside: list[str] = []
+
+    async def drive() -> None:
+        async with robot.drive(0.5, 0.0):
+            inside.append("entered")
+            await asyncio.sleep(3600)  # the application's own wait
+            inside.append("woke")  # never: the stop ends the body
+
+    task = await started(robot, drive)
+    report, error = await stopped_at_once(robot, device, task)
+    assert isinstance(error, CommandSuperseded)
+    assert error.superseded_by == "stop()"
+    assert "drive" in str(error)
+    assert inside == ["entered"]
+    assert report.drive
+
+
+async def test_a_user_stop_from_inside_the_drive_block_does_not_cancel_its_caller(
+    sim: tuple[Robot, SimulatedDevice],
+) -> None:
+    robot, device = sim
+    async with robot.drive(0.5, 0.0) as session:
+        await robot.wait_until(lambda s: (s.current_speed_x or 0.0) > 0.4, timeout=WAIT)
+        report = await robot.stop()  # returns: the block's own task called it
+        assert not session.active
+        await asyncio.sleep(0)
+    assert report.drive
+    assert standing(device)

@@ -7,7 +7,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import anyio
 
@@ -92,7 +92,9 @@ class DriveSession:
     Leaving the block by any route writes one stop (shielded, within CANCEL_SEND_TIMEOUT)
     after which nothing of the session is written. A user stop (stop(), cancel(), pause(),
     stop_navigation(), close()) ends the session early, its stop queued at once: nothing
-    more is written, and set() raises CommandSuperseded.
+    more is written, set() raises CommandSuperseded, and, when the stop came from another
+    task, the block's body is cancelled at once and the block raises CommandSuperseded
+    naming the stop.
     """
 
     def __init__(
@@ -113,6 +115,8 @@ class DriveSession:
         self._left = False
         self._stop_written: asyncio.Future[bool] | None = None
         self._end_callbacks: list[Callable[[], None]] = []
+        self._scope: anyio.CancelScope | None = None
+        self._owner: asyncio.Task[Any] | None = None
         #: The user stop that ended the session ("stop()", "close()" …), if one did.
         self.ended_by: str | None = None
         #: Speed commands this session wrote (queued and not replaced by a newer one).
@@ -181,6 +185,10 @@ class DriveSession:
         self._write()  # ConnectionLost here: nothing was queued, nothing to stop
         self._task = ops.loop.create_task(self._keep_alive(), name="drive keep-alive")
         self._slot.session = self
+        # A user stop from another task ends the block's body at once (end()).
+        self._owner = asyncio.current_task()
+        self._scope = anyio.CancelScope()
+        self._scope.__enter__()
         return self
 
     async def __aexit__(
@@ -193,6 +201,7 @@ class DriveSession:
         error = self.end()  # before any await: nothing can be written after the stop
         if self._slot.session is self:
             self._slot.session = None
+        ended = self._scope is not None and bool(self._scope.__exit__(exc_type, exc, tb))
         finishing = asyncio.ensure_future(self._finish())
         # Its own task, as Operations.send_cancel_shielded: a second task.cancel() cannot
         # stop the wait for the stop's write either.
@@ -200,8 +209,11 @@ class DriveSession:
             await asyncio.shield(finishing)
         if error is None:
             error = finishing.result()
-        if error is not None and exc_type is None:
+        if error is not None and (exc_type is None or ended):
             raise ConnectionLost(f"drive: the stop could not be written: {error}") from error
+        if ended:
+            by = self.ended_by or "a user stop"
+            raise CommandSuperseded(f"drive: ended by {by}", superseded_by=by)
 
     def on_end(self, callback: Callable[[], None]) -> None:
         """Call ``callback`` once when the session ends (a user stop, close() or leaving)."""
@@ -223,6 +235,8 @@ class DriveSession:
         callbacks, self._end_callbacks = self._end_callbacks, []
         for callback in callbacks:
             callback()
+        if self._scope is not None and asyncio.current_task() is not self._owner:
+            self._scope.cancel()  # the body ends now, raising CommandSuperseded
         if self._task is not None:
             self._task.cancel()
         stop: Command = Velocity(0.0, 0.0) if self._ops.link.carries_velocity else Stop()

@@ -71,23 +71,21 @@ async def turn_in_place(robot: Turnable, degrees: float, *, limit: float | None)
     fastest = min(MAX_TURN_RATE, robot.speed_limits.angular)
     try:
         with anyio.fail_after(limit):
+            # A user stop ends the session, and with it this block: CommandSuperseded.
             async with robot.drive(0.0, 0.0) as session:
-                # A user stop ends the session: the wait for the next status ends with it.
-                with anyio.CancelScope() as ended:
-                    session.on_end(ended.cancel)
-                    async for status in robot.statuses():
-                        off = _error(status, target)
-                        if off is None:
-                            continue  # the heading is unknown in this frame
-                        if abs(off) <= tolerance:
-                            return
-                        rate = min(max(TURN_GAIN * math.radians(abs(off)), MIN_TURN_RATE), fastest)
-                        # The first speed at once; later ones ride on the keep-alive, so the
-                        # turn writes at the session's rate, not at the status rate (30 Hz).
-                        session.set(angular=math.copysign(rate, off), write=not session.angular)
-                if ended.cancelled_caught:
-                    by = session.ended_by or "a user stop"
-                    raise CommandSuperseded(f"turn_to({degrees}): ended by {by}", superseded_by=by)
+                async for status in robot.statuses():
+                    off = _error(status, target)
+                    if off is None:
+                        continue  # the heading is unknown in this frame
+                    if abs(off) <= tolerance:
+                        return
+                    rate = min(max(TURN_GAIN * math.radians(abs(off)), MIN_TURN_RATE), fastest)
+                    # The first speed at once; later ones ride on the keep-alive, so the turn
+                    # writes at the session's rate, not at the status rate (30 Hz).
+                    session.set(angular=math.copysign(rate, off), write=not session.angular)
+    except CommandSuperseded as exc:
+        by = exc.superseded_by
+        raise CommandSuperseded(f"turn_to({degrees}): ended by {by}", superseded_by=by) from None
     except TimeoutError as exc:
         if isinstance(exc, GalileoError):
             raise
