@@ -116,7 +116,8 @@ async def test_a_frozen_robot_stops_the_patrol(
     report = await task
     assert report.stopped == "stalled at 1"
     assert report.visited == []
-    assert galileo_device.received(Cancel, Stop) == [Cancel(), Stop()]
+    # The stalled goal's own cancel, then stop(): cancel and zero speed again.
+    assert galileo_device.received(Cancel, Stop) == [Cancel(), Cancel(), Stop()]
     assert galileo_device.received(Goto) == [Goto(1)]  # target 2 never tried
 
 
