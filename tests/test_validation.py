@@ -279,6 +279,8 @@ ARGUMENTS: dict[str, tuple[str, Call, tuple[Any, ...]]] = {
     "turn_right-percent": ("percent", lambda r, v: r.turn_right(v), (0,)),
     "turn_right-timeout": ("timeout", lambda r, v: r.turn_right(10, timeout=v), ()),
     "stop-brake": ("brake", lambda r, v: r.stop(v), (0,)),
+    "stop-timeout": ("timeout", lambda r, v: r.stop(timeout=v), ()),
+    "zero_speed-brake": ("brake", lambda r, v: r.zero_speed(v), (0,)),
     "start_patrol-dwell": ("dwell", lambda r, v: r.start_patrol(v), (0,)),
     "start_patrol-timeout": ("timeout", lambda r, v: r.start_patrol(timeout=v), ()),
     "stop_patrol-timeout": ("timeout", lambda r, v: r.stop_patrol(timeout=v), ()),
