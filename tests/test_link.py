@@ -98,11 +98,8 @@ async def test_pacing_one_command_per_write_fifo_on_the_wire(
     assert link.stats.commands_sent == 12
     for _, chunk in device.writes:
         assert len(CommandDecoder().feed(chunk)) == 1  # never two commands in one write
-    times = [t for t, _ in device.writes]
-    gaps = [b - a for a, b in itertools.pairwise(times)]
-    # Loopback delivery adds jitter on the receiving side; the writer keeps ≥ 10 ms exactly
-    # (asserted on the transport in the next test).
-    assert min(gaps) >= 0.010 - 0.002, gaps
+    # The gaps are asserted where they are made, on the transport (the next test): arrival
+    # times over loopback carry the receiver's scheduling, which a loaded machine delays.
 
 
 async def test_pacing_measured_at_the_transport(links: list[BaseLink]) -> None:
