@@ -11,9 +11,10 @@ from typing import Any, Generic, TypeVar
 
 import anyio
 
+from .._checks import check_int, check_timeout
 from ..errors import GalileoConnectionError, InvalidArgument, NotReady
 from ..models import LinkState
-from ..robot import Robot, connect
+from ..robot import DEFAULT_STOP_TIMEOUT, Robot, StopReport, connect
 from ..robot.runtime import finish_shielded
 from .streams import (
     DEFAULT_FLEET_EVENT_QUEUE,
@@ -191,6 +192,21 @@ class Fleet:
             for name in dict.fromkeys(selected):
                 group.start_soon(run, name)
         return {name: results[name] for name in dict.fromkeys(selected)}
+
+    async def stop(
+        self,
+        brake: int = 100,
+        *,
+        timeout: float | None = DEFAULT_STOP_TIMEOUT,  # noqa: ASYNC109 - as Robot.stop's
+    ) -> dict[str, FleetResult[StopReport]]:
+        """Robot.stop() on every robot at once; its StopReport, or its error, by name.
+
+        A robot that did not confirm within ``timeout`` gets StopUnconfirmed, one not
+        connected NotReady (naming why it is not); InvalidArgument at once, nothing sent.
+        """
+        check_int("brake", brake, 0, 100)
+        check_timeout("timeout", timeout)
+        return await self.each(lambda robot: robot.stop(brake, timeout=timeout))
 
     # --- lifecycle ---------------------------------------------------------------------
 
