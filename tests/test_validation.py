@@ -34,7 +34,7 @@ ROBOT_OPTIONS = (
     "map_targets", "accept_timeout", "arrive_tolerance", "goal_timeout", "wait_timeout",
     "first_status_timeout", "progress_timeout", "angle_tolerance",
     "max_linear_speed", "max_angular_speed",
-    "first_status_timeout",
+    "first_status_timeout", "control_socket",
 )  # fmt: skip
 LINK_OPTIONS = (
     "reconnect", "reconnect_initial", "reconnect_max", "stale_timeout", "stale_reconnect",
@@ -46,6 +46,7 @@ ROS_OPTIONS = ("host", "bind", "node_name", "connect_timeout", "rpc_timeout", "h
 #: Values among BAD_VALUES that an option does take.
 ACCEPTED: dict[str, tuple[Any, ...]] = {
     "reconnect": (True,),
+    "control_socket": (True,),
     "map_targets": (0,),
     "arrive_tolerance": (0,),
     "angle_tolerance": (0,),

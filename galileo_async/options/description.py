@@ -158,6 +158,15 @@ class ConnectOptions(TypedDict, total=False):
             "connect",
         ),
     ]
+    control_socket: Annotated[
+        bool,
+        Option(
+            False,
+            "serve a control socket while connected, so that other processes of this user (`galileo stop`, `cancel`, `pause`) stop, cancel or pause the robot through this one (serial device paths and `udp://`; taken and ignored elsewhere; [the control socket](#the-control-socket))",  # noqa: E501
+            check_bool,
+            "connect",
+        ),
+    ]
     # Every link's (BaseLink's).
     reconnect: Annotated[
         bool,

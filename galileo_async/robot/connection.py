@@ -15,6 +15,7 @@ from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_che
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
 from ..transports import loop_clock, open_link
+from .control_server import control_operations, serve_control
 from .options import check_connect_options
 from .robot import Robot
 from .runtime import finish_shielded, running_loop
@@ -63,6 +64,7 @@ class Connection:
         options = dict(self._options)
         robot_options = {n: options.pop(n) for n in list(options) if OPTIONS[n].owner == "robot"}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
+        control_socket = options.pop("control_socket", False)
         store = StatusStore(
             arrive_tolerance=robot_options.get("arrive_tolerance", DEFAULT_ARRIVE_TOLERANCE),
             clock=loop_clock(),
@@ -84,6 +86,10 @@ class Connection:
                 robot.map_targets = count
             if first_status_timeout is not None:
                 await _first_status(store, first_status_timeout, shown)
+            if control_socket:
+                server = await serve_control(self.url, control_operations(robot))
+                if server is not None:  # closed first when the Robot closes
+                    robot._closers.append(server.close)
         except BaseException:
             await robot.close()
             raise

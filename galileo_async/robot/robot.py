@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from types import TracebackType
 
 from .._checks import check_bool, check_timeout
@@ -125,8 +125,9 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         )
         ops = Operations(link, store)
         super().__init__(ops, GoalRunner(ops), DynamicTargets(ops, map_targets))
-        self._link = link
-        self._store = store
+        self._link, self._store = link, store
+        #: Awaited first on close: what serves this Robot to others (the control socket).
+        self._closers: list[Callable[[], Awaitable[None]]] = []
         OPEN_ROBOTS.add(self)
         self.accept_timeout = float(accept_timeout)
         self.arrive_tolerance = float(arrive_tolerance)
@@ -378,6 +379,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
 
     async def _shutdown(self, stop_written: asyncio.Future[bool] | None) -> None:
         try:
+            await asyncio.gather(*(closer() for closer in self._closers), return_exceptions=True)
             if stop_written is not None:
                 await asyncio.wait((stop_written,), timeout=CANCEL_SEND_TIMEOUT)
             await self._link.close()

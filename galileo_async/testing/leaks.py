@@ -11,9 +11,11 @@ __all__ = ["LeakCheck"]
 
 #: Loop turns given to tasks that are already finishing before anything counts as left.
 _SETTLE_TURNS = 3
-#: Modules whose tasks belong to an open link (its writer, its reconnect loop) or fleet.
+#: Modules whose tasks belong to an open link (its writer, its reconnect loop), fleet, or a
+#: Robot's control socket (a request it runs).
 _DRIVER_MODULES = (
     "galileo_async.transports", "galileo_async.http", "galileo_async.ros", "galileo_async.fleet",
+    "galileo_async.robot.control_server",
 )  # fmt: skip
 
 
