@@ -77,7 +77,7 @@ def test_help_lists_every_command() -> None:
     result = invoke("--help", port=None)
     assert result.exit_code == 0
     for name in (
-        "status", "monitor", "nav", "goto", "goto-point", "pause", "resume", "cancel",
+        "status", "monitor", "nav", "goto", "goto-point", "stop", "pause", "resume", "cancel",
         "rotate", "teleop", "patrol", "map", "charge", "shutdown", "send", "decode",
         "record", "ports", "sim", "demo",
     ):  # fmt: skip

@@ -175,7 +175,10 @@ def test_connect_options() -> None:
     assert Settings(port="sim://?targets=1,2;3,4").connect_options() == {"map_targets": 2}
     assert Settings(port="sim://", map_targets=9).connect_options() == {"map_targets": 9}
     serial = Settings(port="/dev/ttyUSB0", layout="v1").connect_options()
-    assert serial == {"layout": "v1", "reconnect": False}
+    assert serial == {"layout": "v1", "reconnect": False, "control_socket": True}
+    udp = Settings(port="udp://10.0.0.5", extra={"control_socket": False}).connect_options()
+    assert udp == {"reconnect": False, "control_socket": False}  # a profile may turn it off
+    assert "control_socket" not in Settings(port="socket://10.0.0.5:4001").connect_options()
 
 
 def test_render_status_and_events() -> None:

@@ -133,7 +133,9 @@ def test_shell_completion_ignores_json_and_usage_errors() -> None:
         galileo_runs([], env=complete(words))[0]
         for words in ("galileo --json --bogus st", "galileo --json goto x --t")
     )
-    assert (commands.returncode, commands.stdout.split()) == (0, ["status"]), commands.stderr
+    assert (commands.returncode, commands.stdout.split()) == (0, ["status", "stop"]), (
+        commands.stderr
+    )
     assert (options.returncode, options.stdout.split()) == (0, ["--timeout"]), options.stderr
 
 

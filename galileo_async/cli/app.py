@@ -10,7 +10,7 @@ import typer
 from .. import __version__
 from ..errors import InvalidArgument
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
-from . import capture, demo, fleet_cmd, ops, serve, teleop, vda5050, watch
+from . import capture, demo, fleet_cmd, ops, serve, stopping, teleop, vda5050, watch
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
     DEFAULT_PORT,
@@ -174,13 +174,15 @@ app.command("monitor")(watch.monitor)
 app.add_typer(ops.nav_app, name="nav")
 app.command("goto", context_settings=_NUMBERS)(ops.goto)  # "-1" gets the range error
 app.command("goto-point", context_settings=_NUMBERS)(ops.goto_point)
+app.command("stop")(stopping.stop)  # everything; nav/patrol/charge stop stop one service
+app.command("pause")(stopping.pause)
 _GROUPS = {
     None: app, "nav": ops.nav_app, "patrol": ops.patrol_app, "map": ops.map_app,
     "charge": ops.charge_app,
 }  # fmt: skip
 for _group, _name, _method, _done, _help in ops.SIMPLE_COMMANDS:
     _GROUPS[_group].command(_name, help=_help)(ops.simple_command(_method, _done, _help))
-app.command("cancel")(ops.cancel)
+app.command("cancel")(stopping.cancel)
 app.command("rotate", context_settings=_NUMBERS)(ops.rotate)
 app.command("teleop")(teleop.teleop)
 app.add_typer(ops.patrol_app, name="patrol")

@@ -1,23 +1,26 @@
-"""``galileo --fleet FILE fleet …``: many robots from one fleet file (status, monitor)."""
+"""``galileo --fleet FILE fleet …``: many robots from one fleet file (status, monitor, stop)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import anyio
 import typer
 from rich.live import Live
 
-from ..errors import InvalidArgument
+from ..errors import InvalidArgument, NotReady, PortBusy
 from ..fleet.file import FleetSpec, load_fleet_file
 from ..fleet.fleet import RobotState
+from ..robot.stopping import DEFAULT_STOP_TIMEOUT
 from .fleet_view import SORT_KEYS, FleetView
 from .goals import aclose
 from .map_render import save_svg
 from .monitor_screen import keys_pressed
 from .render import event_text
 from .runner import ExitCode, fail, out_console, run, settings_of, timestamp
+from .stopping import BrakeOption, Outcome, StopTimeout, error_outcome, gather_owners
 from .watch import SvgOption, TargetsOption, map_model
 
 if TYPE_CHECKING:
@@ -52,6 +55,11 @@ def _spec(ctx: typer.Context) -> FleetSpec:
         fail(str(exc), ExitCode.USAGE)
 
 
+def _served(spec: FleetSpec) -> dict[str, Any]:
+    """Serve each robot's control socket (serial and udp:// ports), unless the file says."""
+    return {} if "control_socket" in spec.defaults else {"control_socket": True}
+
+
 def _view_options(sort: str, states: list[str] | None) -> set[RobotState] | None:
     if sort not in SORT_KEYS:
         fail(f"--sort must be one of {', '.join(SORT_KEYS)}, got {sort!r}", ExitCode.USAGE)
@@ -79,7 +87,7 @@ def status(
     states = _view_options(sort, state)
 
     async def main() -> int:
-        async with spec.connect() as fleet:
+        async with spec.connect(**_served(spec)) as fleet:
             view = FleetView(fleet, map_model([], None), sort=sort, match=match, states=states,
                              limit=rows)  # fmt: skip
             view.latest = {name: fleet[name].status for name in fleet if _has_status(fleet, name)}
@@ -121,7 +129,7 @@ def monitor(
     model = map_model(list(spec.ports.values()), targets or spec.targets)
 
     async def main() -> int:
-        async with spec.connect() as fleet:
+        async with spec.connect(**_served(spec)) as fleet:
             view = FleetView(fleet, model, sort=sort, match=match, states=states, limit=rows)
             try:
                 await _watch(fleet, view, duration)
@@ -171,3 +179,81 @@ async def _watch(fleet: Fleet, view: FleetView, duration: float | None) -> None:
                         fit()
                         live.update(view.screen(), refresh=True)
         group.cancel_scope.cancel()
+
+
+@fleet_app.command("stop")
+def stop(
+    ctx: typer.Context,
+    brake: BrakeOption = 100,
+    timeout: StopTimeout = DEFAULT_STOP_TIMEOUT,
+    json_output: Annotated[bool, typer.Option("--json", help="JSON lines, one per robot.")] = False,
+) -> None:
+    """Stop every robot of the fleet at once, as `galileo stop` stops one; a line per robot.
+
+    A robot whose port another galileo process has open is stopped through that process.
+    Exits 0 once every robot confirmed, 7 when one could not be reached, else 6 when one
+    did not confirm in time.
+    """
+    settings, spec = settings_of(ctx), _spec(ctx)
+    settings.json = settings.json or json_output
+    request: dict[str, Any] = {"brake": brake, "timeout": timeout}
+
+    async def main() -> int:
+        outcomes = await _stop_fleet(spec, request)
+        console = out_console()
+        for name, outcome in outcomes.items():
+            if settings.json:
+                line = {"time": timestamp(), "name": name, "port": spec.ports[name]}
+                console.print(json.dumps(line | outcome.data()), markup=False, soft_wrap=True)
+            else:
+                console.print(f"{name}: {_said(outcome)}", markup=False, soft_wrap=True)
+        return _fleet_code([outcome.code for outcome in outcomes.values()])
+
+    run(settings, main)
+
+
+async def _stop_fleet(spec: FleetSpec, request: dict[str, Any]) -> dict[str, Outcome]:
+    """Every robot's Outcome: through its port's owner, else on the fleet's own connection."""
+    asked = await gather_owners(spec.ports, "stop", request)
+    outcomes = {name: found for name, found in asked.items() if isinstance(found, Outcome)}
+    rest = [name for name in spec.ports if name not in outcomes]
+    if rest:
+        subset = dataclasses.replace(
+            spec,
+            ports={name: spec.ports[name] for name in rest},
+            robot_options={n: o for n, o in spec.robot_options.items() if n in rest},
+        )
+        async with subset.connect(**_served(subset)) as fleet:
+            results = await fleet.stop(request["brake"], timeout=request["timeout"])
+            busy = [name for name in rest if isinstance(fleet.error(name), PortBusy)]
+            again = await gather_owners({name: spec.ports[name] for name in busy}, "stop", request)
+            for name in rest:
+                result, owner = results[name], again.get(name)
+                if isinstance(owner, Outcome):  # its owner started while we connected
+                    outcomes[name] = owner
+                elif result.ok:
+                    report = result.value
+                    stopped = [] if report is None else list(report.stopped)
+                    outcomes[name] = Outcome({"done": str(report), "stopped": stopped})
+                elif fleet.get(name) is None:  # never connected: why, not "not connected"
+                    why = fleet.error(name) or result.error or NotReady("not connected", None)
+                    outcomes[name] = error_outcome(why, ExitCode.CONNECTION)
+                else:
+                    outcomes[name] = error_outcome(result.error or NotReady("failed", None))
+    return {name: outcomes[name] for name in spec.ports}
+
+
+def _said(outcome: Outcome) -> str:
+    if outcome.error is None:
+        return outcome.text()
+    how = {ExitCode.CONNECTION: "not reached", ExitCode.TIMEOUT: "not confirmed"}
+    return f"{how.get(outcome.code, 'failed')}: {outcome.text()}"
+
+
+def _fleet_code(codes: list[ExitCode]) -> int:
+    """0 when every robot stopped; 7 when one was not reached, else 6 when one did not confirm."""
+    failed = [code for code in codes if code != ExitCode.OK]
+    for code in (ExitCode.CONNECTION, ExitCode.TIMEOUT):
+        if code in failed:
+            return int(code)
+    return int(failed[0]) if failed else 0

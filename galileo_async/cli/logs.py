@@ -7,13 +7,29 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["LOG_FORMAT", "setup_logging"]
+__all__ = ["ALWAYS_SHOWN", "LOG_FORMAT", "setup_logging"]
 
 #: One log line: UTC time (ISO 8601, milliseconds), level, logger, message; never wrapped.
 LOG_FORMAT = "%(asctime)s.%(msecs)03dZ %(levelname)s %(name)s: %(message)s"
 _DATE_FORMAT = "%Y-%m-%dT%H:%M:%S"
+#: Loggers whose warnings stderr shows without -v: who asked this process, through its
+#: control socket, to stop, cancel or pause the robot it drives.
+ALWAYS_SHOWN = ("galileo_async.robot.control_server",)
 
 _handlers: list[logging.Handler] = []
+_shown: list[tuple[logging.Logger, logging.Handler]] = []
+
+
+class _Stderr(logging.StreamHandler):  # type: ignore[type-arg]
+    """Writes to sys.stderr as it is at each record (a live progress line redirects it)."""
+
+    def __init__(self) -> None:
+        logging.Handler.__init__(self, logging.WARNING)
+        self.setFormatter(logging.Formatter("galileo: %(message)s"))
+
+    @property
+    def stream(self) -> object:
+        return sys.stderr
 
 
 def _plain(handler: logging.Handler) -> logging.Handler:
@@ -35,8 +51,16 @@ def setup_logging(verbose: int, log_file: Path | None = None) -> None:
         handler = _handlers.pop()
         package.removeHandler(handler)
         handler.close()
+    while _shown:
+        logger, handler = _shown.pop()
+        logger.removeHandler(handler)
     package.setLevel(logging.NOTSET)
     frames.setLevel(logging.NOTSET)
+    if not verbose:
+        for name in ALWAYS_SHOWN:
+            logger, shown = logging.getLogger(name), _Stderr()
+            logger.addHandler(shown)
+            _shown.append((logger, shown))
     if not verbose and log_file is None:
         return
     if verbose:

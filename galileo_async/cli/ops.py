@@ -30,7 +30,6 @@ if TYPE_CHECKING:
 __all__ = [
     "ROTATE_TIMEOUT",
     "SIMPLE_COMMANDS",
-    "cancel",
     "charge_app",
     "goto",
     "goto_point",
@@ -266,7 +265,6 @@ async def start_patrol(robot: Robot, dwell: int | None) -> None:
 SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
     ("nav", "stop", "stop_navigation", "navigation closed",
      "Stop navigation (also stops patrol and the goal)."),
-    (None, "pause", "pause", "goal paused", "Pause the working goal."),
     (None, "resume", "resume", "goal resumed", "Resume the paused goal."),
     ("patrol", "stop", "stop_patrol", "patrol stopped",
      "Stop auto-patrol and keep navigation (firmware 'm' 6)."),
@@ -281,24 +279,6 @@ SIMPLE_COMMANDS: tuple[tuple[str | None, str, str, str, str], ...] = (
     ("charge", "save-dock", "save_dock", "dock position saved",
      "Save the current pose as the dock position."),
 )  # fmt: skip
-
-
-def cancel(ctx: typer.Context) -> None:
-    """Cancel the goal (says so when no goal was running)."""
-    settings = settings_of(ctx)
-
-    async def body(robot: Robot) -> int:
-        status = robot.status
-        running = status is None or status.goal_active  # unknown: assume one ran
-        await with_progress(robot, "cancel", robot.cancel(), show=not settings.json)
-        done = "goal cancelled" if running else "no goal was running"
-        if settings.json:
-            print_json(settings, {"result": "ok", "done": done, "goal_was_running": running})
-        else:
-            out_console().print(done)
-        return 0
-
-    run_robot(settings, body)
 
 
 def simple_command(method: str, done: str, help_text: str) -> Callable[[typer.Context], None]:

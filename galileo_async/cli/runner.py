@@ -140,6 +140,8 @@ class Settings:
         if not is_sim(self.port) and not long_running:
             # A one-shot command should fail at once on a dead link, not retry forever.
             options.setdefault("reconnect", False)
+        if link_kind(self.port) in ("serial", "udp"):  # stop/cancel/pause from other terminals
+            options.setdefault("control_socket", True)
         return options
 
 
@@ -232,10 +234,11 @@ _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
 )
 
 
-def exit_code_for(exc: BaseException) -> ExitCode:
-    """The exit code that reports ``exc``."""
+def exit_code_for(exc: BaseException | type[BaseException]) -> ExitCode:
+    """The exit code that reports ``exc`` (an error, or its type)."""
+    error_type = exc if isinstance(exc, type) else type(exc)
     for kind, code in _CODES:
-        if isinstance(exc, kind):
+        if issubclass(error_type, kind):
             return code
     return ExitCode.ERROR
 
