@@ -24,7 +24,7 @@ import galileo_async as galileo
 from galileo_async.cli import ExitCode
 from galileo_async.cli.runner import exit_code_for
 from galileo_async.errors import StopUnconfirmed
-from galileo_async.protocol import Command, Goto, Pause, Stop
+from galileo_async.protocol import Cancel, Command, Goto, Pause, Stop
 from galileo_async.robot.control import control_key, socket_path
 from galileo_async.robot.control_server import ControlOperation, serve_control
 from galileo_async.sim import Simulator
@@ -156,13 +156,12 @@ async def test_stop_in_a_second_terminal_goes_through_the_goto(
         assert code == 0, err
         assert f"(through the owning process {goto.pid}: " in out
         assert "goto 0" in out  # the owner's command line
-        assert Stop(100) in commands  # the owner wrote it to the robot
-        # Today's stop() zeroes the speed and leaves the goal; a cancel ends the goto.
-        code, out, err, _ = await galileo_cli("-p", pty, "cancel")
-        assert code == 0, err
-        code, out, err = await finish(goto)
+        assert out.startswith("goal 0 cancelled")
+        assert commands[-2:] == [Cancel(), Stop(100)]  # the owner wrote them to the robot
+        code, out, err = await finish(goto)  # its goto ended by the stop
     assert code == ExitCode.CANCELLED, (out, err)
     assert "GoalCancelled" in err
+    assert "stop()" in err  # names what cancelled it
     logged = f"stop (brake 100) asked through the control socket by process {stopper}"
     asked = f"galileo: {pty}: {logged} (uid {os.getuid()}): "
     assert f"{asked}{sys.executable} -m galileo_async -p {pty} stop\n" in err  # its command

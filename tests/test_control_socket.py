@@ -27,6 +27,7 @@ import pytest
 from cancel_ways import WAYS, stop_waiting
 
 import galileo_async as galileo
+from galileo_async.models import TargetStatus
 from galileo_async.protocol import Cancel, Command, Pause, Stop
 from galileo_async.robot import control, control_server
 from galileo_async.robot.control import (
@@ -401,7 +402,10 @@ async def until(condition: Callable[[], bool], turns: int = 50) -> None:
     assert condition()
 
 
-async def test_a_request_running_when_the_owner_closes_is_answered(runtime_dir: Path) -> None:
+async def test_a_request_running_when_the_owner_closes_is_answered(
+    runtime_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(control_server, "CLOSE_GRACE", 0.1)  # this one never ends by itself
     operations = Operations()
     operations.hold = True
     url = fake_port(runtime_dir)
@@ -443,3 +447,36 @@ def test_a_logged_command_line_is_one_printable_line() -> None:
     first = Path(f"/proc/{os.getpid()}/cmdline").read_bytes().split(b"\0")[0].decode()
     assert control.command_line(os.getpid()).startswith(shlex.quote(first))  # the kernel's
     assert control.command_line(None, None) == "?"
+
+
+async def test_a_stop_that_ends_the_owners_goal_is_answered(runtime_dir: Path) -> None:
+    # The asked stop() ends the owner's goto at once, and the owner leaves its block while
+    # that stop still writes and waits for the robot to show it: both must still happen.
+    async with Simulator(speed=20, max_speed=0.05) as sim:
+        pty = sim.open_pty()
+        commands = received(sim)
+        working = asyncio.Event()
+        owner_ended: list[BaseException] = []
+
+        async def owner() -> None:
+            async with galileo.connect(pty, control_socket=True) as robot:
+                await robot.start_navigation()
+                goal = asyncio.ensure_future(robot.goto(0))
+                await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING)
+                working.set()
+                try:
+                    await goal
+                except galileo.GoalCancelled as exc:
+                    owner_ended.append(exc)
+
+        running = asyncio.ensure_future(owner())
+        try:
+            await asyncio.wait_for(working.wait(), WAIT)
+            answer = await ask_owner(pty, "stop")
+        finally:
+            await asyncio.wait_for(running, WAIT)
+    assert answer.ok, answer.fields
+    assert answer.fields["done"].startswith("goal 0 cancelled")
+    assert [getattr(exc, "cancelled_by", None) for exc in owner_ended] == ["stop()"]
+    assert commands[-2:] == [Cancel(), Stop(100)]
+    assert not path_of(pty).exists()

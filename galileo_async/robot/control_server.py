@@ -39,6 +39,8 @@ if TYPE_CHECKING:
     from .robot import Robot
 
 __all__ = [
+    "CLOSE_GRACE",
+    "CLOSE_TIMEOUT",
     "MAX_ASKED_TIMEOUT",
     "PROBE_TIMEOUT",
     "REQUEST_TIMEOUT",
@@ -60,7 +62,10 @@ Credentials = Callable[[Any], Peer]
 REQUEST_TIMEOUT = 5.0
 #: Seconds to tell a live owner of an existing socket file from a stale one.
 PROBE_TIMEOUT = 1.0
-#: Longest close() waits for running requests and connections to end.
+#: Longest close() lets running requests finish and answer (a stop asked here may be what
+#: ended the owner's program: its confirmation still comes over the open link).
+CLOSE_GRACE = 3.0
+#: Longest close() then waits for cancelled requests and connections to end.
 CLOSE_TIMEOUT = 2.0
 #: Longest timeout an asker may set for an operation, seconds.
 MAX_ASKED_TIMEOUT = 60.0
@@ -227,7 +232,8 @@ class ControlServer:
         self._server = await loop.create_unix_server(lambda: _Request(self), sock=self._sock)
 
     async def close(self) -> None:
-        """Stop listening, remove the socket file, end running requests; idempotent, bounded."""
+        """Stop listening, remove the socket file, let running requests finish (CLOSE_GRACE s),
+        then end them; idempotent, bounded."""
         if self.closed:
             return
         self.closed = True
@@ -239,6 +245,8 @@ class ControlServer:
             info = os.lstat(self.path)
             if (info.st_dev, info.st_ino) == self._identity:
                 os.unlink(self.path)
+        if self._tasks:
+            await asyncio.wait(list(self._tasks), timeout=CLOSE_GRACE)
         tasks = list(self._tasks)
         for task in tasks:
             task.cancel()  # each answers that the owner closed meanwhile

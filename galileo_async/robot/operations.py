@@ -246,9 +246,13 @@ class Operations(Supersession):
                 self.settled(written)
 
     def ensure_open(self) -> None:
-        """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed."""
+        """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed.
+
+        A held task (a stop()'s writes, under way when close() came) still sends until the
+        link closes: close() must not cut a stop in half.
+        """
         self.ensure_loop()
-        if self.closed:
+        if self.closed and asyncio.current_task() not in self.held:
             raise GalileoConnectionError("this Robot is closed")
 
     def ensure_loop(self) -> None:
