@@ -335,3 +335,16 @@ async def test_a_user_stop_from_inside_the_drive_block_does_not_cancel_its_calle
         await asyncio.sleep(0)
     assert report.drive
     assert standing(device)
+
+
+async def test_close_right_after_a_stop_in_another_task_still_writes_the_whole_stop() -> None:
+    async with simulated_robot(targets=TARGETS) as (robot, device):
+        task = await started(robot, lambda: robot.goto(FAR))
+        stopping = asyncio.ensure_future(robot.stop())
+        await asyncio.sleep(0)  # the stop has started its writes
+        await robot.close()
+        assert device.received(Cancel, Stop) == [Cancel(), Stop(100)]
+        with pytest.raises(GoalCancelled):
+            await task
+        with pytest.raises(GalileoConnectionError):  # closed: nothing can confirm it
+            await stopping

@@ -364,8 +364,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
     async def close(self) -> None:
         """Close the link and end every iterator and waiter; idempotent and bounded.
 
-        Cancelling the caller does not interrupt it: the link is closed (within a few
-        seconds at most), then the cancellation is raised.
+        A cancelled caller waits for the link to close (seconds at most), then is cancelled.
         """
         self._ops.user_stopped("close()")
         task = self._close_task
@@ -380,8 +379,9 @@ class Robot(Turning, RobotServices, HttpServices, Following):
     async def _shutdown(self, stop_written: asyncio.Future[bool] | None) -> None:
         try:
             await asyncio.gather(*(closer() for closer in self._closers), return_exceptions=True)
-            if stop_written is not None:
-                await asyncio.wait((stop_written,), timeout=CANCEL_SEND_TIMEOUT)
+            waits = self._ops.held | ({stop_written} if stop_written is not None else set())
+            if waits:  # the drive's stop, and a stop() under way, are written in full first
+                await asyncio.wait(waits, timeout=CANCEL_SEND_TIMEOUT)
             await self._link.close()
             await self._ops.aclose()  # exit cancels the closed link failed: let them end
         finally:
