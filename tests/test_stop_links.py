@@ -16,7 +16,7 @@ from sim_integration import FAR, MAP_TARGETS, SPEED, TARGETS, WAIT, Mode, robot_
 
 import galileo_async as galileo
 from galileo_async import CommandSuperseded, GoalCancelled, StopReport
-from galileo_async.models import StatusLayout
+from galileo_async.models import StatusLayout, TargetStatus
 from galileo_async.protocol import StartPatrol
 from galileo_async.sim import SimState, Simulator
 
@@ -134,6 +134,8 @@ async def test_stop_cancels_a_paused_goal(link: str) -> None:
     async with robot_on(link) as (sim, robot):
         task = asyncio.ensure_future(robot.goto(FAR, timeout=WAIT))
         await driving(robot, sim)
+        # Over http:// the robot's status shows a nav task up to 1 s after it starts.
+        await robot.wait_until(lambda s: s.target_status == TargetStatus.WORKING, timeout=WAIT)
         await robot.pause()
         report = await robot.stop()
         assert report.goal == FAR
