@@ -50,6 +50,7 @@ class Scripting:
         _visual_lost_until: float | None
         _visual_ready_at: float | None
         _frozen: _Values | None
+        _last_start: float | None
 
         def wire_values(self) -> _Values: ...
         def halt(self) -> None: ...
@@ -63,6 +64,14 @@ class Scripting:
         self.nav_status, self.visual_status = 1, 1
         self.target_status, self.target_num_id = FREE, -1
         self._visual_ready_at = None
+
+    def lock_out_start(self) -> None:
+        """Begin the firmware's start lockout now, as a start a moment ago would.
+
+        A navigation start within ``start_ignore_time`` (5-30 s on real robots) is ignored
+        (PROTOCOL.md §2.a).
+        """
+        self._last_start = self.time
 
     def abort_next_goal(self) -> None:
         """Make the planner give up half way on the next goal (fault injection)."""

@@ -118,6 +118,10 @@ class SimulatedDevice:
         """
         self._model.reject_next_goal()
 
+    def lock_out_start(self) -> None:
+        """Begin the firmware's start lockout now: a start within start_ignore_time is ignored."""
+        self._model.lock_out_start()
+
     def abort_next_goal(self) -> None:
         """Make the planner give up half way to the next goal (it ends free, far away)."""
         self._model.abort_next_goal()
