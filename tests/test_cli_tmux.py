@@ -75,9 +75,21 @@ async def test_monitor_map_shows_the_robot_moving(tmux: list[str], tmp_path: Pat
                 # The simulator's map: target 1's label, seen while the robot is not on it
                 # (once there, its arrow covers the label).
                 target_shown = False
+                # The monitor is up (its map shows the robot) before the robot moves, however
+                # long the process took to start; then the robot drives back and forth until
+                # the screen has shown what it must, however slowly it is read.
+
+                async def drive() -> None:
+                    while True:
+                        for target in (1, 2):
+                            await robot.goto(target)
+
                 with anyio.fail_after(WAIT):
+                    # A tmux screen has no change notification: read it again until then.
+                    while _robot_at(_map_rows(await screen(tmux))) is None:  # noqa: ASYNC110
+                        await anyio.sleep(0.1)
                     async with anyio.create_task_group() as group:
-                        group.start_soon(robot.goto, 1)
+                        group.start_soon(drive)
                         while len(places) < 3 or not trail or not target_shown:
                             rows = _map_rows(await screen(tmux))
                             spot = _robot_at(rows)
