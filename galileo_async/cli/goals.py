@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -27,9 +28,10 @@ from .runner import (
 if TYPE_CHECKING:
     from ..robot import GoalResult, Robot
 
-__all__ = ["aclose", "follow_goal", "with_progress"]
+__all__ = ["CLEAR_ERROR_TIMEOUT", "aclose", "clear_goal_error", "follow_goal", "with_progress"]
 
 T = TypeVar("T")
+_log = logging.getLogger(__name__)
 
 #: Result names in --json output, by exit code.
 RESULT_NAMES = {
@@ -201,3 +203,23 @@ async def follow_goal(
             f"after {result.elapsed:.1f} s{there}"
         )
     return int(ExitCode.OK)
+
+
+#: Seconds to wait for a cancel to clear an earlier goal error before sending a goal.
+CLEAR_ERROR_TIMEOUT = 1.0
+
+
+async def clear_goal_error(robot: Robot) -> None:
+    """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
+
+    Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
+    with -1 already showing, a second rejection changes nothing on the wire. Its cancel
+    (``i 2``) turns an error back to free.
+    """
+    status = robot.status
+    if status is None or not status.goal_failed or not status.navigating:
+        return
+    _log.debug("cancel first: target_status %s hides a rejection", status.target_status)
+    await robot.cancel()
+    with contextlib.suppress(GalileoTimeout):
+        await robot.wait_until(lambda s: not s.goal_failed, timeout=CLEAR_ERROR_TIMEOUT)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import datetime
 import enum
 import json
 import os
@@ -16,10 +15,8 @@ from typing import TYPE_CHECKING, Any, Literal, NoReturn
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 
-from .._checks import hide_secrets
 from ..errors import (
     DuplicateVehicle,
     GalileoConnectionError,
@@ -35,6 +32,7 @@ from ..errors import (
 )
 from ..transports import link_kind
 from .logs import setup_logging
+from .output import err_console, out_console, print_json, timestamp
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -199,24 +197,6 @@ def robot_url(settings: Settings) -> str:
     return settings.url
 
 
-def print_json(settings: Settings, data: dict[str, Any]) -> None:
-    """Print one JSON object on stdout, naming the port it came from first (``"port"``).
-
-    A password or token in the port's URL shows as ``***``.
-    """
-    out_console().print(json.dumps({"port": hide_secrets(settings.port)} | data), markup=False)
-
-
-def out_console() -> Console:
-    """A console on the current stdout (data and results)."""
-    return Console(file=sys.stdout, highlight=False, soft_wrap=True)
-
-
-def err_console() -> Console:
-    """A console on the current stderr (progress, messages, errors)."""
-    return Console(file=sys.stderr, highlight=False, soft_wrap=True)
-
-
 _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     # Order matters: AcceptTimeout is both a GoalError and a GalileoTimeout.
     (GalileoTimeout, ExitCode.TIMEOUT),
@@ -294,12 +274,6 @@ def fail(message: str, code: ExitCode = ExitCode.ERROR) -> NoReturn:
     """Print ``message`` as an error line and exit with ``code``."""
     print_error(message, kind=code.name.lower(), code=code)
     raise typer.Exit(int(code))
-
-
-def timestamp() -> str:
-    """The wall-clock time now, ISO 8601 UTC with milliseconds (``2026-11-25T22:01:52.123Z``)."""
-    now = datetime.datetime.now(datetime.timezone.utc)
-    return now.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def run(
