@@ -22,8 +22,8 @@ from .runner import (
     out_console,
     print_json,
     report,
-    timestamp,
 )
+from .signals import interruption, pose_json
 
 if TYPE_CHECKING:
     from ..robot import GoalResult, Robot
@@ -125,31 +125,19 @@ def _distance(robot: Robot, exc: BaseException | None = None) -> float | None:
     return None if distance is None else rounded("target_distance", distance)
 
 
-def _interrupted(settings: Settings, robot: Robot, target_id: int | None, sent: int) -> None:
-    """Say what a Ctrl-C left behind: whether cancel went out, where the robot is."""
+def _interrupted(robot: Robot, target_id: int | None, sent: int) -> None:
+    """Note for the interrupted line what the goal left behind: whether cancel went out."""
     goal = "the goal" if target_id is None else f"goal {target_id}"
     what = f"{goal} cancelled (i 2 sent)" if sent > 0 else f"{goal} was not running, no cancel sent"
-    status = robot.status
-    if settings.json:
-        pose = None if status is None else status.pose
-        payload = {
-            "time": timestamp(),
-            "result": "interrupted",
-            "target_id": target_id,
-            "cancel_sent": sent > 0,
-            "distance": _distance(robot),
-            "pose": None
-            if pose is None
-            else {
-                "x": rounded("x", pose.x),
-                "y": rounded("y", pose.y),
-                "degrees": round(pose.degrees, 1),
-            },
-        }
-        print_json(settings, payload)
-    else:
-        where = pose_text(status)
-        err_console().print(f"interrupted: {what}, robot at {where}", markup=False)
+    note = interruption()
+    note.done.append(what)
+    note.where = pose_text(robot.status)
+    note.fields.update(
+        target_id=target_id,
+        cancel_sent=sent > 0,
+        distance=_distance(robot),
+        pose=pose_json(robot.status),
+    )
 
 
 async def follow_goal(
@@ -171,7 +159,7 @@ async def follow_goal(
         result = await with_progress(robot, label, start(), show=not settings.json, line=goal_line)
     except asyncio.CancelledError:
         cancels = robot.link.commands_sent - sent_before - goal_commands
-        _interrupted(settings, robot, target_id, cancels)
+        _interrupted(robot, target_id, cancels)
         raise
     except (GoalError, GalileoTimeout) as exc:
         code = exit_code_for(exc)

@@ -70,6 +70,7 @@ def _simple(
     done: str,
     *,
     navigation: bool | None = False,
+    moving: bool = False,
 ) -> None:
     settings = settings_of(ctx)
     label = ctx.command_path.removeprefix(ctx.find_root().info_name or "").strip()
@@ -82,7 +83,7 @@ def _simple(
             out_console().print(done)
         return 0
 
-    run_robot(settings, body, navigation=navigation)
+    run_robot(settings, body, navigation=navigation, moving=moving)
 
 
 # --- goals -------------------------------------------------------------------------------
@@ -109,7 +110,7 @@ def goto(
             target_id=target_id,
         )
 
-    run_robot(settings, body, navigation=start_nav)
+    run_robot(settings, body, navigation=start_nav, moving=True)
 
 
 def goto_point(
@@ -131,7 +132,7 @@ def goto_point(
             settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout), goal_commands=3
         )
 
-    run_robot(settings, body, navigation=start_nav)
+    run_robot(settings, body, navigation=start_nav, moving=True)
 
 
 #: Default --timeout of ``rotate``: a half turn takes a few seconds, and many firmware
@@ -158,7 +159,7 @@ def rotate(
         )
         await robot.rotate_to(degrees, timeout=timeout)
 
-    _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav)
+    _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav, moving=True)
 
 
 # --- navigation -----------------------------------------------------------------------------
@@ -222,7 +223,13 @@ def patrol_start(
     start_nav: StartNav = None,
 ) -> None:
     """Start auto-patrol (navigation must be running)."""
-    _simple(ctx, lambda robot: start_patrol(robot, dwell), "patrol running", navigation=start_nav)
+    _simple(
+        ctx,
+        lambda robot: start_patrol(robot, dwell),
+        "patrol running",
+        navigation=start_nav,
+        moving=True,
+    )
 
 
 async def start_patrol(robot: Robot, dwell: int | None) -> None:

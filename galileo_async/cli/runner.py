@@ -33,6 +33,7 @@ from ..errors import (
 from ..transports import link_kind
 from .logs import setup_logging
 from .output import err_console, out_console, print_json, timestamp
+from .signals import Stops, handling, running, stop_on_interrupt
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -95,7 +96,7 @@ class ExitCode(enum.IntEnum):
     NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
     PORT_BUSY = 9  # the serial port is open in another process or connection
     DUPLICATE_VEHICLE = 10  # vda5050: another vehicle with this identity is on the broker
-    INTERRUPTED = 130  # Ctrl-C
+    INTERRUPTED = 130  # Ctrl-C (SIGINT); SIGTERM and SIGHUP: 128 + their number (143, 129)
 
 
 @dataclass
@@ -286,21 +287,24 @@ def run(
 
     Every error ends as one line (report); a reader that closed stdout (``| head``) ends
     the command quietly: exit 0 for a command that Ctrl-C ends normally, else 1 (as Python).
+    SIGTERM and SIGHUP end ``main`` as Ctrl-C does, with 128 + their number (signals.py).
     """
-    try:
-        code = asyncio.run(_as_coroutine(main))
-    except KeyboardInterrupt:
-        code = int(interrupted)
-    except BaseException as exc:  # task groups wrap even SystemExit
-        error = _first_leaf(exc)  # task groups wrap what their tasks raised
-        if _stdout_closed(error):
-            code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)
-        elif isinstance(error, KeyboardInterrupt):
+    with running(Stops()) as stops:
+        try:
+            code = asyncio.run(handling(stops, main))
+        except KeyboardInterrupt:
             code = int(interrupted)
-        elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
-            raise error from None
-        else:
-            code = int(report(error, settings.verbose))
+        except BaseException as exc:  # task groups wrap even SystemExit
+            error = _first_leaf(exc)  # task groups wrap what their tasks raised
+            if _stdout_closed(error):
+                code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)
+            elif (stopped := stops.exit_code(error, interrupted)) is not None:
+                code = stopped
+            elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
+                raise error from None
+            else:
+                code = int(report(error, settings.verbose))
+    stops.say(settings)
     raise typer.Exit(int(code or 0))
 
 
@@ -330,10 +334,6 @@ def _first_leaf(exc: BaseException) -> BaseException:
     return exc
 
 
-async def _as_coroutine(main: Callable[[], Awaitable[int | None]]) -> int | None:
-    return await main()
-
-
 def run_robot(
     settings: Settings,
     body: Callable[[Robot], Awaitable[int | None]],
@@ -341,12 +341,14 @@ def run_robot(
     navigation: bool | None = False,
     interrupted: ExitCode = ExitCode.INTERRUPTED,
     long_running: bool = False,
+    moving: bool = False,
 ) -> NoReturn:
     """Connect (connect waits for the first status), maybe open navigation, run ``body``, exit.
 
     ``navigation``: False = leave it alone; True = start it when it is closed; None = start
     it only on sim:// (each invocation gets a fresh simulated robot with navigation closed).
     ``long_running`` commands (watchers) reconnect after a drop; one-shot commands do not.
+    ``moving`` commands stop the robot once when a stop signal ends them (stop_on_interrupt).
     """
 
     url = robot_url(settings)
@@ -359,7 +361,8 @@ def run_robot(
             start = is_sim(settings.port) if navigation is None else navigation
             if start:
                 await ensure_navigation(robot, settings)
-            return await body(robot)
+            async with stop_on_interrupt(robot) if moving else contextlib.nullcontext():
+                return await body(robot)
 
     run(settings, main, interrupted=interrupted)
 
