@@ -176,7 +176,8 @@ def test_ctrl_c_in_goto_says_the_goal_was_cancelled_and_where_the_robot_is() -> 
     code, out, err = interrupted_goto(started="working")
     assert code == 130
     last = err.splitlines()[-1]
-    assert last.startswith("interrupted: goal 3 cancelled (i 2 sent), robot at ("), err
+    assert last.startswith("interrupted by SIGINT: goal 3 cancelled (i 2 sent), stop sent"), err
+    assert "; robot at (" in last, err
     assert out == ""
 
 
@@ -187,6 +188,8 @@ def test_ctrl_c_in_goto_with_json_prints_a_json_line() -> None:
     assert data["result"] == "interrupted"
     assert data["target_id"] == 3
     assert data["cancel_sent"] is True
+    assert data["signal"] == "SIGINT"
+    assert data["stop_sent"] is True
     assert set(data["pose"]) == {"x", "y", "degrees"}
 
 

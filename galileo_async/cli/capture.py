@@ -7,11 +7,8 @@ The recording format is described in galileo_async/sim/replay.py (which replays 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
-import signal
 import sys
-from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
 from typing import IO, Annotated, Any
@@ -33,6 +30,7 @@ from .runner import (
     run,
     settings_of,
 )
+from .signals import stop_requested
 
 __all__ = ["MAGIC", "RECORD", "decode", "iter_capture", "record", "stop_requested"]
 
@@ -94,22 +92,6 @@ def decode(
         err_console().print(f"summary: {text}", markup=False)
     out.flush()
     raise typer.Exit(0 if decoder.stats.frames or not total else int(ExitCode.ERROR))
-
-
-@contextlib.contextmanager
-def stop_requested() -> Iterator[asyncio.Event]:
-    """An event set by Ctrl-C (SIGINT) while the block runs, for a clean stop."""
-    loop = asyncio.get_running_loop()
-    event = asyncio.Event()
-    installed = False
-    with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-        loop.add_signal_handler(signal.SIGINT, event.set)
-        installed = True
-    try:
-        yield event
-    finally:
-        if installed:
-            loop.remove_signal_handler(signal.SIGINT)
 
 
 def record(

@@ -33,6 +33,7 @@ from .runner import (
     settings_of,
     with_query,
 )
+from .signals import stop_on_interrupt
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -242,7 +243,10 @@ def demo(
 
         began = time.monotonic()
         show = err_console().is_terminal
-        async with connect(url, **settings.connect_options()) as robot:
+        async with (
+            connect(url, **settings.connect_options()) as robot,
+            stop_on_interrupt(robot),
+        ):
             steps = await tour(robot, show=show, model=known_targets([url], None))
         out_console().print(_summary(steps, time.monotonic() - began, url))
         return 0 if all(step.ok for step in steps) else int(ExitCode.ERROR)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -21,15 +22,16 @@ from .runner import (
     out_console,
     print_json,
     report,
-    timestamp,
 )
+from .signals import interruption, pose_json
 
 if TYPE_CHECKING:
     from ..robot import GoalResult, Robot
 
-__all__ = ["aclose", "follow_goal", "with_progress"]
+__all__ = ["CLEAR_ERROR_TIMEOUT", "aclose", "clear_goal_error", "follow_goal", "with_progress"]
 
 T = TypeVar("T")
+_log = logging.getLogger(__name__)
 
 #: Result names in --json output, by exit code.
 RESULT_NAMES = {
@@ -123,31 +125,19 @@ def _distance(robot: Robot, exc: BaseException | None = None) -> float | None:
     return None if distance is None else rounded("target_distance", distance)
 
 
-def _interrupted(settings: Settings, robot: Robot, target_id: int | None, sent: int) -> None:
-    """Say what a Ctrl-C left behind: whether cancel went out, where the robot is."""
+def _interrupted(robot: Robot, target_id: int | None, sent: int) -> None:
+    """Note for the interrupted line what the goal left behind: whether cancel went out."""
     goal = "the goal" if target_id is None else f"goal {target_id}"
     what = f"{goal} cancelled (i 2 sent)" if sent > 0 else f"{goal} was not running, no cancel sent"
-    status = robot.status
-    if settings.json:
-        pose = None if status is None else status.pose
-        payload = {
-            "time": timestamp(),
-            "result": "interrupted",
-            "target_id": target_id,
-            "cancel_sent": sent > 0,
-            "distance": _distance(robot),
-            "pose": None
-            if pose is None
-            else {
-                "x": rounded("x", pose.x),
-                "y": rounded("y", pose.y),
-                "degrees": round(pose.degrees, 1),
-            },
-        }
-        print_json(settings, payload)
-    else:
-        where = pose_text(status)
-        err_console().print(f"interrupted: {what}, robot at {where}", markup=False)
+    note = interruption()
+    note.done.append(what)
+    note.where = pose_text(robot.status)
+    note.fields.update(
+        target_id=target_id,
+        cancel_sent=sent > 0,
+        distance=_distance(robot),
+        pose=pose_json(robot.status),
+    )
 
 
 async def follow_goal(
@@ -169,7 +159,7 @@ async def follow_goal(
         result = await with_progress(robot, label, start(), show=not settings.json, line=goal_line)
     except asyncio.CancelledError:
         cancels = robot.link.commands_sent - sent_before - goal_commands
-        _interrupted(settings, robot, target_id, cancels)
+        _interrupted(robot, target_id, cancels)
         raise
     except (GoalError, GalileoTimeout) as exc:
         code = exit_code_for(exc)
@@ -201,3 +191,23 @@ async def follow_goal(
             f"after {result.elapsed:.1f} s{there}"
         )
     return int(ExitCode.OK)
+
+
+#: Seconds to wait for a cancel to clear an earlier goal error before sending a goal.
+CLEAR_ERROR_TIMEOUT = 1.0
+
+
+async def clear_goal_error(robot: Robot) -> None:
+    """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
+
+    Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
+    with -1 already showing, a second rejection changes nothing on the wire. Its cancel
+    (``i 2``) turns an error back to free.
+    """
+    status = robot.status
+    if status is None or not status.goal_failed or not status.navigating:
+        return
+    _log.debug("cancel first: target_status %s hides a rejection", status.target_status)
+    await robot.cancel()
+    with contextlib.suppress(GalileoTimeout):
+        await robot.wait_until(lambda s: not s.goal_failed, timeout=CLEAR_ERROR_TIMEOUT)

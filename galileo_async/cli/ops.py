@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import dataclasses
-import logging
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from ..errors import GalileoTimeout, InvalidArgument, UnconfirmedOperation
+from ..errors import InvalidArgument, UnconfirmedOperation
 from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
-from .goals import follow_goal, with_progress
+from .goals import clear_goal_error, follow_goal, with_progress
 from .runner import (
     ExitCode,
     err_console,
@@ -60,8 +58,6 @@ GoalTimeout = Annotated[
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
 
 
-_log = logging.getLogger(__name__)
-
 nav_app = typer.Typer(help="Start or stop the navigation service.", no_args_is_help=True)
 patrol_app = typer.Typer(help="Auto-patrol over every target.", no_args_is_help=True)
 map_app = typer.Typer(help="Build, save and update the map.", no_args_is_help=True)
@@ -74,6 +70,7 @@ def _simple(
     done: str,
     *,
     navigation: bool | None = False,
+    moving: bool = False,
 ) -> None:
     settings = settings_of(ctx)
     label = ctx.command_path.removeprefix(ctx.find_root().info_name or "").strip()
@@ -86,7 +83,7 @@ def _simple(
             out_console().print(done)
         return 0
 
-    run_robot(settings, body, navigation=navigation)
+    run_robot(settings, body, navigation=navigation, moving=moving)
 
 
 # --- goals -------------------------------------------------------------------------------
@@ -104,7 +101,7 @@ def goto(
     settings.json = settings.json or json_output
 
     async def body(robot: Robot) -> int:
-        await _clear_goal_error(robot)
+        await clear_goal_error(robot)
         return await follow_goal(
             settings,
             robot,
@@ -113,7 +110,7 @@ def goto(
             target_id=target_id,
         )
 
-    run_robot(settings, body, navigation=start_nav)
+    run_robot(settings, body, navigation=start_nav, moving=True)
 
 
 def goto_point(
@@ -135,27 +132,7 @@ def goto_point(
             settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout), goal_commands=3
         )
 
-    run_robot(settings, body, navigation=start_nav)
-
-
-#: Seconds to wait for a cancel to clear an earlier goal error before sending a goal.
-CLEAR_ERROR_TIMEOUT = 1.0
-
-
-async def _clear_goal_error(robot: Robot) -> None:
-    """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
-
-    Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
-    with -1 already showing, a second rejection changes nothing on the wire. Its cancel
-    (``i 2``) turns an error back to free.
-    """
-    status = robot.status
-    if status is None or not status.goal_failed or not status.navigating:
-        return
-    _log.debug("cancel first: target_status %s hides a rejection", status.target_status)
-    await robot.cancel()
-    with contextlib.suppress(GalileoTimeout):
-        await robot.wait_until(lambda s: not s.goal_failed, timeout=CLEAR_ERROR_TIMEOUT)
+    run_robot(settings, body, navigation=start_nav, moving=True)
 
 
 #: Default --timeout of ``rotate``: a half turn takes a few seconds, and many firmware
@@ -182,7 +159,7 @@ def rotate(
         )
         await robot.rotate_to(degrees, timeout=timeout)
 
-    _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav)
+    _simple(ctx, call, f"rotated to {degrees}°", navigation=start_nav, moving=True)
 
 
 # --- navigation -----------------------------------------------------------------------------
@@ -246,7 +223,13 @@ def patrol_start(
     start_nav: StartNav = None,
 ) -> None:
     """Start auto-patrol (navigation must be running)."""
-    _simple(ctx, lambda robot: start_patrol(robot, dwell), "patrol running", navigation=start_nav)
+    _simple(
+        ctx,
+        lambda robot: start_patrol(robot, dwell),
+        "patrol running",
+        navigation=start_nav,
+        moving=True,
+    )
 
 
 async def start_patrol(robot: Robot, dwell: int | None) -> None:

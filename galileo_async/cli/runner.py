@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import datetime
 import enum
 import json
 import os
@@ -16,10 +15,8 @@ from typing import TYPE_CHECKING, Any, Literal, NoReturn
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 
-from .._checks import hide_secrets
 from ..errors import (
     DuplicateVehicle,
     GalileoConnectionError,
@@ -35,6 +32,8 @@ from ..errors import (
 )
 from ..transports import link_kind
 from .logs import setup_logging
+from .output import err_console, out_console, print_json, timestamp
+from .signals import Stops, handling, running, stop_on_interrupt
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -97,7 +96,7 @@ class ExitCode(enum.IntEnum):
     NOT_READY = 8  # a precondition failed (e.g. navigation not open); nothing was sent
     PORT_BUSY = 9  # the serial port is open in another process or connection
     DUPLICATE_VEHICLE = 10  # vda5050: another vehicle with this identity is on the broker
-    INTERRUPTED = 130  # Ctrl-C
+    INTERRUPTED = 130  # Ctrl-C (SIGINT); SIGTERM and SIGHUP: 128 + their number (143, 129)
 
 
 @dataclass
@@ -199,24 +198,6 @@ def robot_url(settings: Settings) -> str:
     return settings.url
 
 
-def print_json(settings: Settings, data: dict[str, Any]) -> None:
-    """Print one JSON object on stdout, naming the port it came from first (``"port"``).
-
-    A password or token in the port's URL shows as ``***``.
-    """
-    out_console().print(json.dumps({"port": hide_secrets(settings.port)} | data), markup=False)
-
-
-def out_console() -> Console:
-    """A console on the current stdout (data and results)."""
-    return Console(file=sys.stdout, highlight=False, soft_wrap=True)
-
-
-def err_console() -> Console:
-    """A console on the current stderr (progress, messages, errors)."""
-    return Console(file=sys.stderr, highlight=False, soft_wrap=True)
-
-
 _CODES: tuple[tuple[type[BaseException], ExitCode], ...] = (
     # Order matters: AcceptTimeout is both a GoalError and a GalileoTimeout.
     (GalileoTimeout, ExitCode.TIMEOUT),
@@ -296,12 +277,6 @@ def fail(message: str, code: ExitCode = ExitCode.ERROR) -> NoReturn:
     raise typer.Exit(int(code))
 
 
-def timestamp() -> str:
-    """The wall-clock time now, ISO 8601 UTC with milliseconds (``2026-11-25T22:01:52.123Z``)."""
-    now = datetime.datetime.now(datetime.timezone.utc)
-    return now.isoformat(timespec="milliseconds").replace("+00:00", "Z")
-
-
 def run(
     settings: Settings,
     main: Callable[[], Awaitable[int | None]],
@@ -312,21 +287,24 @@ def run(
 
     Every error ends as one line (report); a reader that closed stdout (``| head``) ends
     the command quietly: exit 0 for a command that Ctrl-C ends normally, else 1 (as Python).
+    SIGTERM and SIGHUP end ``main`` as Ctrl-C does, with 128 + their number (signals.py).
     """
-    try:
-        code = asyncio.run(_as_coroutine(main))
-    except KeyboardInterrupt:
-        code = int(interrupted)
-    except BaseException as exc:  # task groups wrap even SystemExit
-        error = _first_leaf(exc)  # task groups wrap what their tasks raised
-        if _stdout_closed(error):
-            code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)
-        elif isinstance(error, KeyboardInterrupt):
+    with running(Stops()) as stops:
+        try:
+            code = asyncio.run(handling(stops, main))
+        except KeyboardInterrupt:
             code = int(interrupted)
-        elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
-            raise error from None
-        else:
-            code = int(report(error, settings.verbose))
+        except BaseException as exc:  # task groups wrap even SystemExit
+            error = _first_leaf(exc)  # task groups wrap what their tasks raised
+            if _stdout_closed(error):
+                code = int(ExitCode.OK if interrupted == ExitCode.OK else ExitCode.ERROR)
+            elif (stopped := stops.exit_code(error, interrupted)) is not None:
+                code = stopped
+            elif isinstance(error, (SystemExit, typer.Exit, typer.Abort, typer.TyperException)):
+                raise error from None
+            else:
+                code = int(report(error, settings.verbose))
+    stops.say(settings)
     raise typer.Exit(int(code or 0))
 
 
@@ -356,10 +334,6 @@ def _first_leaf(exc: BaseException) -> BaseException:
     return exc
 
 
-async def _as_coroutine(main: Callable[[], Awaitable[int | None]]) -> int | None:
-    return await main()
-
-
 def run_robot(
     settings: Settings,
     body: Callable[[Robot], Awaitable[int | None]],
@@ -367,12 +341,14 @@ def run_robot(
     navigation: bool | None = False,
     interrupted: ExitCode = ExitCode.INTERRUPTED,
     long_running: bool = False,
+    moving: bool = False,
 ) -> NoReturn:
     """Connect (connect waits for the first status), maybe open navigation, run ``body``, exit.
 
     ``navigation``: False = leave it alone; True = start it when it is closed; None = start
     it only on sim:// (each invocation gets a fresh simulated robot with navigation closed).
     ``long_running`` commands (watchers) reconnect after a drop; one-shot commands do not.
+    ``moving`` commands stop the robot once when a stop signal ends them (stop_on_interrupt).
     """
 
     url = robot_url(settings)
@@ -385,7 +361,8 @@ def run_robot(
             start = is_sim(settings.port) if navigation is None else navigation
             if start:
                 await ensure_navigation(robot, settings)
-            return await body(robot)
+            async with stop_on_interrupt(robot) if moving else contextlib.nullcontext():
+                return await body(robot)
 
     run(settings, main, interrupted=interrupted)
 

@@ -17,8 +17,8 @@ from urllib.parse import urlencode
 import typer
 
 from ..errors import GalileoConnectionError, InvalidArgument
-from .capture import stop_requested
 from .runner import ExitCode, err_console, fail, out_console, run, settings_of
+from .signals import stop_requested
 
 __all__ = ["discover", "ports", "replay", "sim"]
 

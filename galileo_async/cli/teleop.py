@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import sys
 from typing import TYPE_CHECKING, Annotated
@@ -178,7 +179,8 @@ def teleop(
             await _drive(robot, fd, speed)  # its drive block writes a stop on every exit
             out_console().print("stop (on exit)")
         finally:
-            termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+            with contextlib.suppress(termios.error):  # a terminal that hung up (SIGHUP)
+                termios.tcsetattr(fd, termios.TCSADRAIN, saved)
         return 0
 
-    run_robot(settings, body, interrupted=ExitCode.OK)
+    run_robot(settings, body, interrupted=ExitCode.OK, moving=True)

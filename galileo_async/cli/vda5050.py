@@ -1,4 +1,8 @@
-"""``galileo vda5050``: the robot as a VDA 5050 2.0/2.1 vehicle on an MQTT broker until Ctrl-C."""
+"""``galileo vda5050``: the robot as a VDA 5050 2.0/2.1 vehicle on an MQTT broker until stopped.
+
+Ctrl-C, SIGTERM (``systemctl stop``) and SIGHUP stop it cleanly: the order cancelled, the
+robot stopped, a last state, OFFLINE, exit 0 (docs/cli.md, "Signals").
+"""
 
 from __future__ import annotations
 
@@ -14,8 +18,8 @@ from typing import TYPE_CHECKING, Annotated
 import anyio
 import typer
 
-from .capture import stop_requested
 from .runner import ExitCode, err_console, fail, run_robot, settings_of
+from .signals import stop_requested, stop_signal
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -207,9 +211,19 @@ def vda5050(
                 group.start_soon(run_vehicle, group)
                 with stop_requested() as stop:
                     await stop.wait()
+                received = stop_signal()
+                name = "a stop request" if received is None else received.name
+                # Still on the broker: the last state says what the stop cut short.
+                shutdown = await vehicle.shut_down(f"galileo vda5050 stopped by {name}")
                 group.cancel_scope.cancel()
         if duplicate:
             raise duplicate[0]
+        offline = (
+            "OFFLINE published"
+            if vehicle.session.offline_published
+            else "OFFLINE not published (the broker was away)"
+        )
+        err_console().print(f"stopped by {name}: {shutdown}; {offline}", markup=False)
         return 0
 
     run_robot(settings, body, long_running=True, interrupted=ExitCode.OK)

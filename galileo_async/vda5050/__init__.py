@@ -13,6 +13,7 @@ from .config import (
     redact_url,
 )
 from .order import OrderProgress, Rejection, check_order
+from .shutdown import ShutdownReport
 from .vehicle import Vehicle, run_vehicles
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "BrokerAddress",
     "OrderProgress",
     "Rejection",
+    "ShutdownReport",
     "Vehicle",
     "VehicleConfig",
     "check_order",

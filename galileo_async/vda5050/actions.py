@@ -6,6 +6,8 @@ import logging
 from collections.abc import Awaitable, Callable
 from typing import Protocol
 
+import anyio
+
 from ..errors import GalileoError
 from ..models import ChargeStatus
 from ..robot import Robot
@@ -66,6 +68,10 @@ class ActionRunner:
         self._vehicle = vehicle
         self._states: dict[str, ActionState] = {}
         self.errors: list[Error] = []
+        #: The scopes of the running run() calls (fail_unfinished cancels them).
+        self._scopes: set[anyio.CancelScope] = set()
+        #: After fail_unfinished: the states stay as they are.
+        self._closed = False
         robot, executor = vehicle.robot, vehicle.executor
         self._handlers: dict[str, Callable[[], Awaitable[object]]] = {
             "startPause": executor.pause,
@@ -108,7 +114,28 @@ class ActionRunner:
         }
         self.errors = []
 
+    def fail_unfinished(self, description: str) -> list[ActionState]:
+        """Every action not yet FINISHED or FAILED becomes FAILED, the running ones cancelled.
+
+        What cancelOrder does to an order's actions (VDA 5050 §6.6.3), for a vehicle that
+        shuts down: nothing runs or changes a state afterwards. Returns the states failed.
+        """
+        self._closed = True
+        for scope in self._scopes:
+            scope.cancel()
+        failed = []
+        for key, state in self._states.items():
+            if state.actionStatus not in ("FINISHED", "FAILED"):
+                failed.append(state)
+                self._states[key] = state.model_copy(
+                    update={"actionStatus": "FAILED", "resultDescription": description}
+                )
+        self._vehicle.changed()
+        return failed
+
     def _set(self, action: Action, status: ActionStatus, result: str | None = None) -> None:
+        if self._closed:
+            return
         self._states[action.actionId] = ActionState(
             actionId=action.actionId, actionType=action.actionType,
             actionDescription=action.actionDescription, actionStatus=status,
@@ -126,10 +153,15 @@ class ActionRunner:
 
     async def run(self, actions: list[Action]) -> None:
         """Run ``actions`` one after the other; each state they pass through is published."""
-        # Published here, not only by the coalescing publisher: a master sees every step.
-        await self._vehicle.publish_state()
-        for action in actions:
-            await self._run_one(action)
+        with anyio.CancelScope() as scope:
+            self._scopes.add(scope)
+            try:
+                # Published here, not only by the coalescing publisher: a master sees every step.
+                await self._vehicle.publish_state()
+                for action in actions:
+                    await self._run_one(action)
+            finally:
+                self._scopes.discard(scope)
 
     async def _run_one(self, action: Action) -> None:
         self._set(action, "RUNNING")

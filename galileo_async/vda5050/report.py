@@ -62,6 +62,7 @@ ERROR_HINTS: dict[str, str] = {
     "noOrderToCancel": "nothing to do: the vehicle has no order",
     "robotLinkLost": "check the robot's serial, network or ROS link",
     "visualLost": "drive the robot back into the mapped area or restart navigation",
+    "vehicleShutdown": "the vehicle was stopped on purpose: send orders once it is ONLINE again",
 }
 
 

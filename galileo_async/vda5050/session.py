@@ -19,6 +19,7 @@ from .models import Connection, ConnectionState
 
 __all__ = [
     "CONNECT_TIMEOUT",
+    "LAST_WORDS_TIMEOUT",
     "MQTT_LOGGER",
     "OFFLINE_TIMEOUT",
     "PROBE_WAIT",
@@ -35,6 +36,8 @@ logging.getLogger(MQTT_LOGGER).setLevel(logging.INFO)
 
 #: Seconds a clean stop may spend saying OFFLINE and disconnecting.
 OFFLINE_TIMEOUT = 3.0
+#: Seconds a clean stop may spend on its last words before OFFLINE (the vehicle's shut_down).
+LAST_WORDS_TIMEOUT = 20.0
 #: Seconds a connection attempt to the broker may take.
 CONNECT_TIMEOUT = 6.0
 #: Seconds after connecting within which a lost session is checked for a duplicate vehicle;
@@ -99,7 +102,11 @@ def _hint(reason: str) -> str:
 
 
 class Session:
-    """Keeps a vehicle on the broker until cancelled: ONLINE on connect, OFFLINE on a stop."""
+    """Keeps a vehicle on the broker until cancelled: ONLINE on connect, OFFLINE on a stop.
+
+    ``before_offline``: awaited on a clean stop while still connected, before OFFLINE
+    (shielded, at most LAST_WORDS_TIMEOUT s): the vehicle's last state.
+    """
 
     def __init__(
         self,
@@ -107,11 +114,15 @@ class Session:
         connection: Callable[[ConnectionState], Connection],
         on_connect: Callable[[], Awaitable[None]],
         on_message: Callable[[str, bytes], None],
+        before_offline: Callable[[], Awaitable[object]] | None = None,
     ) -> None:
         self.config = config
         self._connection = connection
         self._on_connect = on_connect
         self._on_message = on_message
+        self._before_offline = before_offline
+        #: True once OFFLINE went to the broker (a clean stop while connected).
+        self.offline_published = False
         self._tls = tls_context(config)
         #: Why the last connection attempt failed; None once connected.
         self.last_error: str | None = None
@@ -277,13 +288,19 @@ class Session:
             await self._leave(client, clean_stop=clean_stop)
 
     async def _leave(self, client: aiomqtt.Client, *, clean_stop: bool) -> None:
-        """End a session: OFFLINE first on a clean stop, then disconnect; shielded, bounded."""
+        """End a session: last words and OFFLINE on a clean stop, then disconnect; shielded."""
+        if clean_stop and self._before_offline is not None and self._client is client:
+            with anyio.move_on_after(LAST_WORDS_TIMEOUT, shield=True):
+                await self._before_offline()
         with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
             self._client = None
             self._online = anyio.Event()
             self._offline.set()
             if clean_stop:
                 offline = self._connection("OFFLINE")
-                await self._publish_on(client, "connection", offline, qos=1, retain=True)
+                published = await self._publish_on(
+                    client, "connection", offline, qos=1, retain=True
+                )
+                self.offline_published = self.offline_published or published
             with contextlib.suppress(aiomqtt.MqttError):
                 await client.__aexit__(None, None, None)

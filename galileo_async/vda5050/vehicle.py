@@ -33,6 +33,7 @@ from .models import (
 )
 from .order import OrderProgress, Rejection, check_order
 from .session import Session
+from .shutdown import Shutdown, ShutdownReport
 
 __all__ = ["MAX_ORDER_ERRORS", "Vehicle", "can_limit_speed", "run_vehicles"]
 
@@ -57,13 +58,16 @@ class Vehicle:
         self.progress = OrderProgress()
         self.executor = Executor(robot, self.progress, self.changed)
         self.actions = ActionRunner(self)
-        self.session = Session(config, self._connection, self._on_connect, self._on_message)
+        self.session = Session(
+            config, self._connection, self._on_connect, self._on_message, self.shut_down
+        )
         self._group: anyio.abc.TaskGroup | None = None
         self._headers: dict[str, int] = {}
         self._dirty = anyio.Event()
         self._order_errors: list[Error] = []
         self._link_error: Error | None = None
         self._other_key_logged = False
+        self._shutdown = Shutdown(self)
 
     # --- what the vehicle reports ------------------------------------------------------
 
@@ -97,8 +101,8 @@ class Vehicle:
         """state.errors: the link, the order, the actions, the status."""
         link = [self._link_error] if self._link_error is not None else []
         return [
-            *link, *self._order_errors, *self.executor.errors, *self.actions.errors,
-            *report.status_errors(self.robot.status),
+            *link, *self._shutdown.errors, *self._order_errors, *self.executor.errors,
+            *self.actions.errors, *report.status_errors(self.robot.status),
         ]  # fmt: skip
 
     def state(self) -> State:
@@ -171,6 +175,11 @@ class Vehicle:
             self._reject(Rejection("validationError", _first_problem(exc), [("topic", "order")]))
             return
         try:
+            if self.closing:
+                raise Rejection(
+                    "orderError", "the vehicle is shutting down: it takes no more orders",
+                    [("orderId", order.orderId)],
+                )  # fmt: skip
             check_order(
                 order, map_id=self.config.map_id, max_speed=self.config.max_speed,
                 can_limit_speed=can_limit_speed(self.robot),
@@ -218,6 +227,15 @@ class Vehicle:
             )
             self.changed()
             return
+        if self.closing:
+            self.actions.add_error(
+                Rejection(
+                    "vehicleShutdown", "the vehicle is shutting down: it runs no more actions",
+                    [("actionId", action.actionId) for action in message.actions],
+                )
+            )  # fmt: skip
+            self.changed()
+            return
         if message.other_key and not self._other_key_logged:
             self._other_key_logged = True
             _log.warning(
@@ -230,7 +248,7 @@ class Vehicle:
     # --- tasks ----------------------------------------------------------------------------
 
     async def run(self) -> None:
-        """Be the vehicle until cancelled; then OFFLINE is published and the session closed.
+        """Be the vehicle until cancelled; then shut_down(), OFFLINE, and the session closed.
 
         DuplicateVehicle (everything stopped) when another vehicle with this identity was
         on the broker first: that one stays connected.
@@ -254,10 +272,36 @@ class Vehicle:
                 _log.error("%s: %s", self.config.serial_number, exc)
                 duplicate = exc
                 group.cancel_scope.cancel()
+            except anyio.get_cancelled_exc_class():
+                await self.shut_down()  # done before OFFLINE when the broker was there
+                raise
             finally:
                 self._group = None
         if duplicate is not None:
             raise duplicate
+
+    # --- shutting down -----------------------------------------------------------------
+
+    @property
+    def shut_down_report(self) -> ShutdownReport | None:
+        """What shut_down() did; None before it ran."""
+        return self._shutdown.report
+
+    @property
+    def closing(self) -> bool:
+        """True from the start of shut_down(): orders and instant actions are refused."""
+        return self._shutdown.started
+
+    async def shut_down(self, reason: str = "the vehicle shut down") -> ShutdownReport:
+        """Stop being a vehicle: cancel the order as cancelOrder does, stop, say so in a state.
+
+        The order is cancelled (§6.6.3: the robot stops, the order deleted, orderId kept),
+        every action not yet finished FAILED with ``reason`` (running ones cancelled),
+        Robot.stop() runs, and a state goes out (a ``vehicleShutdown`` WARNING names what
+        was cut short); orders and actions are refused from then on (shutdown.py). Once,
+        shielded, bounded. run() calls it when cancelled, before OFFLINE.
+        """
+        return await self._shutdown(reason)
 
     async def _start_navigation(self) -> None:
         status = self.robot.status
