@@ -23,7 +23,7 @@ $(TEST_STAMP): pyproject.toml | $(BIN)/python
 demo: $(DEMO_STAMP)
 	$(BIN)/galileo demo
 
-# As root, .ci/setup installs the tests' real peers from Debian (ROS 1, Mosquitto, tmux;
+# As root, .ci/setup installs the tests' real peers from Debian (ROS 1, Mosquitto, tmux, systemd;
 # idempotent), and their tests must then run; elsewhere they are skipped with the reason.
 test: $(TEST_STAMP)
 	@if [ "$$(id -u)" = 0 ]; then .ci/setup; fi
