@@ -136,8 +136,8 @@ class StopUnconfirmed(UnconfirmedOperation):
     """stop() sent everything, but the status did not show ``unconfirmed`` in time.
 
     ``unconfirmed`` names each part the robot did not confirm: "goal" (still working or
-    paused), "patrol" (loop_status still 1), "speed" (still moving), "task" (an HTTP nav
-    task still running).
+    paused), "patrol" (loop_status still 1), "docking" (still finding or docking onto the
+    charger), "speed" (still moving).
     """
 
     def __init__(

@@ -15,6 +15,7 @@ import pytest
 from cancel_ways import WAYS, stop_waiting
 
 from galileo_async import (
+    ChargeStatus,
     CommandSuperseded,
     GalileoConnectionError,
     GoalCancelled,
@@ -348,3 +349,17 @@ async def test_close_right_after_a_stop_in_another_task_still_writes_the_whole_s
             await task
         with pytest.raises(GalileoConnectionError):  # closed: nothing can confirm it
             await stopping
+
+
+async def test_stop_ends_the_drive_to_the_dock(sim: tuple[Robot, SimulatedDevice]) -> None:
+    robot, device = sim
+    device.place(1.0, 0.5, 0.0)  # near the dock, not on it
+    await robot.start_charging()
+    await robot.wait_until(lambda s: abs(s.current_speed_x or 0.0) > 0.05
+                           or abs(s.current_speed_theta or 0.0) > 0.05, timeout=WAIT)  # fmt: skip
+    report = await robot.stop()
+    assert report.docking
+    assert "docking stopped" in str(report)
+    assert device.status.charge_status == ChargeStatus.FREE
+    await device.advance(5.0)
+    assert standing(device)

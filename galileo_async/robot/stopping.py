@@ -15,8 +15,8 @@ from ..errors import (
     LinkStale,
     StopUnconfirmed,
 )
-from ..models import GalileoStatus
-from ..protocol import Cancel, Command, Stop, StopPatrol
+from ..models import ChargeStatus, GalileoStatus
+from ..protocol import Cancel, Command, Stop, StopCharging, StopPatrol
 
 if TYPE_CHECKING:
     from .operations import Operations
@@ -42,13 +42,15 @@ class StopReport:
     """What stop() stopped; every part is confirmed by ``status`` (None: no status seen).
 
     ``goal``: the id of the goal that was working or paused and was cancelled (None: none).
-    ``patrol``: a patrol was running and was stopped. ``drive``: a drive() or turn_to()
+    ``patrol``: a patrol was running and was stopped. ``docking``: the robot was finding or
+    docking onto its charger (``j 0``) and that was stopped. ``drive``: a drive() or turn_to()
     session of this Robot was ended. ``task``: the id of the HTTP nav task stopped
     (http:// only). ``moving``: the status showed a speed when stop() was called.
     """
 
     goal: int | None = None
     patrol: bool = False
+    docking: bool = False
     drive: bool = False
     task: str | None = None
     moving: bool = False
@@ -64,6 +66,8 @@ class StopReport:
             parts.append(f"task {self.task} stopped")
         if self.patrol:
             parts.append("patrol stopped")
+        if self.docking:
+            parts.append("docking stopped")
         if self.drive:
             parts.append("drive ended")
         if self.moving:
@@ -90,13 +94,19 @@ def standing_still(status: GalileoStatus) -> bool | None:
     return abs(linear or 0.0) <= STILL_LINEAR and abs(angular or 0.0) <= STILL_ANGULAR
 
 
+#: The charge states in which the robot drives to or onto its dock.
+_DOCKING = (ChargeStatus.FINDING_DOCK, ChargeStatus.DOCKING)
+
+
 def in_motion(status: GalileoStatus) -> tuple[str, ...]:
-    """The parts of ``status`` that show motion: "goal", "patrol", "speed"; () when stopped."""
+    """The parts of ``status`` showing motion: "goal", "patrol", "docking", "speed"; ()."""
     parts: list[str] = []
     if status.goal_active:
         parts.append("goal")
     if status.patrolling:
         parts.append("patrol")
+    if status.charge_status in _DOCKING:
+        parts.append("docking")
     if standing_still(status) is False:
         parts.append("speed")
     return tuple(parts)
@@ -123,6 +133,8 @@ async def stop_motion(
         # A patrol would start its next leg as soon as the goal ends: stopped first.
         commands.append((StopPatrol(), before is not None and before.patrolling))
     goal_shown = before is None or before.goal_active or goal is not None
+    if before is not None and before.charge_status in _DOCKING:
+        commands.append((StopCharging(), True))  # the robot drives onto the dock
     commands += [(Cancel(), goal_shown), (stop, True)]
     # Its own task, held by Operations: a caller cancelled meanwhile (a timeout, Ctrl-C, a
     # failing sibling) cannot keep the rest of the stop from being written.
@@ -133,6 +145,7 @@ async def stop_motion(
     report = StopReport(
         goal=before.target_num_id if before is not None and before.goal_active else goal,
         patrol=before is not None and before.patrolling,
+        docking=before is not None and before.charge_status in _DOCKING,
         drive=drive,
         task=next((task for task in tasks if task is not None), None),
         moving=before is not None and standing_still(before) is False,
