@@ -268,7 +268,9 @@ def simple_command(method: str, done: str, help_text: str) -> Callable[[typer.Co
     """A command function that awaits ``robot.<method>()`` and prints ``done``."""
 
     def command(ctx: typer.Context) -> None:
-        _simple(ctx, lambda robot: getattr(robot, method)(), done)
+        # Docking drives the robot: a stop signal during it stops the robot too.
+        moving = method == "start_charging"
+        _simple(ctx, lambda robot: getattr(robot, method)(), done, moving=moving)
 
     command.__doc__ = help_text
     return command
