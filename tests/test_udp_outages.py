@@ -1,4 +1,4 @@
-"""udp:// through the outages of the robot's UDP service, on the virtual clock (issue 30, item 5a).
+"""udp:// through the outages of the robot's UDP service, on the virtual clock (issue 30, item 5).
 
 The simulator's UDP face plays the vendor's system_monitor service: it streams to the source
 of the last datagram it received, and a restarted service streams to nobody until a datagram
@@ -20,7 +20,7 @@ import pytest
 import galileo_async as galileo
 from galileo_async import LinkState, TargetStatus
 from galileo_async.events import Event
-from galileo_async.protocol import Command
+from galileo_async.protocol import Cancel, Command, Goto
 from galileo_async.sim import Simulator
 from galileo_async.sim.udp import UdpFace
 from galileo_async.testing import VirtualClock
@@ -142,3 +142,59 @@ async def test_a_freeze_longer_than_the_lost_timeout() -> None:
         assert link_events(names) == ["LinkStale", "ConnectionLost", "ConnectionRestored"]
         assert robot.link.reconnects >= 1
         assert (await robot.goto(NEAR, timeout=WAIT)).target_id == NEAR
+
+
+# --- item 5b: another program takes the stream for a moment --------------------------------
+
+
+async def test_another_program_takes_the_stream_and_the_goal_goes_on() -> None:
+    async with bench() as (setup, robot):
+        names = recorded(robot)
+        goal = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
+        await far_goal_working(robot)
+        loop = asyncio.get_running_loop()
+        # `galileo status` in another terminal: one datagram, and the stream goes there.
+        thief, _ = await loop.create_datagram_endpoint(
+            asyncio.DatagramProtocol, remote_addr=("127.0.0.1", setup.port)
+        )
+        try:
+            thief.sendto(b"\xcd\xeb\xd7\x00")
+            await robot.wait_link(LinkState.STALE, timeout=WAIT)
+            await robot.wait_link(LinkState.UP, timeout=WAIT)  # registered again: back
+        finally:
+            thief.close()
+        result = await asyncio.wait_for(goal, WAIT)
+        assert result.target_id == FAR
+        assert setup.sim.state.pose.x == pytest.approx(12.0, abs=0.05)
+    assert setup.commands == [Goto(FAR)]  # no i 2: the goal was never cancelled
+    assert link_events(names) == ["LinkStale", "LinkRestored"]
+    assert "GoalReached" in names
+
+
+async def test_a_second_robot_on_the_same_port_does_not_cancel_the_goal() -> None:
+    async with bench() as (setup, robot):
+        goal = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
+        await far_goal_working(robot)
+        # A second connect() to the same robot: the two links take the stream in turn.
+        async with galileo.connect(setup.url, map_targets=len(TARGETS)) as other:
+            assert other.status is not None
+            await setup.clock.advance(3 * STALE)
+            assert not goal.done()
+        result = await asyncio.wait_for(goal, WAIT)
+        assert result.target_id == FAR
+        assert robot.link_state is LinkState.UP
+    assert Cancel() not in setup.commands
+    assert setup.commands == [Goto(FAR)]
+
+
+async def test_a_new_goal_while_the_stream_is_elsewhere_is_refused_unsent() -> None:
+    async with bench() as (setup, robot):
+        goal = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
+        await far_goal_working(robot)
+        setup.sim.muted = True
+        await robot.wait_link(LinkState.STALE, timeout=WAIT)
+        with pytest.raises(galileo.LinkStale, match="nothing was sent"):
+            await robot.goto(NEAR, timeout=WAIT)
+        setup.sim.muted = False
+        assert (await asyncio.wait_for(goal, WAIT)).target_id == FAR
+    assert setup.commands == [Goto(FAR)]
