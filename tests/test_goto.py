@@ -29,7 +29,6 @@ from galileo_async import (
     GoalRejected,
     GoalResult,
     InvalidArgument,
-    LinkStale,
     NotReady,
     OperationTimeout,
     TargetStatus,
@@ -421,10 +420,23 @@ async def test_unplug_with_reconnect_fails_the_goal_and_the_next_goal_works() ->
     assert fake.received == [Goto(3), Goto(4)]  # a lost link carries no cancel
 
 
-async def test_silent_link_mid_goal_fails_the_waiter() -> None:
+async def test_silent_link_mid_goal_fails_the_waiter_once_the_link_is_given_up() -> None:
+    # Stale is not an end (the link may recover): the goal fails when the link is given up
+    # (stale_reconnect x stale_timeout, 1 s), and a lost link carries no cancel.
     async with connected(ScriptedRobot(**ENDLESS), stale_timeout=0.2) as (robot, fake):
+        events = robot.events()
         task = asyncio.create_task(robot.goto(3))
         await working(robot, 3)
         fake.sending = False
-        with anyio.fail_after(1.0), pytest.raises(LinkStale):
+        with anyio.fail_after(2.0):
+            async for event in events:
+                if isinstance(event, ev.LinkStaleEvent):
+                    break
+        assert not task.done()
+        with anyio.fail_after(2.0), pytest.raises(ConnectionLost):
             await task
+        with pytest.raises(ConnectionLost, match="nothing was sent"):
+            await robot.goto(3, timeout=1)
+        with pytest.raises(ConnectionLost, match="nothing was sent"):
+            await robot.forward(10)
+    assert fake.received == [Goto(3)]

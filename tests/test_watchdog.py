@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import math
 import time
+from fractions import Fraction
 from typing import Any
 
 import pytest
@@ -11,9 +13,12 @@ from fake_device import FakeDevice, MemoryConnector, status_frame
 
 from galileo_async import events as ev
 from galileo_async.state import StatusStore
-from galileo_async.transports import BaseLink, StreamLink, open_link
+from galileo_async.testing import VirtualClock, simulated_robot
+from galileo_async.transports import BaseLink, LinkState, StreamLink, open_link
 
 STEP = 2.0  # upper bound for anything that should happen promptly
+#: The defaults: stale_reconnect (5) x stale_timeout (1 s).
+LOST_AFTER = 5.0
 
 
 def stale_timers(link: BaseLink) -> list[asyncio.TimerHandle]:
@@ -127,3 +132,37 @@ async def test_a_stale_link_gives_the_connection_up_after_stale_reconnect(
     assert "giving the connection up" in lost.reason
     assert time.monotonic() - opened_at >= 2.0 * timeout
     assert stale_timers(link) == []
+
+
+# --- a virtual clock lands exactly on the deadline: no spin at a power of two ----------------
+
+
+@pytest.mark.timeout(30)  # the spin this guards against freezes virtual time: only this ends it
+@pytest.mark.parametrize(
+    ("state", "silence"), [(LinkState.STALE, 1.0), (LinkState.LOST, 5.0)], ids=["stale", "lost"]
+)
+async def test_a_deadline_across_a_power_of_two_of_loop_time_still_fires(
+    state: LinkState, silence: float
+) -> None:
+    # The last frame at t, the timer armed at t + silence: where that sum crosses a power of
+    # two it rounds (to even), down a quarter of the time, and the check at that instant
+    # measures a silence a hair short of the limit. It must not re-arm the timer for the
+    # same instant for ever: on a virtual clock, time would stand still.
+    clock = VirtualClock.install()
+    try:
+        loop = asyncio.get_running_loop()
+        for _boundary in range(4):  # a window without such a frame time: try the next one
+            boundary = 2.0 ** math.ceil(math.log2(loop.time() + 2 * LOST_AFTER))
+            await clock.advance(boundary - silence - 1.0 - loop.time())
+            async with simulated_robot() as (robot, device):
+                while loop.time() < boundary:
+                    last = robot.link.last_frame_at or 0.0
+                    exact = Fraction(last) + Fraction(silence)
+                    if last + silence >= boundary and Fraction(last + silence) < exact:
+                        device.mute()
+                        assert await robot.wait_link(state, timeout=2 * LOST_AFTER) is state
+                        return
+                    await device.advance(1 / 30)
+        pytest.fail("no frame time whose deadline rounds down near four powers of two")
+    finally:
+        clock.release()

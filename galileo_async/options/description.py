@@ -196,7 +196,7 @@ class ConnectOptions(TypedDict, total=False):
         float | None,
         Option(
             DEFAULT_STALE_TIMEOUT,
-            "seconds without a valid frame before the link counts as stale and waiting operations fail (None: off)",  # noqa: E501
+            "seconds without a valid frame before the link counts as stale and waiting operations fail; a goal being followed goes on until the link is lost (None: off)",  # noqa: E501
             check_timeout,
         ),
     ]

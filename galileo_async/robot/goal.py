@@ -100,7 +100,9 @@ class GoalRunner:
             # it preempted the goal before it): stop it, unless a newer goal replaced this one
             # (a cancel would stop it). Before goal.tracker exists nothing was queued.
             if goal.tracker is not None and cancel_on_exit and not goal.preempted:
-                if goal.written and isinstance(exc, (LinkStale, ConnectionLost)):
+                if goal.written and (
+                    isinstance(exc, (LinkStale, ConnectionLost)) or ops.store.link_error is not None
+                ):
                     ops.abandon(goal.target_id)  # unseen, it may drive on: check once back
                 # A stale link may still transmit; a lost one cannot.
                 if not isinstance(exc, ConnectionLost):
@@ -200,11 +202,18 @@ class _Goal:
         sent_at = loop.time()
         accept_by = sent_at + self.accept_timeout
         progress: ProgressCheck | None = None  # from acceptance on, unless progress_timeout None
+        silent_since: float | None = None  # while the link is stale: when its silence began
         while True:
             self._check(ops.store.status)
             now = loop.time()
             stall_at = None if progress is None else progress.deadline()
-            if tracker.accepted:
+            if silent_since is not None:
+                # Stale: the robot may drive on unseen, and the link may recover (another
+                # program took the UDP stream for a moment). Only the overall timeout runs;
+                # a lost link ends the goal (ConnectionLost).
+                stall_at = None
+                wait = deadline.remaining()
+            elif tracker.accepted:
                 if now >= accept_by and tracker.host is not None and tracker.host.restarting:
                     self.revise(settled)
                 wait = deadline.remaining()
@@ -220,17 +229,31 @@ class _Goal:
                 wait = max(0.0, wait)
             try:
                 status = await watch.next(wait)
+            except LinkStale as exc:
+                # (Unless frames came back before this task saw the error: nothing to discount.)
+                if silent_since is None and isinstance(ops.store.link_error, LinkStale):
+                    silent_since = max(sent_at, loop.time() - exc.silent_for)
+                    _log.info("goal %d goes on while the link is stale: %s", target_id, exc)
+                continue
             except GalileoTimeout:
                 if progress is not None and stall_at is not None:
                     # A timer may fire a hair early: the stall deadline is what ended the wait.
                     progress.check(ops.store.status, max(loop.time(), stall_at))
-                overall = deadline.at is not None and deadline.at <= accept_by
+                overall = silent_since is not None or (
+                    deadline.at is not None and deadline.at <= accept_by
+                )
                 raise _timeout(
                     tracker, ops.store.status, deadline, self.accept_timeout, overall=overall
                 ) from None
             self._check(status)
             was_accepted = tracker.accepted
             now = loop.time()
+            if silent_since is not None:
+                # Frames again: the silence counts toward neither accept_timeout nor the stall.
+                accept_by += now - silent_since
+                if progress is not None:
+                    progress.discount(now - silent_since)
+                silent_since = None
             elapsed = now - sent_at
             if tracker.feed(status) or tracker.stood_there(status, elapsed):
                 _log.debug("goal %d arrived (distance %s)", target_id, tracker.distance)

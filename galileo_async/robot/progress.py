@@ -19,7 +19,8 @@ class ProgressCheck:
     """Whether a running goal progressed within ``timeout`` s of unpaused time (no I/O).
 
     Progress: the pose moved PROGRESS_RADIUS from where it was at the last progress, or
-    target_distance fell PROGRESS_RADIUS below its value then. Paused time does not count.
+    target_distance fell PROGRESS_RADIUS below its value then. Paused time does not count,
+    nor time without frames (``discount``).
     """
 
     def __init__(self, target_id: int, timeout: float, status: GalileoStatus, now: float) -> None:
@@ -54,6 +55,11 @@ class ProgressCheck:
         # A value unknown so far (pose lost, distance -1) becomes the reference once known.
         self._pose = self._pose or pose
         self._distance = distance if self._distance is None else self._distance
+
+    def discount(self, seconds: float) -> None:
+        """Leave ``seconds`` just past out of the clock: no frame came then (a stale link)."""
+        if not self._paused:
+            self._since += seconds
 
     def deadline(self) -> float | None:
         """Loop time at which the goal stalls without further progress; None while paused."""

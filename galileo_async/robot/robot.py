@@ -278,11 +278,11 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         paused, neither the pose moved nor target_distance fell 0.1 m for
         ``progress_timeout`` s: left out, the Robot's ``progress_timeout``, 60 s unless set;
         None: never), ConnectionLost or LinkStale (on a lost or stale link before the send:
-        nothing is sent). When the call is cancelled, times out, stalls or the link goes
-        stale, Cancel (``i 2``) is sent first unless ``cancel_on_exit`` is False (a stall
-        then also emits GoalStalledEvent); a goal left on a lost or stale link that still runs
-        once the link is back is cancelled then (event AbandonedGoalCancelled). Standing
-        at the target already: a GoalResult with ``already_there`` True.
+        nothing is sent). A stale link mid-goal is no end (its silence stops the accept and
+        progress clocks); a lost one raises ConnectionLost. Cancelled, timed out or stalled,
+        it sends ``i 2`` first unless ``cancel_on_exit`` is False (a stall: GoalStalledEvent
+        too); a goal left on a lost or stale link that still runs once back is cancelled then
+        (AbandonedGoalCancelled). At the target already: GoalResult ``already_there`` True.
         """
         return await self._goto(Goto(target_id), timeout, accept_timeout, progress_timeout,
                                 cancel_on_exit)  # fmt: skip

@@ -18,7 +18,7 @@ from ..protocol import HEADER, Command, RawCommand, UdpStatusDecoder, encode
 from .base import BaseLink, frames_log
 from .connectors import parse_host_port, translate_errors
 from .options import CLOSE_TIMEOUT
-from .stats import StatusSink
+from .stats import LinkState, StatusSink
 
 __all__ = ["DEFAULT_UDP_PORT", "REGISTRATION", "UdpLink", "check_datagram", "parse_udp_url"]
 
@@ -171,7 +171,9 @@ class UdpLink(BaseLink):
             # BaseLink._on_status for a whole datagram, the decoder having counted already.
             self._refused = None
             stats.last_frame_at = stats.clock()
-            if stats.stale:
+            # Not only after a stale spell: the first frame after connecting, or after an
+            # outage that gave the socket up (a new one registered), brings the link UP too.
+            if self._state is not LinkState.UP:
                 self._fresh_again()
             update = self.store.update
             for status in statuses:

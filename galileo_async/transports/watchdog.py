@@ -73,10 +73,14 @@ class StaleWatchdog:
             return
         last = self.stats.last_frame_at
         alive_since = self._connected_at if last is None else max(last, self._connected_at)
-        silent = self.stats.clock() - alive_since
+        now = self.stats.clock()
+        silent = now - alive_since
+        # Each check compares now with the deadline the timer is armed at, not the silence
+        # with the limit: near a power of two in loop time the sum rounds, and a timer that
+        # lands exactly on it (a virtual clock) would be re-armed for the same instant.
         # A lost link reopened is not stale again: its outage is reported already.
         if self._state is LinkState.UP or self._state is LinkState.CONNECTING:
-            if silent < timeout:  # a frame came since (or the timer ran early): not yet
+            if now < alive_since + timeout:  # a frame came since (or the timer ran early)
                 self._arm_watchdog(alive_since + timeout)
                 return
             self.stats.stale = True
@@ -88,9 +92,9 @@ class StaleWatchdog:
         # A peer that froze or vanished may keep its TCP connection open: give it up.
         if self.stale_reconnect is None:
             return
-        limit = self.stale_reconnect * timeout
-        if silent < limit:
-            self._arm_watchdog(alive_since + limit)  # a fresh frame re-arms it (last_frame_at)
+        give_up_at = alive_since + self.stale_reconnect * timeout
+        if now < give_up_at:
+            self._arm_watchdog(give_up_at)  # a fresh frame re-arms it (last_frame_at)
             return
         reason = f"no valid status frame for {silent:.2f} s: giving the connection up"
         _log.warning("%s", reason)
