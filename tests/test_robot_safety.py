@@ -24,6 +24,7 @@ from galileo_async import events as ev
 from galileo_async import robot as robot_module
 from galileo_async.protocol import AddTarget, Cancel, Goto, RawCommand, ResetTargets, Stop
 from galileo_async.robot import Robot
+from galileo_async.robot.operations import CANCEL_SEND_TIMEOUT
 
 CLOSED: dict[str, Any] = {"nav_status": 0, "visual_status": -1}
 
@@ -178,7 +179,9 @@ async def test_close_ends_a_cancel_still_waiting_to_be_written() -> None:
         with pytest.raises(asyncio.CancelledError):
             await task
         assert len(_cancel_senders()) == 1  # the cancel outlived the goal's task
-        with anyio.fail_after(1):
+        # close() gives it CANCEL_SEND_TIMEOUT to be written (a stop under way is written in
+        # full), then closes the link all the same: bounded.
+        with anyio.fail_after(CANCEL_SEND_TIMEOUT + 1.0):
             await robot.close()
         assert _cancel_senders() == []  # ... but not close()
     assert fake.received == [Goto(3)]
