@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+import shutil
+import tempfile
+from collections.abc import AsyncIterator, Iterator
+from pathlib import Path
 
 import pytest
 from fake_device import FakeDevice
@@ -17,6 +20,19 @@ settings.register_profile(
 )
 settings.register_profile("dev", max_examples=100, deadline=None)
 settings.load_profile("ci")
+
+
+@pytest.fixture(autouse=True)
+def runtime_dir(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A fresh $XDG_RUNTIME_DIR for each test and the galileo processes it starts.
+
+    Control sockets live there: tests never meet another test's, or the user's. Short and
+    under /tmp: a Unix socket's path is limited to about 100 bytes.
+    """
+    path = Path(tempfile.mkdtemp(prefix="gctl-", dir="/tmp"))
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(path))
+    yield path
+    shutil.rmtree(path, ignore_errors=True)
 
 
 @pytest.fixture(autouse=True)

@@ -6,18 +6,17 @@ import asyncio
 import contextlib
 import json
 import os
-import select
 import signal
 import subprocess
 import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
 
 import pytest
 import typer
 from test_cli_served import GALILEO, ServedSim, Terminal, ok, working
+from test_cli_served import _read_until as read_until
 
 from galileo_async.cli.runner import Settings, run
 from galileo_async.cli.signals import STOP_SIGNALS, stop_requested, stop_signal
@@ -86,19 +85,6 @@ def start(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [*GALILEO, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-
-
-def read_until(stream: IO[str], text: str) -> str:
-    """Lines of ``stream`` up to the first that contains ``text`` (bounded by WAIT)."""
-    deadline = time.monotonic() + WAIT
-    seen = ""
-    while text not in seen:
-        ready, _, _ = select.select([stream], [], [], max(0.0, deadline - time.monotonic()))
-        assert ready, f"{text!r} not seen in {seen!r}"
-        line = stream.readline()
-        assert line, f"the stream ended before {text!r}: {seen!r}"
-        seen += line
-    return seen
 
 
 def finish(process: subprocess.Popen[str], sig: signal.Signals) -> tuple[int, str, str]:

@@ -10,10 +10,8 @@ import asyncio
 import contextlib
 import json
 import os
-import shutil
 import sys
-import tempfile
-from collections.abc import AsyncIterator, Iterator, Mapping
+from collections.abc import AsyncIterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -81,15 +79,6 @@ def test_pause_and_cancel_on_the_simulator() -> None:
 
 
 # --- a second process ------------------------------------------------------------------------
-
-
-@pytest.fixture
-def runtime_dir(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A fresh $XDG_RUNTIME_DIR for this process and the galileo processes it starts."""
-    path = Path(tempfile.mkdtemp(prefix="gctl-", dir="/tmp"))
-    monkeypatch.setenv("XDG_RUNTIME_DIR", str(path))
-    yield path
-    shutil.rmtree(path, ignore_errors=True)
 
 
 def environment() -> dict[str, str]:

@@ -14,12 +14,10 @@ import logging
 import os
 import re
 import shlex
-import shutil
 import socket
 import stat
 import sys
-import tempfile
-from collections.abc import AsyncIterator, Callable, Iterator, Mapping
+from collections.abc import AsyncIterator, Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -46,15 +44,6 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="pt
 
 WAIT = 15.0
 SERVER_LOG = "galileo_async.robot.control_server"
-
-
-@pytest.fixture
-def runtime_dir(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A fresh $XDG_RUNTIME_DIR (short: Unix socket paths are limited to ~100 bytes)."""
-    path = Path(tempfile.mkdtemp(prefix="gctl-", dir="/tmp"))
-    monkeypatch.setenv("XDG_RUNTIME_DIR", str(path))
-    yield path
-    shutil.rmtree(path, ignore_errors=True)
 
 
 @pytest.fixture
