@@ -10,6 +10,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AcceptTimeout",
     "AsyncioRequired",
+    "AuthenticationError",
     "CommandSuperseded",
     "ConnectionLost",
     "DuplicateVehicle",
@@ -22,6 +23,7 @@ __all__ = [
     "GoalRejected",
     "GoalStalled",
     "HttpError",
+    "HttpTimeout",
     "InvalidArgument",
     "LinkStale",
     "NotReady",
@@ -234,6 +236,18 @@ class HttpError(GalileoConnectionError):
         super().__init__(message)
         self.endpoint = endpoint
         self.status = status
+
+
+class AuthenticationError(HttpError):
+    """The robot refused the login (username, password) or the token; ``status`` 401 or None."""
+
+
+# .status is None: neither an HTTP status (HttpError's) nor a GalileoStatus (GalileoTimeout's).
+class HttpTimeout(HttpError, GalileoTimeout):  # type: ignore[misc]
+    """An HTTP API call or the WebSocket's opening got no answer in time; ``status`` is None."""
+
+    def __init__(self, message: str, *, endpoint: str) -> None:
+        super().__init__(message, endpoint=endpoint, status=None)
 
 
 class TaskFailed(GoalError):

@@ -20,6 +20,7 @@ PUBLIC = {
     "GoalStalled", "LinkState",
     "DuplicateVehicle",
     "HttpError", "NotSupported", "TaskFailed",
+    "AuthenticationError", "HttpTimeout",
     "StopReport", "StopUnconfirmed",
 }  # fmt: skip
 

@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
+import socket
 import ssl
 from typing import Any
 
 import aiohttp
 from pydantic import SecretStr
 
-from ..errors import ConnectionLost, HttpError
+from ..errors import AuthenticationError, ConnectionLost, HttpError, HttpTimeout
 from .options import HttpAddress
 
-__all__ = ["API_PATH", "HttpApi", "tls_context", "tls_hint"]
+__all__ = ["API_PATH", "HttpApi", "failure_text", "tls_context", "tls_hint"]
 
 #: Every endpoint lives under this path (galileo-proto http.md).
 API_PATH = "/api/v1"
@@ -34,6 +36,31 @@ def tls_hint(exc: BaseException) -> str:
         f" (certificate verify failed: {exc.certificate_error.__class__.__name__}"
         f" {getattr(exc.certificate_error, 'verify_message', '')}; give ca_file= the CA's PEM file)"
     )
+
+
+def _os_text(error: OSError) -> str:
+    """The operating system's words for ``error`` ("Connection refused"), else its message."""
+    if not isinstance(error, socket.gaierror) and error.errno is not None and error.errno > 0:
+        return os.strerror(error.errno)
+    return error.strerror or str(error) or type(error).__name__
+
+
+def failure_text(exc: BaseException) -> str:
+    """Why a request failed, with the address it tried and the OS's cause; never a URL's query.
+
+    (A response error's own text would show the URL, token included: only its status is used.)
+    """
+    if isinstance(exc, aiohttp.ClientConnectorCertificateError):
+        return f"cannot connect to {exc.host}:{exc.port}{tls_hint(exc)}"
+    if isinstance(exc, aiohttp.ClientConnectorError):
+        return f"cannot connect to {exc.host}:{exc.port} ({_os_text(exc.os_error)})"
+    if isinstance(exc, aiohttp.ClientResponseError):
+        return f"{type(exc).__name__} HTTP {exc.status}"
+    if isinstance(exc, OSError):  # ClientOSError: a reset or broken connection
+        return f"{type(exc).__name__} ({_os_text(exc)})"
+    if isinstance(exc, aiohttp.ServerDisconnectedError):
+        return "the server closed the connection without an answer"
+    return type(exc).__name__
 
 
 class HttpApi:
@@ -88,12 +115,18 @@ class HttpApi:
         answer = await self.call("GET", "/token", params, authenticate=False)
         token = answer.get("token") if isinstance(answer, dict) else None
         if not isinstance(token, str) or not token:
-            raise HttpError(
+            raise AuthenticationError(
                 f"GET {API_PATH}/token: no token in the answer (wrong username or password?)",
                 endpoint="/token",
                 status=None,
             )
         self.token = SecretStr(token)
+
+    def refused_hint(self) -> str:
+        """Why the robot answers 401: its token checking is on and the token is missing or stale."""
+        if self.token is None:
+            return " (the robot checks tokens: give token= or username and password)"
+        return " (the robot refused the token: expired, revoked or wrong)"
 
     def token_query(self) -> dict[str, str]:
         """``{"token": …}`` when a token is known, else empty."""
@@ -110,8 +143,9 @@ class HttpApi:
     ) -> Any:
         """The decoded JSON answer (or text) of ``method`` ``API_PATH + endpoint``.
 
-        HttpError naming the endpoint: an HTTP status of 400 or more (``status``), no answer
-        within ``timeout`` or a failed connection (``status`` None).
+        HttpError naming the endpoint: an HTTP status of 400 or more (``status``; 401:
+        AuthenticationError), a failed connection (``status`` None, the OS's cause), or no
+        answer within ``timeout`` (HttpTimeout, also a TimeoutError).
         """
         query = {k: str(v) for k, v in (params or {}).items()}
         if authenticate:
@@ -123,20 +157,21 @@ class HttpApi:
             ) as response:
                 text = await response.text()
                 if response.status >= 400:
-                    hint = " (token checking is on: give token= or username/password)"
-                    raise HttpError(
-                        f"{where}: HTTP {response.status} {response.reason or ''}".rstrip()
-                        + (hint if response.status == 401 else ""),
-                        endpoint=endpoint,
-                        status=response.status,
-                    )
+                    message = f"{where}: HTTP {response.status} {response.reason or ''}".rstrip()
+                    if response.status == 401:
+                        raise AuthenticationError(
+                            message + self.refused_hint(), endpoint=endpoint, status=401
+                        )
+                    raise HttpError(message, endpoint=endpoint, status=response.status)
         except asyncio.TimeoutError:
-            raise HttpError(
-                f"{where}: no answer within {self.timeout} s", endpoint=endpoint, status=None
+            raise HttpTimeout(
+                f"{where}: no answer within {self.timeout} s from {self.base_url} "
+                "(request_timeout)",
+                endpoint=endpoint,
             ) from None
         except aiohttp.ClientError as exc:
             raise HttpError(
-                f"{where}: {type(exc).__name__}{tls_hint(exc)}", endpoint=endpoint, status=None
+                f"{where}: {failure_text(exc)}", endpoint=endpoint, status=None
             ) from None
         try:
             return json.loads(text)

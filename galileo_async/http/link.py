@@ -12,9 +12,11 @@ from typing import Any
 import aiohttp
 
 from ..errors import (
+    AuthenticationError,
     ConnectionLost,
     GalileoConnectionError,
     HttpError,
+    HttpTimeout,
     InvalidArgument,
     NotSupported,
 )
@@ -23,10 +25,12 @@ from ..protocol.velocity import PoseGoal, Velocity
 from ..transports.base import BaseLink
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
 from ..transports.stats import StatusSink
-from .client import HttpApi, tls_context, tls_hint
+from .client import HttpApi, failure_text, tls_context
 from .options import (
+    DEFAULT_HTTP_PORT,
     DEFAULT_PING_INTERVAL,
     DEFAULT_REQUEST_TIMEOUT,
+    DEFAULT_WS_PORT,
     HttpAddress,
     redact_http_url,
 )
@@ -111,24 +115,40 @@ class HttpLink(BaseLink):
 
     async def _connect(self) -> None:
         await self._drop()
+        await self.api.login()
+        what = f"cannot open the WebSocket {self.ws_url()} of {self.name}"
         try:
-            await self.api.login()
-            self._ws = await self.api.session.ws_connect(
-                self.ws_url(),
-                params=self.api.token_query(),
-                timeout=aiohttp.ClientWSTimeout(ws_close=self.connect_timeout),
-                autoping=True,
-                heartbeat=None,  # re-armed by every frame it never fires here: our timer pings
+            self._ws = await asyncio.wait_for(
+                self.api.session.ws_connect(
+                    self.ws_url(),
+                    params=self.api.token_query(),
+                    timeout=aiohttp.ClientWSTimeout(ws_close=self.connect_timeout),
+                    autoping=True,
+                    heartbeat=None,  # re-armed by every frame, it never fires: our timer pings
+                ),
+                self.connect_timeout,
             )
-        except HttpError:
-            raise
-        except (aiohttp.ClientError, asyncio.TimeoutError, OSError) as exc:
-            status = getattr(exc, "status", None)
-            raise HttpError(
-                f"cannot open the WebSocket {self.ws_url()} of {self.name}: "
-                f"{type(exc).__name__}{f' HTTP {status}' if status else ''}{tls_hint(exc)}",
+        except asyncio.TimeoutError:
+            raise HttpTimeout(
+                f"{what}: no answer within {self.connect_timeout} s (connect_timeout)"
+                f"{self._ws_port_hint()}",
                 endpoint=STATUS_TOPIC,
-                status=status,
+            ) from None
+        except aiohttp.WSServerHandshakeError as exc:
+            if exc.status == 401:
+                raise AuthenticationError(
+                    f"{what}: HTTP 401{self.api.refused_hint()}", endpoint=STATUS_TOPIC, status=401
+                ) from None
+            raise HttpError(
+                f"{what}: HTTP {exc.status}{self._ws_port_hint()}",
+                endpoint=STATUS_TOPIC,
+                status=exc.status,
+            ) from None
+        except (aiohttp.ClientError, OSError) as exc:
+            raise HttpError(
+                f"{what}: {failure_text(exc)}{self._ws_port_hint()}",
+                endpoint=STATUS_TOPIC,
+                status=None,
             ) from None
         ws = self._ws
         assert ws is not None
@@ -137,6 +157,17 @@ class HttpLink(BaseLink):
             asyncio.create_task(self._ping(ws), name=f"{self!r} pinger"),
             asyncio.create_task(self._call_worker(), name=f"{self!r} calls"),
         ]
+
+    def _ws_port_hint(self) -> str:
+        """Say the WebSocket has a port of its own, when it defaulted away from the API's."""
+        address = self.address
+        api_port = address.base_url.rpartition(":")[2]
+        if address.ws_port != DEFAULT_WS_PORT or api_port == str(DEFAULT_HTTP_PORT):
+            return ""
+        return (
+            f"; the status WebSocket listens on ws_port ({DEFAULT_WS_PORT} unless given), "
+            f"not on the API's port {api_port}: give ws_port= (or ?ws_port= in the URL)"
+        )
 
     async def _read(self, ws: aiohttp.ClientWebSocketResponse[bool]) -> None:
         error: BaseException | None = None

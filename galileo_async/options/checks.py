@@ -43,7 +43,7 @@ DEFAULT_RPC_TIMEOUT = 2.0
 DEFAULT_WS_PORT = 3547
 #: Seconds between the WebSocket pings of the http:// link's own timer (http.md: about 1 s).
 DEFAULT_PING_INTERVAL = 1.0
-#: Seconds one REST call of the http:// link may take before it fails with HttpError.
+#: Seconds one REST call of the http:// link may take before it fails with HttpTimeout.
 DEFAULT_REQUEST_TIMEOUT = 5.0
 DEFAULT_MASTER_CHECK_INTERVAL = 1.0
 #: Goal ids are one byte (PROTOCOL.md §2.b).

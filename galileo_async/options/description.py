@@ -251,7 +251,7 @@ class ConnectOptions(TypedDict, total=False):
         float,
         Option(
             DEFAULT_CONNECT_TIMEOUT,
-            "seconds a TCP connect (`socket://`) or a ROS connection (`ros://`) may take (ignored elsewhere)",  # noqa: E501
+            "seconds a TCP connect (`socket://`), a ROS connection (`ros://`) or the opening of the status WebSocket (`http://`) may take (ignored elsewhere)",  # noqa: E501
             check_seconds,
         ),
     ]
@@ -357,7 +357,7 @@ class ConnectOptions(TypedDict, total=False):
         float,
         Option(
             DEFAULT_REQUEST_TIMEOUT,
-            "seconds one REST call may take before it fails with `HttpError`",
+            "seconds one REST call may take before it fails with `HttpTimeout` (an `HttpError` and a `TimeoutError`)",  # noqa: E501
             check_seconds,
             kinds=_HTTP,
         ),
