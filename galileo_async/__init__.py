@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import types
 from typing import TYPE_CHECKING, Any
 
 from . import errors, protocol
@@ -73,6 +74,21 @@ _LAZY: dict[str, str] = {
     "StopReport": "robot",
     "connect": "robot",
 }
+
+
+def __dir__() -> list[str]:
+    """The public names (``__all__``), the module's dunders and its loaded public submodules."""
+    dunders = {name for name in globals() if name.startswith("__") and name.endswith("__")}
+    submodules = {
+        name
+        for name, value in globals().items()
+        if isinstance(value, types.ModuleType)
+        and value.__name__ == f"{__name__}.{name}"
+        and not name.startswith("_")
+    }
+    shown = {*__all__, *dunders, *submodules}
+    shown.difference_update(("__getattr__", "__dir__"))
+    return sorted(shown)
 
 
 def __getattr__(name: str) -> Any:

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import inspect
+import json
+import subprocess
+import sys
 
 import galileo_async as galileo
 
@@ -65,3 +68,21 @@ def test_errors_are_grouped_under_one_root() -> None:
     assert issubclass(galileo.GalileoTimeout, TimeoutError)
     assert issubclass(galileo.AcceptTimeout, TimeoutError)
     assert issubclass(galileo.GalileoConnectionError, ConnectionError)
+
+
+def test_dir_lists_the_public_names_and_no_implementation_names() -> None:
+    # A fresh interpreter: the lazy names (connect, connect_fleet, Fleet) not loaded yet.
+    script = "import json, galileo_async; print(json.dumps(dir(galileo_async)))"
+    shown = json.loads(
+        subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, check=True, timeout=60
+        ).stdout
+    )
+    assert set(galileo.__all__) <= set(shown)
+    assert shown == sorted(shown)
+    for name in ("__doc__", "__name__", "__version__", "__all__", "__path__", "models"):
+        assert name in shown, name
+    for name in ("TYPE_CHECKING", "Any", "annotations", "importlib", "logging", "types", "_LAZY",
+                 "_checks", "__getattr__", "__dir__"):  # fmt: skip
+        assert name not in shown, name
+    assert all(not name.startswith("_") or name.endswith("__") for name in shown)
