@@ -238,3 +238,74 @@ def test_fleet_fixtures_and_their_marker(run: pytest.Pytester) -> None:
             "*1 task(s) left running: forgotten-goto*",
         ]
     )
+
+
+UNMARKED_TESTS = """
+import asyncio
+
+import pytest
+
+
+async def test_unmarked_with_the_fixtures(galileo_robot, galileo_device):
+    pass
+
+
+async def test_unmarked_plain():
+    await asyncio.sleep(0)
+
+
+@pytest.mark.asyncio
+async def test_marked(galileo_robot):
+    assert galileo_robot.status is not None
+
+
+@pytest.fixture
+def anyio_backend():
+    return "asyncio"
+
+
+@pytest.mark.anyio
+async def test_run_by_anyio():
+    await asyncio.sleep(0)
+
+
+@pytest.mark.asyncio
+async def test_a_failure_of_its_own_is_kept():
+    pytest.fail("async def functions are not natively supported: the test's own words")
+"""
+
+
+def test_an_unmarked_test_in_strict_mode_says_what_to_add(run: pytest.Pytester) -> None:
+    run.makeini("[pytest]\nasyncio_mode = strict\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(test_unmarked=UNMARKED_TESTS)
+    result = pytest_run(run, "-p", "anyio")
+    result.assert_outcomes(passed=2, failed=3)
+    result.stdout.fnmatch_lines(
+        [
+            "*_ test_unmarked_with_the_fixtures _*",
+            "async test not run: pytest-asyncio's strict mode runs only the async tests marked "
+            "asyncio; galileo_device, galileo_robot need it. Add @pytest.mark.asyncio to the test"
+            " (or pytestmark = pytest.mark.asyncio to its module), or set asyncio_mode = "
+            '"auto" under [[]tool.pytest.ini_options[]] in pyproject.toml (asyncio_mode = auto in'
+            " pytest.ini) to run every async test on asyncio.",
+            "*_ test_unmarked_plain _*",
+            "async test not run: pytest-asyncio's strict mode runs only the async tests marked "
+            "asyncio. Add @pytest.mark.asyncio to the test*",
+            "*_ test_a_failure_of_its_own_is_kept _*",
+            "*Failed: async def functions are not natively supported: the test's own words",
+        ]
+    )
+    result.stdout.fnmatch_lines_random(
+        ["PASSED test_unmarked.py::test_marked", "PASSED test_unmarked.py::test_run_by_anyio"]
+    )
+    assert "not natively supported.\n" not in result.stdout.str()  # pytest's generic words
+
+
+def test_without_pytest_asyncio_or_the_fixtures_pytest_keeps_its_words(
+    run: pytest.Pytester,
+) -> None:
+    run.makepyfile(test_plain="async def test_unrun():\n    pass\n")
+    result = pytest_run(run, "-p", "no:asyncio")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*async def functions are not natively supported*"])
+    assert "async test not run" not in result.stdout.str()

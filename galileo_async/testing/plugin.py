@@ -6,13 +6,15 @@ simulated_robot's arguments. ``galileo_fleet`` and ``galileo_devices`` are those
 simulated_fleet() (``@pytest.mark.galileo_fleet_sim(...)``). A test that uses them fails
 when it leaves a Robot, task or timer behind; ``galileo_no_leaks`` gives any async test
 the same check. The fixtures need pytest-asyncio (the extra ``testing``); the plugin
-loads without it.
+loads without it. An async test no plugin ran (unmarked in pytest-asyncio's strict mode)
+fails saying what to add, where pytest would say only that async tests need a plugin.
 """
 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import AsyncIterator, Callable
+import inspect
+from collections.abc import AsyncIterator, Callable, Collection, Generator
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import pytest
@@ -40,12 +42,79 @@ _FLEET_MARKER_HELP = (
     "the simulated fleet behind the galileo_fleet and galileo_devices fixtures"
 )
 _Pair = TypeVar("_Pair")
+#: The fixtures this plugin gives (an async test using one is run by pytest-asyncio only).
+FIXTURES = frozenset({
+    "galileo_device", "galileo_devices", "galileo_fleet", "galileo_fleet_simulation",
+    "galileo_no_leaks", "galileo_robot", "galileo_simulation",
+})  # fmt: skip
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """Declare the markers (so --strict-markers accepts them)."""
     config.addinivalue_line("markers", _MARKER_HELP)
     config.addinivalue_line("markers", _FLEET_MARKER_HELP)
+
+
+def _asyncio_mode(config: pytest.Config) -> str | None:
+    """pytest-asyncio's mode ("strict", "auto"), or None when its plugin is not active."""
+    if not config.pluginmanager.has_plugin("asyncio"):
+        return None
+    try:
+        mode = config.getoption("asyncio_mode", None) or config.getini("asyncio_mode")
+    except ValueError:  # another plugin named "asyncio"
+        return None
+    return str(mode)
+
+
+def unrun_async_test_message(item: pytest.Function) -> str | None:
+    """What to add to run ``item``, an async test no plugin ran; None if it is not ours to say.
+
+    Ours to say: the test uses this plugin's fixtures, or pytest-asyncio runs in strict mode.
+    """
+    function = item.obj
+    if not (inspect.iscoroutinefunction(function) or inspect.isasyncgenfunction(function)):
+        return None
+    mode = _asyncio_mode(item.config)
+    ours = sorted(FIXTURES.intersection(item.fixturenames))
+    if mode != "strict" and not ours:
+        return None
+    try:
+        parameters: Collection[str] = inspect.signature(function).parameters
+    except (TypeError, ValueError):
+        parameters = ()
+    asked = [name for name in ours if name in parameters]
+    shown = asked or ours
+    why = f"; {', '.join(shown)} {'needs' if len(shown) == 1 else 'need'} it" if shown else ""
+    plugin = (
+        "pytest-asyncio's strict mode runs only the async tests marked asyncio"
+        if mode == "strict"
+        else "pytest-asyncio is not active (pip install 'galileo-async[testing]')"
+    )
+    return (
+        f"async test not run: {plugin}{why}. Add @pytest.mark.asyncio to the test (or "
+        'pytestmark = pytest.mark.asyncio to its module), or set asyncio_mode = "auto" under '
+        "[tool.pytest.ini_options] in pyproject.toml (asyncio_mode = auto in pytest.ini) to run "
+        "every async test on asyncio."
+    )
+
+
+#: What pytest says of an async test no plugin ran (a failure from pytest 8.4, a skip before).
+_PYTESTS_WORDS = "async def functions are not natively supported"
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, object]:
+    """Where pytest fails (or skips) an async test no plugin ran, fail saying what to add.
+
+    Every plugin runs first (anyio, pytest-asyncio, …): only pytest's own verdict is replaced.
+    """
+    try:
+        return (yield)
+    except (pytest.fail.Exception, pytest.skip.Exception) as exc:
+        message = unrun_async_test_message(pyfuncitem)
+        if message is None or _PYTESTS_WORDS not in str(exc):
+            raise
+        raise pytest.fail.Exception(message, pytrace=False) from None
 
 
 def _sim_arguments(request: pytest.FixtureRequest, name: str = MARKER) -> dict[str, Any]:
