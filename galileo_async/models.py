@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import enum
 import math
+import struct
 import warnings
+from collections.abc import Generator, Iterator
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, field_serializer
 
 __all__ = [
     "ARRIVED_DISTANCE",
+    "FLOAT32_FIELDS",
     "STATUS_FIELDS",
     "AngleGoalStatus",
     "ChargeStatus",
@@ -22,6 +25,7 @@ __all__ = [
     "StatusLayout",
     "TargetStatus",
     "VisualStatus",
+    "float32_decimal",
 ]
 
 #: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11): the
@@ -40,6 +44,83 @@ _PLACEHOLDER: dict[str, float] = {
     "current_speed_theta": 0.0, "current_pose_x": 0.0, "current_pose_y": 0.0,
     "current_angle": 0.0, "busy_status": 0,
 }  # fmt: skip
+
+
+#: The status fields every link carries as float32 (serial and UDP frames, the ROS message,
+#: the HTTP API's JSON of it): they read as float32_decimal of the wire value.
+FLOAT32_FIELDS: tuple[str, ...] = (
+    "power", "target_distance", "control_speed_x", "control_speed_theta", "current_speed_x",
+    "current_speed_theta", "current_pose_x", "current_pose_y", "current_angle",
+)  # fmt: skip
+
+_F32 = struct.Struct("<f")
+#: float32 value → its shortest decimal: an idle robot repeats its values, and a status is
+#: read more than once. Emptied when full (a moving robot's values rarely come back), so it
+#: never holds more than about 25 kB.
+_DECIMALS: dict[float, float] = {}
+_DECIMALS_MAX = 256
+_FORMATS = (".6g", ".7g", ".8g")
+
+
+def _shortest(value: float) -> float:
+    """float32_decimal without the cache."""
+    try:
+        bits = _F32.pack(value)
+    except OverflowError:  # beyond float32's range: a double, not a float32
+        return value
+    if _F32.unpack(bits)[0] != value:  # NaN, or a double float32 cannot hold exactly
+        return value
+    for form in _FORMATS:
+        decimal = float(format(value, form))
+        if _F32.pack(decimal) == bits:
+            return decimal
+    return float(format(value, ".9g"))  # 9 significant digits always round-trip in float32
+
+
+def float32_decimal(value: float) -> float:
+    """The shortest decimal (6 to 9 significant digits) that rounds to ``value`` in float32.
+
+    Defined as the first of ``float(f"{value:.{n}g}")`` for n = 6, 7, 8, 9 that converts back
+    to ``value``'s float32 bits, so nothing is lost: 24.280000686645508 (float32 of 24.28)
+    gives 24.28. A value that is no float32 (NaN, a double float32 cannot hold) is returned
+    as it is; so are ±0.0 and ±inf.
+    """
+    if not value:
+        return value
+    decimal = _DECIMALS.get(value)
+    if decimal is None:
+        decimal = _shortest(value)
+        if decimal == decimal:  # never a NaN key: each NaN is a new object, never found
+            if len(_DECIMALS) >= _DECIMALS_MAX:
+                _DECIMALS.clear()
+            _DECIMALS[value] = decimal
+    return decimal
+
+
+class _Float32Field:
+    """Reads a GalileoStatus field as float32_decimal of the wire value the instance keeps.
+
+    Reading converts, not decoding: a status frame costs nothing more to decode, and a value
+    nobody reads is never converted. A data descriptor, so it comes before the instance's
+    ``__dict__``, where pydantic and the decoder keep the wire value.
+    """
+
+    __slots__ = ("name",)
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def __get__(self, status: object, owner: type | None = None) -> Any:
+        if status is None:
+            return self
+        value = status.__dict__[self.name]
+        if not value:  # None, 0.0, -0.0
+            return value
+        decimal = _DECIMALS.get(value)
+        return float32_decimal(value) if decimal is None else decimal
+
+    def __set__(self, status: object, value: Any) -> None:
+        status.__dict__[self.name] = value  # pydantic's frozen check came first
 
 
 class _TolerantIntEnum(enum.IntEnum):
@@ -166,7 +247,12 @@ class Pose(BaseModel):
 
 
 class GalileoStatus(BaseModel):
-    """One decoded status frame; fields its layout lacks are None, never zero."""
+    """One decoded status frame; fields its layout lacks are None, never zero.
+
+    The FLOAT32_FIELDS read, dump and show as float32_decimal of the wire value (24.28, not
+    24.280000686645508); equality compares the wire values. StatusDecoder.feed_raw gives the
+    wire values themselves.
+    """
 
     model_config = ConfigDict(frozen=True)
 
@@ -192,6 +278,33 @@ class GalileoStatus(BaseModel):
     current_pose_y: float | None = None
     current_angle: float | None = None
     busy_status: int | None = None
+
+    @field_serializer(*FLOAT32_FIELDS)
+    def _float32_decimal(self, value: float | None) -> float | None:
+        return None if value is None else float32_decimal(value)
+
+    def __eq__(self, other: object) -> bool:
+        """Equal when of one type and every field reads the same (24.28 and its float32 too)."""
+        if not isinstance(other, BaseModel):
+            return NotImplemented
+        if type(other) is not type(self):
+            return False
+        return self.__dict__ == other.__dict__ or self._read() == other._read()
+
+    def __hash__(self) -> int:
+        return hash(self._read())
+
+    def _read(self) -> tuple[Any, ...]:
+        """Every field's value as it reads (the FLOAT32_FIELDS as decimals)."""
+        return tuple(getattr(self, name) for name in _FIELD_NAMES)
+
+    def __repr_args__(self) -> Iterator[tuple[str | None, Any]]:
+        for name, value in super().__repr_args__():
+            yield name, getattr(self, name) if name in _FLOAT32 else value
+
+    def __iter__(self) -> Generator[tuple[str, Any], None, None]:
+        for name, value in super().__iter__():
+            yield name, getattr(self, name) if name in _FLOAT32 else value
 
     @property
     def navigating(self) -> bool:
@@ -273,3 +386,7 @@ class GalileoStatus(BaseModel):
 
 #: Names of the wire fields, in the order of the current (v2) struct.
 STATUS_FIELDS: tuple[str, ...] = tuple(n for n in GalileoStatus.model_fields if n != "layout")
+_FLOAT32 = frozenset(FLOAT32_FIELDS)
+_FIELD_NAMES = tuple(GalileoStatus.model_fields)
+for _name in FLOAT32_FIELDS:  # after pydantic built the class: it must not see them as defaults
+    setattr(GalileoStatus, _name, _Float32Field(_name))

@@ -6,11 +6,14 @@ import datetime
 import json
 import signal
 import socket
+import struct
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from galileo_async.models import float32_decimal
 
 GALILEO = [sys.executable, "-m", "galileo_async"]
 #: Bound on every run, seconds.
@@ -293,15 +296,17 @@ def test_cancel_without_a_goal_says_no_goal_was_running() -> None:
     assert result.stdout.strip() == "no goal was running"
 
 
-def test_decode_raw_keeps_every_digit(tmp_path: Path) -> None:
+def test_decode_raw_keeps_every_bit(tmp_path: Path) -> None:
     capture = tmp_path / "capture.glc"
     recorded = galileo("--port", "sim://?power=24.79", "record", str(capture), "--duration", "0.3")
     assert recorded.returncode == 0, recorded.stderr
     shown = json.loads(galileo("decode", str(capture)).stdout.splitlines()[-1])
     exact = json.loads(galileo("decode", "--raw", str(capture)).stdout.splitlines()[-1])
     assert decimals(shown["power"]) <= 2
-    assert exact["power"] != shown["power"]  # 24.79 as a float32: 24.790000915527344
-    assert round(exact["power"], 2) == shown["power"]
+    # The float32 of 24.79 reads as 24.79, not 24.790000915527344, and keeps its bits.
+    assert exact["power"] == shown["power"] == 24.79
+    wire = struct.unpack("<f", struct.pack("<f", 24.79))[0]
+    assert float32_decimal(wire) == exact["power"]
 
 
 @pytest.mark.parametrize("port", ["socket://nosuchhost.invalid:7000", "udp://nosuchhost.invalid"])

@@ -189,7 +189,7 @@ def test_v1_with_zero_power_is_ambiguous_until_the_stream_is_known() -> None:
     (fresh,) = StatusDecoder().feed(zero)
     assert fresh.layout is V1C
     assert fresh.charge_status == 0
-    assert fresh.power == struct.unpack("<f", struct.pack("<i", 6))[0]  # shifted fields
+    assert struct.pack("<f", fresh.power) == struct.pack("<i", 6)  # shifted fields
     decoder = StatusDecoder()
     first, second = decoder.feed(v1_frame(12.0, 8) + zero)
     assert (first.layout, second.layout) == (V1, V1)

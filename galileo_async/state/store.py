@@ -114,7 +114,9 @@ class StatusStore(Listeners):
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
-        if status.power == 0.0 and status.is_placeholder:
+        # The wire value, read as pydantic keeps it: the field itself reads as a decimal
+        # (models.float32_decimal), a conversion not needed to see a zero.
+        if status.__dict__["power"] == 0.0 and status.is_placeholder:
             self._placeholder()
             return
         if self._frame_waiters:
