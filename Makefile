@@ -4,6 +4,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_STAMP := $(VENV)/.installed-cli
 TEST_STAMP := $(VENV)/.installed-dev
+#: Where `make dist` puts the sdist and the wheel.
+DIST ?= dist
 # Editable installs that type checkers see: setuptools' compat mode puts this directory on
 # sys.path with a plain .pth line, which mypy and pyright read (its default mode installs an
 # import hook they cannot follow). compat is setuptools' transitional mode, and setuptools
@@ -11,7 +13,7 @@ TEST_STAMP := $(VENV)/.installed-dev
 PIP_EDITABLE := PYTHONWARNINGS='ignore:Compat editable installs' $(BIN)/python -m pip install \
 	--quiet --disable-pip-version-check --config-settings editable_mode=compat -e
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench dist clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -42,5 +44,11 @@ lint: $(TEST_STAMP)
 bench: $(TEST_STAMP)
 	$(BIN)/python -m benchmarks
 
+# The sdist and the wheel, built as an index would get them (python -m build, in an isolated
+# environment): then `pip install '$(DIST)/galileo_async-VERSION-py3-none-any.whl[cli]'`.
+dist: $(TEST_STAMP)
+	rm -f $(DIST)/galileo_async-*.tar.gz $(DIST)/galileo_async-*.whl
+	$(BIN)/python -m build --outdir $(DIST) .
+
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) build dist *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -1,6 +1,7 @@
 """Tests of examples/patrol_app.py on a simulated robot, with galileo_async's pytest plugin.
 
-pip install 'galileo-async[testing]', then: pytest examples/test_patrol_app.py
+Install galileo-async with the extra [testing] (README's Install), then:
+pytest examples/test_patrol_app.py
 Each test gets a fresh simulated robot (navigation open, six targets) on a virtual clock:
 a patrol of minutes takes milliseconds, and the test fails if it leaves anything running.
 """
