@@ -250,8 +250,8 @@ class GalileoStatus(BaseModel):
     """One decoded status frame; fields its layout lacks are None, never zero.
 
     The FLOAT32_FIELDS read, dump and show as float32_decimal of the wire value (24.28, not
-    24.280000686645508); equality compares the wire values. StatusDecoder.feed_raw gives the
-    wire values themselves.
+    24.280000686645508), and two statuses are equal when their fields read the same.
+    StatusDecoder.feed_raw gives the wire values themselves.
     """
 
     model_config = ConfigDict(frozen=True)

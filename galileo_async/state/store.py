@@ -114,8 +114,8 @@ class StatusStore(Listeners):
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
-        # The wire value, read as pydantic keeps it: the field itself reads as a decimal
-        # (models.float32_decimal), a conversion not needed to see a zero.
+        # power's wire value: the field reads it through models.float32_decimal, a
+        # conversion this test for zero, on every frame, does not need.
         if status.__dict__["power"] == 0.0 and status.is_placeholder:
             self._placeholder()
             return

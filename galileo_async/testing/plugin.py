@@ -85,11 +85,12 @@ def unrun_async_test_message(item: pytest.Function) -> str | None:
     asked = [name for name in ours if name in parameters]
     shown = asked or ours
     why = f"; {', '.join(shown)} {'needs' if len(shown) == 1 else 'need'} it" if shown else ""
-    plugin = (
-        "pytest-asyncio's strict mode runs only the async tests marked asyncio"
-        if mode == "strict"
-        else "pytest-asyncio is not active (pip install 'galileo-async[testing]')"
-    )
+    if mode == "strict":
+        plugin = "pytest-asyncio's strict mode runs only the async tests marked asyncio"
+    elif mode is None:
+        plugin = "pytest-asyncio is not active (pip install 'galileo-async[testing]')"
+    else:
+        plugin = f"pytest-asyncio ({mode} mode) did not run it"
     return (
         f"async test not run: {plugin}{why}. Add @pytest.mark.asyncio to the test (or "
         'pytestmark = pytest.mark.asyncio to its module), or set asyncio_mode = "auto" under '
