@@ -39,6 +39,7 @@ test: $(TEST_STAMP)
 
 lint: $(TEST_STAMP)
 	$(BIN)/python -m ruff check galileo_async tests examples benchmarks
+	$(BIN)/python -m ruff format --check galileo_async tests examples benchmarks
 	$(BIN)/python -m mypy --strict galileo_async
 
 bench: $(TEST_STAMP)
