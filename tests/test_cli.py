@@ -514,7 +514,7 @@ def test_help_names_every_url_form() -> None:
     result = invoke("--help", port=None)
     assert result.exit_code == 0
     text = " ".join(word for word in result.stdout.split() if word != "│")  # rich's box
-    for form in ("socket://host:port", "ros://host:11311", "sim://", "--map-targets"):
+    for form in ("socket://host:port", "ros://host[:port]", "sim://", "--map-targets"):
         assert form in text
 
 

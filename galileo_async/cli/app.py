@@ -10,6 +10,7 @@ import typer
 from .. import __version__
 from ..errors import InvalidArgument
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
+from ..transports import URL_SCHEMES, url_forms
 from . import capture, demo, fleet_cmd, ops, serve, stopping, teleop, vda5050, watch
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
@@ -30,8 +31,9 @@ app = typer.Typer(
     name="galileo",
     cls=UsageErrorsAsJson,  # usage errors are JSON when the command line has --json
     help=(
-        "Drive and watch a Galileo navigation robot (serial, socket://, ros:// or the sim:// "
-        "default)."
+        "Drive and watch a Galileo navigation robot on a serial device or "
+        f"{', '.join(f'{scheme}://' for scheme in URL_SCHEMES)}; without --port on "
+        f"{DEFAULT_PORT}, the built-in simulator."
     ),
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -64,12 +66,12 @@ def options(
         typer.Option(
             "--port",
             "-p",
+            metavar="URL",
             envvar=PORT_ENV,
             show_envvar=True,
             help=(
-                "Serial device (/dev/ttyUSB0), socket://host:port, ros://host:11311 (ROS "
-                f"master), or sim://?speed=…&layout=… (simulator). Default: {DEFAULT_PORT}, "
-                "the built-in simulator (robot commands say so on stderr)."
+                f"Where the robot is: {url_forms()}. Default: {DEFAULT_PORT}, the built-in "
+                "simulator (robot commands say so on stderr)."
             ),
         ),
     ] = None,

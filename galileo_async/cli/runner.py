@@ -30,7 +30,7 @@ from ..errors import (
     NotReady,
     PortBusy,
 )
-from ..transports import link_kind
+from ..transports import link_kind, url_forms
 from .logs import setup_logging
 from .output import err_console, out_console, print_json, timestamp
 from .signals import Stops, handling, running, stop_on_interrupt
@@ -183,8 +183,8 @@ def checked_port(settings: Settings) -> str:
     """The port of ``settings``; an empty --port or GALILEO_PORT exits with ExitCode.USAGE."""
     if not settings.port.strip():
         fail(
-            f"{settings.port_source} is empty: name the robot's port (a serial device, "
-            f"socket://host:port, ros://host:11311) or {DEFAULT_PORT} for the simulator",
+            f"{settings.port_source} is empty: name the robot's port ({url_forms()}; "
+            f"{DEFAULT_PORT} for the simulator)",
             ExitCode.USAGE,
         )
     return settings.port

@@ -32,7 +32,7 @@ from .options import (
 )
 from .stats import LinkState, LinkStats, StatusSink, loop_clock
 from .stream import StreamLink
-from .urls import byte_connector, check_link_options, link_kind, open_link
+from .urls import URL_SCHEMES, byte_connector, check_link_options, link_kind, open_link, url_forms
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -47,6 +47,7 @@ __all__ = [
     "DEFAULT_STALE_TIMEOUT",
     "LINK_OPTIONS",
     "STREAM_OPTIONS",
+    "URL_SCHEMES",
     "BaseLink",
     "Connector",
     "LinkState",
@@ -63,4 +64,5 @@ __all__ = [
     "serial_connector",
     "socket_connector",
     "translate_errors",
+    "url_forms",
 ]

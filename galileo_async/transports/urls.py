@@ -30,17 +30,31 @@ if TYPE_CHECKING:
 
 __all__ = [
     "LINK_SCHEMES",
+    "URL_SCHEMES",
     "byte_connector",
     "check_link_options",
     "check_serial_url",
     "link_kind",
     "open_link",
     "serial_schemes",
+    "url_forms",
 ]
 
 
-#: The URL schemes with a link of their own; anything else goes to the serial link.
+#: The link kinds with a URL scheme of their own; anything else goes to the serial link.
 LINK_SCHEMES = tuple(kind for kind in LINK_KINDS if kind != "serial")
+
+#: Every URL scheme of a robot's port: its link kind (LINK_SCHEMES) and the address that
+#: follows ``://``. Help texts and errors list the schemes from here (url_forms). A port
+#: without one of them is a serial device: a path, or a URL pyserial opens (rfc2217://…).
+URL_SCHEMES: dict[str, tuple[str, str]] = {
+    "socket": ("socket", "host:port"),
+    "udp": ("udp", "host[:port]"),
+    "http": ("http", "host[:port]"),
+    "https": ("http", "host[:port]"),
+    "ros": ("ros", "host[:port]"),
+    "sim": ("sim", "[?speed=…]"),
+}
 
 
 def link_kind(url: str) -> str:
@@ -48,10 +62,14 @@ def link_kind(url: str) -> str:
 
     ``https://`` URLs are of kind ``"http"``.
     """
-    scheme = urlsplit(url).scheme.lower()
-    if scheme in ("http", "https"):
-        return "http"
-    return scheme if scheme in LINK_SCHEMES else "serial"
+    kind, _address = URL_SCHEMES.get(urlsplit(url).scheme.lower(), ("serial", ""))
+    return kind
+
+
+def url_forms() -> str:
+    """Every form of a robot's port, for help texts: a serial device, then URL_SCHEMES."""
+    forms = [f"{scheme}://{address}" for scheme, (_kind, address) in URL_SCHEMES.items()]
+    return f"a serial device (/dev/ttyUSB0, COM3), {', '.join(forms[:-1])} or {forms[-1]}"
 
 
 def serial_schemes() -> tuple[str, ...]:
@@ -60,7 +78,7 @@ def serial_schemes() -> tuple[str, ...]:
 
     modules = pkgutil.iter_modules(serial.urlhandler.__path__)
     names = (m.name.removeprefix("protocol_") for m in modules if m.name.startswith("protocol_"))
-    return tuple(sorted(name for name in names if name not in LINK_SCHEMES))
+    return tuple(sorted(name for name in names if name not in URL_SCHEMES))
 
 
 def check_serial_url(url: str) -> None:
@@ -71,7 +89,7 @@ def check_serial_url(url: str) -> None:
         return
     if scheme.lower() in serial_schemes():
         return
-    known = ", ".join(f"{name}://" for name in (*LINK_SCHEMES, *serial_schemes()))
+    known = ", ".join(f"{name}://" for name in (*URL_SCHEMES, *serial_schemes()))
     hint = f"; for a TCP port write socket://{url}" if rest.isdigit() else ""
     raise InvalidArgument(
         f"{url!r}: unknown URL scheme {scheme!r}; known: {known}, or a serial device path "
