@@ -6,6 +6,7 @@ import contextlib
 import errno
 import json
 import logging
+import shlex
 import socket
 import ssl
 import sys
@@ -17,6 +18,7 @@ from urllib.parse import urlencode
 import typer
 
 from ..errors import GalileoConnectionError, InvalidArgument
+from ..options import DEFAULT_WS_PORT
 from .runner import ExitCode, err_console, fail, out_console, run, settings_of
 from .signals import stop_requested
 
@@ -146,11 +148,12 @@ def sim(
                     face = await simulator.serve_udp(*address)
                 served.append((_url("udp", face.address), udp_layout))
             if http is not None:
-                web = await simulator.serve_http(
-                    *_udp_address(http), ws_port=ws_port, ssl_context=tls
-                )
+                host, port = _udp_address(http)
+                ws = ws_port if ws_port is not None or port == 0 else port + 1
+                with _listening(f"{host}:{port} (WebSocket: {ws})", "--http"):
+                    web = await simulator.serve_http(host, port, ws_port=ws_port, ssl_context=tls)
                 where = _url("https" if tls else "http", web.address)
-                if web.ws_address[1] != web.address[1] + 1:
+                if web.ws_address[1] != DEFAULT_WS_PORT:  # where clients look unless told
                     where += f"?ws_port={web.ws_address[1]}"
                 served.append((where, "JSON"))
             console = out_console()
@@ -158,9 +161,12 @@ def sim(
                 console.print(where, markup=False)
             console.file.flush()
             places = ", ".join(f"{where} ({what})" for where, what in served)
+            # A certificate of a CA the system does not trust needs the client's ca_file=.
+            trust = "; https:// clients trust its CA with ca_file=CA.pem" if tls else ""
             err_console().print(
-                f"simulator (firmware {firmware}, speed {speed:g}x) on {places}; "
-                f"connect with: galileo --port {served[0][0]} status · Ctrl-C stops"
+                f"simulator (firmware {firmware}, speed {speed:g}x) on {places}{trust}; "
+                f"connect with: galileo --port {shlex.quote(served[0][0])} status · Ctrl-C stops",
+                markup=False,
             )
             with stop_requested() as stop:
                 await stop.wait()
