@@ -94,6 +94,58 @@ def test_profile_options_are_checked_like_connect_options(config_home: Path) -> 
     assert "stale_timeout must be > 0" in result.stderr
 
 
+#: Robots with a mistake each, beside the CONFIG's robots.
+MISTAKES = """
+[robots.typo]
+port = "sim://"
+wait_timout = 3.0
+
+[robots.wrong_type]
+port = "sim://"
+stale_timeout = "soon"
+"""
+
+
+@pytest.fixture
+def config_with_mistakes(config_home: Path) -> Path:
+    """config_home whose config.toml also has robots with a mistake in their tables."""
+    path = config_home / "galileo" / "config.toml"
+    path.write_text(CONFIG + MISTAKES, encoding="utf-8")
+    return config_home
+
+
+def test_a_mistake_in_another_robot_does_not_stop_this_one(config_with_mistakes: Path) -> None:
+    result = galileo("-r", "lab", "--json", "status", config_home=config_with_mistakes)
+    assert layout_of(result) == "v1"
+
+
+def test_an_unknown_option_of_the_robot_used_says_did_you_mean(
+    config_with_mistakes: Path,
+) -> None:
+    result = galileo("-r", "typo", "status", config_home=config_with_mistakes)
+    assert result.returncode == ExitCode.USAGE
+    (line,) = result.stderr.splitlines()
+    assert "robot 'typo'" in line
+    assert "unknown option 'wait_timout'; did you mean 'wait_timeout'?" in line
+    assert "stale_timeout" not in line  # no list of every option name
+    assert "Traceback" not in result.stderr
+
+
+def test_a_wrong_type_is_reported_when_its_robot_is_used(config_with_mistakes: Path) -> None:
+    result = galileo("-r", "wrong_type", "status", config_home=config_with_mistakes)
+    assert result.returncode == ExitCode.USAGE
+    assert "robot 'wrong_type': stale_timeout must be float" in result.stderr
+
+
+def test_completion_names_every_robot_despite_mistakes(config_with_mistakes: Path) -> None:
+    result = galileo(
+        config_home=config_with_mistakes, _GALILEO_COMPLETE="complete_bash",
+        COMP_WORDS="galileo -r ", COMP_CWORD="2",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["lab", "broken", "typo", "wrong_type"]
+
+
 def test_a_fleet_files_robot_by_name(config_home: Path, tmp_path: Path) -> None:
     fleet = tmp_path / "fleet.toml"
     fleet.write_text('[robots.beta]\nport = "sim://?speed=20&layout=v1_charge"\n')

@@ -58,6 +58,11 @@ def test_a_good_file(tmp_path: Path) -> None:
         ('[robots.a]\nport = ""\n', "robot 'a': port must be"),
         ('[robots.a]\nport = "sim://"\nspeed = 3\n', "robot 'a': unknown option 'speed'"),
         (
+            '[robots.a]\nport = "sim://"\nwait_timout = 3\n',
+            "robot 'a': unknown option 'wait_timout'; did you mean 'wait_timeout'[?]$",
+        ),
+        ('[defaults]\nlayot = "v1"\n[robots.a]\nport = "sim://"\n', "did you mean 'layout'"),
+        (
             '[robots.a]\nport = "sim://"\nmap_targets = "six"\n',
             "robot 'a': map_targets must be int",
         ),

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidArgument
-from ..fleet.file import load_fleet_file
+from ..fleet.file import fleet_file_robots, load_fleet_file
 from ..robot.options import check_connect_options
 
 __all__ = ["ROBOT_ENV", "Profile", "config_path", "find_profile", "profile_names"]
@@ -53,7 +53,7 @@ def profile_names(fleet: Path | None = None) -> list[str]:
     names: list[str] = []
     for path in _sources(fleet):
         try:
-            names += [name for name in load_fleet_file(path).ports if name not in names]
+            names += [name for name in fleet_file_robots(path) if name not in names]
         except InvalidArgument:
             continue
     return names
@@ -63,14 +63,16 @@ def find_profile(name: str, fleet: Path | None = None) -> Profile:
     """The robot ``name`` of the --fleet file or the config file, its options checked.
 
     InvalidArgument (naming the file) when no file knows it or its options are bad:
-    they are checked as connect() checks them, before anything is opened.
+    they are checked as connect() checks them, before anything is opened. Only this
+    robot's table is checked: a mistake in another robot's is reported when that one is used.
     """
     known: list[str] = []
     for path in _sources(fleet):
-        spec = load_fleet_file(path)
-        if name not in spec.ports:
-            known += [other for other in spec.ports if other not in known]
+        names = fleet_file_robots(path)
+        if name not in names:
+            known += [other for other in names if other not in known]
             continue
+        spec = load_fleet_file(path, robots=[name])
         port = spec.ports[name]
         options = {**spec.defaults, **spec.robot_options.get(name, {})}
         try:
@@ -79,5 +81,5 @@ def find_profile(name: str, fleet: Path | None = None) -> Profile:
             raise InvalidArgument(f"{path}: robot {name!r}: {exc}") from None
         return Profile(name, port, options, path)
     searched = " or ".join(str(path) for path in _sources(fleet)) or f"{config_path()} (absent)"
-    names = f"; known: {', '.join(known)}" if known else ""
-    raise InvalidArgument(f"no robot named {name!r} in {searched}{names}")
+    listed = f"; known: {', '.join(known)}" if known else ""
+    raise InvalidArgument(f"no robot named {name!r} in {searched}{listed}")

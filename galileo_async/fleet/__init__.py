@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .file import FleetFileError, FleetSpec, load_fleet_file, parse_fleet
+from .file import FleetFileError, FleetSpec, fleet_file_robots, load_fleet_file, parse_fleet
 from .fleet import (
     DEFAULT_CONNECT_CONCURRENCY,
     DEFAULT_RETRY_INITIAL,
@@ -29,6 +29,7 @@ __all__ = [
     "FleetStatusStream",
     "RobotState",
     "connect_fleet",
+    "fleet_file_robots",
     "load_fleet_file",
     "parse_fleet",
 ]

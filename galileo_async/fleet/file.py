@@ -19,12 +19,13 @@ layout = "v1"
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import NoneType, UnionType
 from typing import Any, Union, get_args, get_origin
 
+from .._checks import check_names
 from ..errors import InvalidArgument
 from ..options import OPTIONS
 
@@ -33,7 +34,14 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[import-not-found]
 
-__all__ = ["OPTION_TYPES", "FleetFileError", "FleetSpec", "load_fleet_file", "parse_fleet"]
+__all__ = [
+    "OPTION_TYPES",
+    "FleetFileError",
+    "FleetSpec",
+    "fleet_file_robots",
+    "load_fleet_file",
+    "parse_fleet",
+]
 
 
 def _toml_types(hint: Any) -> tuple[type, ...]:
@@ -78,10 +86,11 @@ class FleetSpec:
 
 
 def _check_option(where: str, key: str, value: object) -> Any:
-    expected = OPTION_TYPES.get(key)
-    if expected is None:
-        known = ", ".join(sorted(OPTION_TYPES))
-        raise FleetFileError(f"{where}: unknown option {key!r} (known: port, {known})")
+    try:  # a near miss when there is one, as connect() says it; else the known names
+        check_names([key], OPTION_TYPES)
+    except InvalidArgument as exc:
+        raise FleetFileError(f"{where}: {exc}") from None
+    expected = OPTION_TYPES[key]
     if float in expected and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     if (bool not in expected and isinstance(value, bool)) or not isinstance(value, expected):
@@ -129,14 +138,35 @@ def parse_fleet(
     return FleetSpec(ports, robot_options, _options(f"{source}: [defaults]", defaults), path)
 
 
-def load_fleet_file(path: str | Path) -> FleetSpec:
-    """Read and validate the fleet file at ``path`` (FleetFileError naming what is wrong)."""
-    file = Path(path)
+def _read(file: Path) -> dict[str, Any]:
     try:
         with file.open("rb") as handle:
-            data = tomllib.load(handle)
+            data: dict[str, Any] = tomllib.load(handle)
+            return data
     except OSError as exc:
         raise FleetFileError(f"{file}: cannot read the fleet file: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise FleetFileError(f"{file}: not valid TOML: {exc}") from None
+
+
+def load_fleet_file(path: str | Path, *, robots: Collection[str] | None = None) -> FleetSpec:
+    """Read and validate the fleet file at ``path`` (FleetFileError naming what is wrong).
+
+    ``robots``: check and keep only these robots' tables (and the file's other keys), so
+    that a mistake in another robot's table does not stop them (``galileo -r NAME``).
+    """
+    file = Path(path)
+    data = _read(file)
+    tables = data.get("robots")
+    if robots is not None and isinstance(tables, Mapping):
+        data = {**data, "robots": {name: tables[name] for name in tables if name in robots}}
     return parse_fleet(data, str(file), file.parent)
+
+
+def fleet_file_robots(path: str | Path) -> list[str]:
+    """The names of the robots of the fleet file at ``path``, their tables unchecked.
+
+    FleetFileError when the file cannot be read or is not TOML.
+    """
+    tables = _read(Path(path)).get("robots")
+    return list(tables) if isinstance(tables, Mapping) else []
