@@ -26,6 +26,7 @@ __all__ = [
     "host_key",
     "ip_literal",
     "naming",
+    "near_miss",
     "parse_hosts",
 ]
 
@@ -88,14 +89,20 @@ def check_timeout(name: str, value: object, *, allow_none: bool = True) -> float
     return check_seconds(name, value)
 
 
+def near_miss(name: str, accepted: Collection[str]) -> str | None:
+    """The name of ``accepted`` that ``name`` is most likely a typo of, if one is close."""
+    close = difflib.get_close_matches(name, sorted(accepted), n=1)
+    return close[0] if close else None
+
+
 def check_names(given: Iterable[str], accepted: Collection[str]) -> None:
     """Raise InvalidArgument for the first name not in ``accepted``, with a near miss if any."""
     for name in given:
         if name in accepted:
             continue
-        close = difflib.get_close_matches(name, list(accepted), n=1)
+        close = near_miss(name, accepted)
         known = ", ".join(sorted(accepted))
-        hint = f"; did you mean {close[0]!r}?" if close else f" (known: {known})"
+        hint = f"; did you mean {close!r}?" if close else f" (known: {known})"
         raise InvalidArgument(f"unknown option {name!r}{hint}")
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from typing import Any
 
@@ -76,3 +77,92 @@ def test_an_unknown_scheme_lists_every_scheme(scheme: str) -> None:
     assert result.exit_code == ExitCode.USAGE, result.output
     for known in URL_SCHEMES:
         assert f"{known}://" in result.output, known
+
+
+def misspelt(option: str) -> str:
+    """``option`` without its last letter but one: ``--timeout`` → ``--timeot``."""
+    return option[:-2] + option[-1]
+
+
+def option_typos() -> list[Any]:
+    """(command line, misspelt option, meant option) for every long option of every command.
+
+    The misspelt option goes before the command's arguments and after them (with a value
+    when the option takes one: click must not take it for the command's argument).
+    """
+    cases = []
+    for path in commands():
+        command = command_at(path)
+        ctx = command.make_context("galileo", [], resilient_parsing=True)
+        params = command.get_params(ctx)
+        arguments = ["3" for param in params if param.param_type_name == "argument"]
+        if path == ():
+            arguments = ["status"]  # the global options go before a command
+        elif hasattr(command, "commands"):
+            arguments = [sorted(command.commands)[0]]
+        names = {name for param in params for name in (*param.opts, *param.secondary_opts)}
+        for param in params:
+            if param.param_type_name != "option":
+                continue
+            takes_value = not (param.is_flag or param.count)
+            for meant in (*param.opts, *param.secondary_opts):
+                typo = misspelt(meant)
+                if not meant.startswith("--") or typo in names:
+                    continue
+                given = [typo, "5"] if takes_value else [typo]
+                where = " ".join(["galileo", *path])
+                cases.append(
+                    pytest.param(
+                        [*path, *given, *arguments], typo, meant, id=f"{where} {typo} before"
+                    )
+                )
+                if path != ():
+                    cases.append(
+                        pytest.param(
+                            [*path, *arguments, *given], typo, meant, id=f"{where} {typo} after"
+                        )
+                    )
+    return cases
+
+
+@pytest.mark.parametrize(("args", "typo", "meant"), option_typos())
+def test_a_misspelt_option_is_named_with_the_one_meant(
+    args: list[str], typo: str, meant: str
+) -> None:
+    result = CliRunner().invoke(app, args, env={"GALILEO_PORT": None, "COLUMNS": "200"})
+    assert result.exit_code == ExitCode.USAGE, result.output
+    error = result.output.strip().splitlines()[-1]
+    assert error == f"Error: no such option {typo}; did you mean {meant}?", result.output
+
+
+def test_every_command_has_its_options_checked() -> None:
+    ids = {case.id for case in option_typos()}
+    for command in ("goto", "goto-point", "rotate", "send", "status", "nav start", "fleet stop"):
+        assert any(case_id.startswith(f"galileo {command} --") for case_id in ids), command
+    assert "galileo goto --timeot after" in ids
+    assert "galileo goto --timeot before" in ids
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["goto", "-1"],
+        ["goto-point", "-1.5", "-2", "--timeout", "5"],
+        ["goto-point", "--timeout", "5", "-1.5", "-2"],
+        ["rotate", "-90", "-t", "5"],
+        ["send", "AddTarget", "-1.5", "-2e0", "--hex"],
+    ],
+    ids=["goto -1", "goto-point after", "goto-point before", "rotate", "send"],
+)
+def test_negative_numbers_are_still_arguments(args: list[str]) -> None:
+    # No robot is needed: each line fails after parsing (range, --hex without a value,
+    # …) or the parse is all that is checked: never "no such option -1".
+    result = CliRunner().invoke(app, ["--port", "", *args], env={"GALILEO_PORT": None})
+    assert "no such option" not in result.output.lower(), result.output
+
+
+def test_json_usage_error_says_did_you_mean() -> None:
+    result = CliRunner().invoke(app, ["--json", "goto", "3", "--timout", "5"])
+    assert result.exit_code == ExitCode.USAGE
+    message = json.loads(result.stdout)["message"]
+    assert message == "no such option --timout; did you mean --timeout?"

@@ -51,13 +51,13 @@ def galileo_runs(
 #: (command line with --json, what click's message says). The same line without --json
 #: must give click's text, whose ``Error:`` line carries the same message.
 USAGE_ERRORS = [
-    (["--json", "--bogus", "status"], "No such option: --bogus"),
+    (["--json", "--bogus", "status"], "no such option --bogus"),
     (["--json", "--map-targets", "many", "status"], "Invalid value for '--map-targets'"),
     (["--json", "--layout", "v9", "status"], "'v9' is not one of"),
     (["--json", "--port", "sim://"], "Missing command."),
     (["--json", "nosuch"], "No such command 'nosuch'."),
-    (["--json", "status", "--bogus"], "No such option: --bogus"),
-    (["status", "--bogus", "--json"], "No such option: --bogus"),
+    (["--json", "status", "--bogus"], "no such option --bogus"),
+    (["status", "--bogus", "--json"], "no such option --bogus"),
     (["status", "--json", "--interval", "soon"], "Invalid value for '--interval'"),
     (["goto", "--json"], "Missing argument 'target_id'."),
     (["--json", "status", "--interval"], "Option '--interval' requires an argument."),

@@ -23,7 +23,7 @@ from .runner import (
     resolve_port,
     setup_logging,
 )
-from .usage import UsageErrorsAsJson
+from .usage import NumberArguments, UsageErrorsAsJson
 
 __all__ = ["app", "main"]
 
@@ -169,13 +169,12 @@ def _robot_wins(ctx: typer.Context, port: str | None, port_from_environment: boo
     return port_from_environment
 
 
-_NUMBERS = {"ignore_unknown_options": True}  # lets "-2.5" through as a number
-
 app.command("status")(watch.status)
 app.command("monitor")(watch.monitor)
 app.add_typer(ops.nav_app, name="nav")
-app.command("goto", context_settings=_NUMBERS)(ops.goto)  # "-1" gets the range error
-app.command("goto-point", context_settings=_NUMBERS)(ops.goto_point)
+# NumberArguments: "-2.5" is a number, "-1" gets the range error, "--timout" no such option.
+app.command("goto", cls=NumberArguments)(ops.goto)
+app.command("goto-point", cls=NumberArguments)(ops.goto_point)
 app.command("stop")(stopping.stop)  # everything; nav/patrol/charge stop stop one service
 app.command("pause")(stopping.pause)
 _GROUPS = {
@@ -185,13 +184,13 @@ _GROUPS = {
 for _group, _name, _method, _done, _help in ops.SIMPLE_COMMANDS:
     _GROUPS[_group].command(_name, help=_help)(ops.simple_command(_method, _done, _help))
 app.command("cancel")(stopping.cancel)
-app.command("rotate", context_settings=_NUMBERS)(ops.rotate)
+app.command("rotate", cls=NumberArguments)(ops.rotate)
 app.command("teleop")(teleop.teleop)
 app.add_typer(ops.patrol_app, name="patrol")
 app.add_typer(ops.map_app, name="map")
 app.add_typer(ops.charge_app, name="charge")
 app.command("shutdown")(ops.shutdown)
-app.command("send", context_settings=_NUMBERS)(ops.send)
+app.command("send", cls=NumberArguments)(ops.send)
 app.command("decode")(capture.decode)
 app.command("record")(capture.record)
 app.command("ports")(serve.ports)
