@@ -47,7 +47,8 @@ def test_fleet_status_json_has_a_row_per_robot(tmp_path: Path) -> None:
     assert [(row["name"], row["state"]) for row in rows] == [
         ("alpha", "up"), ("beta", "up"), ("down", "lost"),
     ]  # fmt: skip
-    assert rows[0]["power"] > 0
+    assert rows[0]["status"]["power"] > 0
+    assert rows[2]["status"] is None
     assert rows[2]["last_event"].startswith("connect failed")
 
 

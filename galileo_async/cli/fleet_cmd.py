@@ -10,21 +10,23 @@ import anyio
 import typer
 from rich.live import Live
 
+from .._checks import hide_secrets
 from ..errors import InvalidArgument, NotReady, PortBusy
 from ..fleet.file import FleetSpec, load_fleet_file
 from ..fleet.fleet import RobotState
 from ..robot.stopping import DEFAULT_STOP_TIMEOUT
-from .fleet_view import SORT_KEYS, FleetView
+from .fleet_view import SORT_KEYS, FleetRow, FleetView
 from .goals import aclose
 from .map_render import save_svg
 from .monitor_screen import keys_pressed
-from .render import event_text
+from .render import event_text, status_record
 from .runner import ExitCode, fail, out_console, run, settings_of, timestamp
 from .stopping import BrakeOption, Outcome, StopTimeout, error_outcome, gather_owners
 from .watch import SvgOption, TargetsOption, map_model
 
 if TYPE_CHECKING:
     from ..fleet.fleet import Fleet
+    from ..models import GalileoStatus
 
 __all__ = ["FLEET_REFRESH", "fleet_app"]
 
@@ -95,7 +97,7 @@ def status(
             view.width = console.width
             if settings.json:
                 for row in view.rows()[:rows]:
-                    line = {"time": timestamp()} | row.as_dict()
+                    line = _status_line(fleet, row.name, view.latest.get(row.name), row)
                     console.print(json.dumps(line), markup=False, soft_wrap=True)
             else:
                 console.print(view.table())
@@ -103,6 +105,22 @@ def status(
         return ExitCode.OK if up else ExitCode.CONNECTION
 
     run(settings, main)
+
+
+def _status_line(
+    fleet: Fleet, name: str, latest: GalileoStatus | None, row: FleetRow
+) -> dict[str, Any]:
+    """A robot's JSON status line: a status line's shape (render.status_record) with its
+    name, its state (also before it connected) and its last event or connect error."""
+    robot = fleet.get(name)
+    return {
+        "port": hide_secrets(fleet.url(name)),
+        "time": timestamp(),
+        **status_record(latest, None if robot is None else robot.link),
+        "name": name,
+        "state": row.state.value,
+        "last_event": row.last_event or None,
+    }
 
 
 def _has_status(fleet: Fleet, name: str) -> bool:

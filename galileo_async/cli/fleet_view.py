@@ -16,7 +16,6 @@ from ..fleet.fleet import Fleet
 from ..models import GalileoStatus, LinkState, TargetStatus
 from .map_model import MapModel
 from .map_render import map_panel
-from .render import rounded
 
 __all__ = [
     "COLUMNS",
@@ -53,18 +52,6 @@ class FleetRow:
     heading: float | None
     power: float | None
     last_event: str
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready values, numbers rounded as shown (render.rounded), null when unknown."""
-        values = {**self.__dict__, "state": self.state.value}
-        return {
-            key: rounded(key, value)
-            if isinstance(value, float)
-            else None
-            if value == "—"
-            else value
-            for key, value in values.items()
-        }
 
 
 #: Keyed by (type, value): members of different IntEnums with one value compare equal.

@@ -27,6 +27,7 @@ __all__ = [
     "rounded",
     "status_dict",
     "status_line",
+    "status_record",
     "status_table",
 ]
 
@@ -52,6 +53,15 @@ def status_dict(status: GalileoStatus) -> dict[str, Any]:
     return {
         key: rounded(key, value) if isinstance(value, float) else value
         for key, value in values.items()
+    }
+
+
+def status_record(status: GalileoStatus | None, link: object | None) -> dict[str, Any]:
+    """A JSON status line's ``status`` and ``link`` (null when none yet): the one shape of
+    ``status``, ``status --watch``, ``monitor`` and ``fleet status`` (docs/cli.md)."""
+    return {
+        "status": None if status is None else status_dict(status),
+        "link": None if link is None else link_dict(link),
     }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import AsyncIterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import anyio
 import typer
@@ -22,10 +22,9 @@ from .monitor_screen import FULL_ROWS, MonitorView, keys_pressed
 from .render import (
     event_dict,
     event_text,
-    link_dict,
     link_event_text,
-    status_dict,
     status_line,
+    status_record,
 )
 from .runner import (
     ExitCode,
@@ -85,8 +84,7 @@ def status(
         if not watch:
             latest = robot.status or await first_report(robot)
             if settings.json:
-                data = {"status": status_dict(latest), "link": link_dict(robot.link)}
-                print_json(settings, {"time": timestamp()} | data)
+                print_json(settings, {"time": timestamp()} | status_record(latest, robot.link))
             else:
                 from .render import status_table
 
@@ -98,7 +96,7 @@ def status(
         try:
             async with anyio.create_task_group() as group:
                 group.start_soon(_report_link, events, settings, reconnect, lost)
-                if await _print_statuses(stream, interval, count, settings):
+                if await _print_statuses(stream, interval, count, settings, robot.link):
                     group.cancel_scope.cancel()
                     return 0
                 # The status stream ended: the store closed, so the event stream ends too
@@ -125,7 +123,11 @@ async def first_report(robot: Robot) -> GalileoStatus:
 
 
 async def _print_statuses(
-    stream: AsyncIterator[GalileoStatus], interval: float, count: int | None, settings: Settings
+    stream: AsyncIterator[GalileoStatus],
+    interval: float,
+    count: int | None,
+    settings: Settings,
+    link: object,
 ) -> bool:
     """Print a line per interval; True after ``count`` lines, False when the stream ended."""
     console = out_console()
@@ -137,7 +139,7 @@ async def _print_statuses(
             continue
         next_at = now + interval
         if settings.json:
-            print_json(settings, {"time": timestamp()} | status_dict(current))
+            print_json(settings, {"time": timestamp()} | status_record(current, link))
         else:
             console.print(status_line(current), markup=False)
         printed += 1
@@ -150,6 +152,7 @@ async def _report_link(
     events: AsyncIterator[Event], settings: Settings, reconnecting: bool, lost: list[str]
 ) -> None:
     """Print link health events (stderr, or JSON lines on stdout); remember loss reasons."""
+    started = anyio.current_time()
     async for event in events:
         text = link_event_text(event, reconnecting=reconnecting)
         if text is None:
@@ -157,7 +160,7 @@ async def _report_link(
         if isinstance(event, ConnectionLostEvent):
             lost.append(event.reason)
         if settings.json:
-            print_json(settings, {"time": timestamp()} | event_dict(event))
+            print_json(settings, event_line(event, anyio.current_time() - started))
         else:
             err_console().print(text, markup=False, style="yellow")
 
@@ -209,8 +212,7 @@ def monitor(
             try:
                 async for event in stream:
                     if settings.json:
-                        line = {"time": timestamp(), "t": round(anyio.current_time() - started, 3)}
-                        print_json(settings, line | event_dict(event))
+                        print_json(settings, event_line(event, anyio.current_time() - started))
                     recent.append((anyio.current_time() - started, event_text(event)))
             finally:
                 await aclose(stream)
@@ -238,9 +240,8 @@ def monitor(
                 if settings.json:
                     while await _tick(deadline, 1.0):
                         if latest[0] is not None:
-                            status_now = status_dict(latest[0])
-                            data = {"status": status_now, "link": link_dict(robot.link)}
-                            print_json(settings, {"time": timestamp()} | data)
+                            record = status_record(latest[0], robot.link)
+                            print_json(settings, {"time": timestamp()} | record)
                 else:
                     with (
                         keys_pressed(view.press),
@@ -255,6 +256,11 @@ def monitor(
         return 0
 
     run_robot(settings, body, interrupted=ExitCode.OK, long_running=True)
+
+
+def event_line(event: Event, seconds: float) -> dict[str, Any]:
+    """A JSON event line after ``port``: time, seconds since the command started, the event."""
+    return {"time": timestamp(), "t": round(seconds, 3)} | event_dict(event)
 
 
 async def _tick(deadline: float | None, period: float) -> bool:
