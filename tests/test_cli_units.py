@@ -181,6 +181,21 @@ def test_connect_options() -> None:
     assert "control_socket" not in Settings(port="socket://10.0.0.5:4001").connect_options()
 
 
+@pytest.mark.parametrize("layout", [StatusLayout.UDP_V1, StatusLayout.UDP_V2])
+def test_a_speed_the_link_does_not_carry_shows_as_unknown(layout: StatusLayout) -> None:
+    # udp:// frames have no speed fields (None): never "0.00 m/s" while the robot moves.
+    status = GalileoStatus(
+        layout=layout, nav_status=1, visual_status=1, target_num_id=2,
+        target_status=TargetStatus.WORKING, target_distance=1.25, current_pose_x=1.0,
+        current_pose_y=-2.0, current_angle=0.0,
+    )  # fmt: skip
+    assert status.current_speed_x is None
+    assert status_line(status).endswith(" · speed n/a")
+    assert goal_line(status) == "target 2 working · 1.25 m to go · speed n/a"
+    for line in (status_line(status), goal_line(status)):
+        assert "m/s" not in line
+
+
 def test_render_status_and_events() -> None:
     status = GalileoStatus(
         nav_status=1, visual_status=1, target_num_id=2, target_status=TargetStatus.WORKING,

@@ -25,6 +25,7 @@ __all__ = [
     "link_event_text",
     "pose_text",
     "rounded",
+    "speed_text",
     "status_dict",
     "status_line",
     "status_record",
@@ -97,25 +98,28 @@ def _metres(value: float | None) -> str:
     return "—" if value is None or value < 0 else f"{value:.2f} m"
 
 
+def speed_text(speed: float | None, form: str = "+.2f") -> str:
+    """A speed in m/s (``+0.25 m/s``), or ``speed n/a`` when the link carries none (udp://)."""
+    return "speed n/a" if speed is None else f"{speed:{form}} m/s"
+
+
 def status_line(status: GalileoStatus) -> str:
     """A one-line summary: states, goal, distance, pose and speed."""
     where = pose_text(status)
     goal = "—" if status.target_status is None else status.target_status.name.lower()
-    speed = status.current_speed_x
     return (
         f"nav {_name(status.nav_status)} · visual {_name(status.visual_status)} · "
         f"target {status.target_num_id} {goal} {_metres(status.target_distance)} · "
-        f"{where} · {0.0 if speed is None else speed:+.2f} m/s"
+        f"{where} · {speed_text(status.current_speed_x)}"
     )
 
 
 def goal_line(status: GalileoStatus) -> str:
     """A short goal progress line: state, distance to go, speed."""
     goal = "—" if status.target_status is None else status.target_status.name.lower()
-    speed = status.current_speed_x or 0.0
     return (
         f"target {status.target_num_id} {goal} · {_metres(status.target_distance)} to go · "
-        f"{speed:.2f} m/s"
+        f"{speed_text(status.current_speed_x, '.2f')}"
     )
 
 
