@@ -2,21 +2,37 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
 import subprocess
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 import anyio
 import pytest
+from rich.console import Console
 from test_cli_served import GALILEO, WAIT
 from tmux_support import keys, tmux_server, until
 
 import galileo_async as galileo
+from galileo_async.cli.map_model import MapModel
+from galileo_async.cli.monitor_screen import MonitorView
 from galileo_async.errors import GoalCancelled
+from galileo_async.models import (
+    ChargeStatus,
+    GalileoStatus,
+    LinkState,
+    MapStatus,
+    NavStatus,
+    StatusLayout,
+    TargetStatus,
+    VisualStatus,
+)
 from galileo_async.sim import Simulator
+from galileo_async.transports import LinkStats
 
 COLUMNS, ROWS = 80, 24
 SIM_URL = "sim://?speed=4&visual_init_time=0.5"
@@ -95,3 +111,64 @@ def test_monitor_json_prints_status_lines() -> None:
     assert result.returncode == 0, result.stderr
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     assert any("status" in line for line in lines)
+
+
+#: A status whose every value the small monitor shows is as long as it gets.
+WIDEST = GalileoStatus(
+    layout=StatusLayout.V2_TRUNCATED, nav_status=NavStatus.CLOSED,
+    visual_status=VisualStatus.NOT_INITIALISED, map_status=MapStatus.MAPPING,
+    charge_status=ChargeStatus.FINDING_DOCK, loop_status=1, power=124.28, target_num_id=255,
+    target_status=TargetStatus.WORKING, target_distance=999.99, current_pose_x=-999.99,
+    current_pose_y=-999.99, current_angle=-3.14, current_speed_x=-9.99,
+    current_speed_theta=-9.99, time_stamp=2**31 - 1,
+)  # fmt: skip
+
+
+def lines_at(width: int, screen: Any) -> list[str]:
+    """The lines of ``screen`` in a terminal ``width`` columns wide, no colours."""
+    console = Console(width=width, file=io.StringIO(), color_system=None, height=ROWS)
+    console.print(screen)
+    return [line.rstrip() for line in console.file.getvalue().splitlines()]  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("state", list(LinkState))
+@pytest.mark.parametrize(
+    "status",
+    [WIDEST, WIDEST.model_copy(update={"current_speed_x": None, "current_speed_theta": None})],
+    ids=["widest", "no speed (udp://)"],
+)
+def test_every_line_of_the_small_monitor_fits_80_columns(
+    status: GalileoStatus, state: LinkState
+) -> None:
+    link = LinkStats(state=state, connected=state is LinkState.UP, frames=10)
+    screen = MonitorView().screen(
+        status, link, [], url="socket://10.0.0.5:4001", model=MapModel(), rows=ROWS
+    )
+    narrow, wide = lines_at(COLUMNS, screen)[:4], lines_at(200, screen)[:4]
+    assert narrow == wide  # nothing cut at 80 columns
+    assert narrow[0].startswith("galileo monitor")
+    assert narrow[2].endswith("rad/s" if status.current_speed_x is not None else "speed n/a")
+    assert narrow[3].endswith(f"link {state.value}")  # LinkState's own names
+
+
+async def test_monitor_at_80x24_shows_every_line_whole(tmux: list[str]) -> None:
+    async with Simulator.from_url(SIM_URL) as simulator:
+        server = await simulator.serve_tcp()
+        try:
+            url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+            await _start_monitor(tmux, url)
+            await until(tmux, lambda s: "nav closed" in s)
+            async with galileo.connect(url, map_targets=6) as robot:
+                await robot.start_navigation(timeout=WAIT)
+                # Navigation open: the pose is known, so every field of each line shows.
+                screen = await until(tmux, lambda s: "heading" in s)
+            lines = screen.splitlines()
+            assert lines[0].startswith("galileo monitor")
+            motion = next(line for line in lines if "heading" in line)
+            assert motion.rstrip().endswith("rad/s"), motion
+            goal = next(line for line in lines if line.startswith("goal "))
+            assert goal.rstrip().endswith("link up"), goal
+            await keys(tmux, "q")
+            await until(tmux, lambda s: "monitor-exited-0" in s)
+        finally:
+            server.close()

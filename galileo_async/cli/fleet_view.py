@@ -16,6 +16,7 @@ from ..fleet.fleet import Fleet
 from ..models import GalileoStatus, LinkState, TargetStatus
 from .map_model import MapModel
 from .map_render import map_panel
+from .render import LINK_STATE_STYLES
 
 __all__ = [
     "COLUMNS",
@@ -28,10 +29,6 @@ __all__ = [
     "row_cells",
     "summary_line",
 ]
-
-#: Link state colours of the table.
-_STATE_STYLES = {LinkState.UP: "green", LinkState.STALE: "yellow", LinkState.LOST: "red",
-                 LinkState.CONNECTING: "dim", LinkState.CLOSED: "dim"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -143,7 +140,7 @@ def row_cells(row: FleetRow) -> dict[str, str | Text]:
     pose = "—" if row.x is None or row.y is None else (
         f"{row.x:+.2f} {row.y:+.2f} {_number(row.heading, '+.0f')}°")  # fmt: skip
     return {
-        "robot": row.name, "link": Text(row.state.value, style=_STATE_STYLES[row.state]),
+        "robot": row.name, "link": Text(row.state.value, style=LINK_STATE_STYLES[row.state]),
         "age": "—" if row.age is None else f"{row.age * 1000:.0f} ms", "nav": row.nav,
         "visual": row.visual, "charge": row.charge,
         "goal": "—" if row.goal is None else f"{row.goal} {row.goal_state}",

@@ -17,7 +17,7 @@ from rich.text import Text
 from ..models import GalileoStatus
 from .map_model import MapModel
 from .map_render import map_panel
-from .render import dashboard, link_dict
+from .render import LINK_STATE_STYLES, dashboard, link_dict, link_state, speed_text
 
 __all__ = ["FULL_ROWS", "KEYS_HELP", "MonitorView", "keys_pressed", "state_style"]
 
@@ -103,53 +103,65 @@ def _event_lines(events: Iterable[tuple[float, str]]) -> list[Text]:
     ]
 
 
-def _pair(line: Text, label: str, value: str, style: str = "") -> None:
-    line.append(f"{label} ", style="dim")
-    line.append(value, style=style)
-    line.append("  ")
+#: One shown value of a compact line: (label, value, style of the value).
+_Pair = tuple[str, str, str]
+
+
+def _line(pairs: Iterable[_Pair]) -> Text:
+    """``label value`` pairs two spaces apart; cut with an ellipsis only past the screen."""
+    line = Text(no_wrap=True, overflow="ellipsis")
+    for index, (label, value, style) in enumerate(pairs):
+        if index:
+            line.append("  ")
+        line.append(f"{label} ", style="dim")
+        line.append(value, style=style)
+    return line
+
+
+def _named(label: str, value: enum.IntEnum | None) -> _Pair:
+    return (label, "—" if value is None else value.name.lower(), state_style(value))
 
 
 def _compact(status: GalileoStatus | None, link: object, url: str) -> list[Text]:
-    """A title line and three coloured lines of states, pose and goal."""
+    """A title line and three coloured lines (states; pose and speed; goal, power and link)
+    that fit 80 columns with the longest value of each (tests/test_cli_monitor_small.py)."""
     stats = link_dict(link)
-    title = Text(f"galileo monitor · {url}", style="bold", overflow="ellipsis", no_wrap=True)
+    title = Text("galileo monitor", style="bold", overflow="ellipsis", no_wrap=True)
     if status is None:
+        title.append(f" · {url}")
         waiting = "the link is up, waiting for the navigation system …"
         return [title, Text(waiting if stats.get("frames") else "waiting for the first status …")]
-    title.append(f" · {status.layout.value} · frame {status.time_stamp}", style="dim")
-    states, motion, goal = Text(no_wrap=True), Text(no_wrap=True), Text(no_wrap=True)
-    for label, value in (
-        ("nav", status.nav_status), ("visual", status.visual_status),
-        ("map", status.map_status), ("charge", status.charge_status),
-    ):  # fmt: skip
-        _pair(states, label, "—" if value is None else value.name.lower(), state_style(value))
+    # The URL last: a long one is what the ellipsis cuts, never the layout or the frame.
+    title.append(f" · {status.layout.value} · frame {status.time_stamp} · ", style="dim")
+    title.append(url)
+    states = [
+        _named("nav", status.nav_status), _named("visual", status.visual_status),
+        _named("map", status.map_status), _named("charge", status.charge_status),
+    ]  # fmt: skip
     if status.loop_status is not None:
-        _pair(
-            states,
-            "patrol",
-            "on" if status.patrolling else "off",
-            "cyan" if status.patrolling else "dim",
-        )
+        states.append(("patrol", *(("on", "cyan") if status.patrolling else ("off", "dim"))))
+    motion: list[_Pair] = []
     pose = status.pose
-    if status.power is not None:
-        _pair(motion, "power", f"{status.power:.1f} V")
     if pose is not None:
-        _pair(motion, "x", f"{pose.x:+.2f}")
-        _pair(motion, "y", f"{pose.y:+.2f} m")
-        _pair(motion, "heading", f"{pose.degrees:+.1f}°")
-    if status.current_speed_x is not None:
-        _pair(motion, "speed", f"{status.current_speed_x:+.2f} m/s")
+        motion += [
+            ("x", f"{pose.x:+.2f}", ""), ("y", f"{pose.y:+.2f} m", ""),
+            ("heading", f"{pose.degrees:+.1f}°", ""),
+        ]  # fmt: skip
+    # udp:// frames carry no speed: unknown, never 0.
+    motion.append(("speed", speed_text(status.current_speed_x).removeprefix("speed "), ""))
     if status.current_speed_theta is not None:
-        _pair(motion, "turn", f"{status.current_speed_theta:+.2f} rad/s")
-    target = status.target_status
-    _pair(goal, "goal", "—" if status.target_num_id is None else str(status.target_num_id))
-    _pair(goal, "state", "—" if target is None else target.name.lower(), state_style(target))
-    distance = status.target_distance
-    _pair(goal, "distance", "—" if distance is None or distance < 0 else f"{distance:.2f} m")
-    stale = bool(stats.get("stale"))
-    up = "stale" if stale else "up" if stats.get("connected") else "down"
-    _pair(goal, "link", up, "bold yellow" if stale else "green" if up == "up" else "red")
-    return [title, states, motion, goal]
+        motion.append(("turn", f"{status.current_speed_theta:+.2f} rad/s", ""))
+    target, distance = status.target_status, status.target_distance
+    state = link_state(stats)
+    goal = [
+        ("goal", "—" if status.target_num_id is None else str(status.target_num_id), ""),
+        _named("state", target),
+        ("distance", "—" if distance is None or distance < 0 else f"{distance:.2f} m", ""),
+    ]
+    if status.power is not None:
+        goal.append(("power", f"{status.power:.1f} V", ""))
+    goal.append(("link", state.value, LINK_STATE_STYLES[state]))
+    return [title, _line(states), _line(motion), _line(goal)]
 
 
 @contextlib.contextmanager

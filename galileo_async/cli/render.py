@@ -13,16 +13,18 @@ from rich.panel import Panel
 from rich.table import Table
 
 from ..events import ConnectionLostEvent, ConnectionRestored, Event, LinkRestored, LinkStaleEvent
-from ..models import GalileoStatus
+from ..models import GalileoStatus, LinkState
 
 __all__ = [
     "DECIMALS",
+    "LINK_STATE_STYLES",
     "dashboard",
     "event_dict",
     "event_text",
     "goal_line",
     "link_dict",
     "link_event_text",
+    "link_state",
     "pose_text",
     "rounded",
     "speed_text",
@@ -233,7 +235,7 @@ def dashboard(
             ("x", "—" if pose is None else f"{pose.x:+.3f} m"),
             ("y", "—" if pose is None else f"{pose.y:+.3f} m"),
             ("heading", "—" if pose is None else f"{pose.degrees:+.1f}°"),
-            ("speed", _unit(status.current_speed_x, "m/s")),
+            ("speed", speed_text(status.current_speed_x).removeprefix("speed ")),
             ("turn rate", _unit(status.current_speed_theta, "rad/s")),
             ("planner speed", _unit(status.control_speed_x, "m/s")),
             ("planner turn", _unit(status.control_speed_theta, "rad/s")),
@@ -272,18 +274,24 @@ _LINK_ROWS = (
 )
 
 
-#: How the monitor shows each link state (LinkState values, link_dict's "state").
-LINK_STATE_MARKUP = {
-    "connecting": "[dim]connecting[/]", "up": "up", "stale": "[bold yellow]stale[/]",
-    "lost": "[bold red]lost[/]", "closed": "[dim]closed[/]",
+#: The colour of each link state, shown by its LinkState name wherever the CLI shows it
+#: (the monitor, its small screen, the fleet table).
+LINK_STATE_STYLES = {
+    LinkState.CONNECTING: "dim", LinkState.UP: "green", LinkState.STALE: "bold yellow",
+    LinkState.LOST: "bold red", LinkState.CLOSED: "dim",
 }  # fmt: skip
+
+
+def link_state(stats: dict[str, Any]) -> LinkState:
+    """The link state of link_dict's statistics (CONNECTING before any)."""
+    return LinkState(stats.get("state") or LinkState.CONNECTING.value)
 
 
 def _link_rows(stats: dict[str, Any]) -> list[tuple[str, str]]:
     rows = [(label, _value(stats.get(key))) for key, label in _LINK_ROWS]
-    state = str(stats.get("state", "connecting"))
+    state = link_state(stats)
     age = stats.get("last_frame_age")
-    rows.append(("link", LINK_STATE_MARKUP.get(state, state)))
+    rows.append(("link", f"[{LINK_STATE_STYLES[state]}]{state.value}[/]"))
     rows.append(("age", "—" if age is None else f"{age * 1000:.0f} ms"))
     return rows
 
