@@ -22,7 +22,7 @@ from ros_support import (
     stop_process,
 )
 
-from galileo_async.robot import connect
+from galileo_async.robot import Robot, connect
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -64,15 +64,22 @@ async def listening(master: RosMaster) -> AsyncIterator[Listener]:
         await stop_process(proc)
 
 
-async def test_drive_publishes_twists_at_the_rate_and_a_zero_twist_at_exit(
-    tmp_path: Path,
-) -> None:
+@contextlib.asynccontextmanager
+async def robot_and_listener(tmp_path: Path) -> AsyncIterator[tuple[Robot, Listener]]:
+    """A ROS master, the robot node, a /cmd_vel listener and a Robot on ros://."""
     async with (
         RosMaster.running(tmp_path) as master,
         RobotNode.running(master),
         listening(master) as listener,
         connect(master.url, connect_timeout=5.0) as robot,
     ):
+        yield robot, listener
+
+
+async def test_drive_publishes_twists_at_the_rate_and_a_zero_twist_at_exit(
+    tmp_path: Path,
+) -> None:
+    async with robot_and_listener(tmp_path) as (robot, listener):
         async with robot.drive(0.3, -0.5, rate=10):
             assert await listener.next() == (0.3, -0.5)  # the subscriber is connected
             loop = asyncio.get_running_loop()
@@ -90,12 +97,7 @@ async def test_drive_publishes_twists_at_the_rate_and_a_zero_twist_at_exit(
 async def test_stop_inside_drive_publishes_one_zero_twist_and_ends_the_session(
     tmp_path: Path,
 ) -> None:
-    async with (
-        RosMaster.running(tmp_path) as master,
-        RobotNode.running(master),
-        listening(master) as listener,
-        connect(master.url, connect_timeout=5.0) as robot,
-    ):
+    async with robot_and_listener(tmp_path) as (robot, listener):
         await robot.start_navigation(timeout=10)
         async with robot.drive(0.3, 0.0, rate=10) as session:
             assert await listener.next() == (0.3, 0.0)  # the subscriber is connected
