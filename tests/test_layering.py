@@ -404,10 +404,11 @@ def test_transport_checks_cover_the_transport_packages() -> None:
     }  # fmt: skip
 
 
-MAX_LINES = 400
+#: Modules are split by concern; a module this long has more than one.
+MAX_LINES = 700
 
 
-def test_no_module_is_over_400_lines() -> None:
+def test_no_module_is_over_the_line_limit() -> None:
     long = {
         module_name(p): n
         for p in SOURCES

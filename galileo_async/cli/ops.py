@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from ..robot import Robot
 
 __all__ = [
-    "ROTATE_TIMEOUT",
+    "CLI_ROTATE_TIMEOUT",
     "SIMPLE_COMMANDS",
     "charge_app",
     "goto",
@@ -135,9 +135,10 @@ def goto_point(
     run_robot(settings, body, navigation=start_nav, moving=True)
 
 
-#: Default --timeout of ``rotate``: a half turn takes a few seconds, and many firmware
-#: versions drop 'a' silently (PROTOCOL.md §2.g), so do not keep the user waiting long.
-ROTATE_TIMEOUT = 10.0
+#: Default --timeout of ``galileo rotate``, shorter than Robot.rotate_to's ROTATE_TIMEOUT: a
+#: half turn takes a few seconds, and many firmware versions drop 'a' silently
+#: (PROTOCOL.md §2.g), so do not keep the user waiting long.
+CLI_ROTATE_TIMEOUT = 10.0
 
 
 def rotate(
@@ -145,7 +146,7 @@ def rotate(
     degrees: Annotated[int, typer.Argument(min=-180, max=180, help="Heading, degrees.")],
     timeout: Annotated[
         float, typer.Option("--timeout", "-t", min=0.1, help="Give up after seconds.")
-    ] = ROTATE_TIMEOUT,
+    ] = CLI_ROTATE_TIMEOUT,
     start_nav: StartNav = None,
 ) -> None:
     """Rotate to a heading (-180..180); many firmware versions ignore it (then: timeout)."""

@@ -23,6 +23,7 @@ from ..options import DEFAULT_MAX_ANGULAR_SPEED, DEFAULT_MAX_LINEAR_SPEED
 from ..protocol import Backward, Command, Forward, Stop, TurnLeft, TurnRight, speed_commands
 from ..protocol.velocity import Velocity
 from .operations import CANCEL_SEND_TIMEOUT
+from .supersede import DriveSlot
 
 if TYPE_CHECKING:
     from .operations import Operations
@@ -34,7 +35,6 @@ __all__ = [
     "MAX_DRIVE_RATE",
     "MIN_DRIVE_RATE",
     "DriveSession",
-    "DriveSlot",
     "SpeedLimits",
 ]
 
@@ -64,28 +64,6 @@ class SpeedLimits:
         )
 
 
-class DriveSlot:
-    """The one drive session a Robot may have at a time."""
-
-    __slots__ = ("session",)
-
-    def __init__(self) -> None:
-        self.session: DriveSession | None = None
-
-    @property
-    def active(self) -> bool:
-        """True while a session's block runs and no user stop ended it."""
-        return self.session is not None and self.session.active
-
-    def end(self, by: str = "close()") -> asyncio.Future[bool] | None:
-        """End the session now (``by`` the user stop that did), its one stop queued; its future."""
-        session = self.session
-        if session is None:
-            return None
-        session.end(by)
-        return session.stop_written
-
-
 class DriveSession:
     """``async with robot.drive(...) as d``: keeps the speed alive at ``rate`` Hz inside.
 
@@ -107,7 +85,7 @@ class DriveSession:
         self._ops = ops
         self._limits = limits
         self._encode(self._linear, self._angular)
-        self._stops = ops.stops
+        self._stops = ops.supersession.stops
         self._task: asyncio.Task[None] | None = None
         self._due = 0.0
         self._entered = False
@@ -155,7 +133,9 @@ class DriveSession:
         if not self._entered or self._left:
             raise GalileoError("drive: set() is only valid inside the drive block")
         if not self._live():
-            by = self.ended_by or ("close()" if self._ops.closed else self._ops.stopped_by)
+            by = self.ended_by or (
+                "close()" if self._ops.closed else self._ops.supersession.stopped_by
+            )
             raise CommandSuperseded(
                 f"drive: {by} ended the drive session; nothing was written", superseded_by=by
             )
@@ -181,7 +161,7 @@ class DriveSession:
                 status,
             )
         self._entered = True
-        self._stops = ops.stops
+        self._stops = ops.supersession.stops
         self._write()  # ConnectionLost here: nothing was queued, nothing to stop
         self._task = ops.loop.create_task(self._keep_alive(), name="drive keep-alive")
         self._slot.session = self
@@ -270,7 +250,7 @@ class DriveSession:
 
     def _live(self) -> bool:
         ops = self._ops
-        return not (self._ended or ops.closed or ops.stops != self._stops)
+        return not (self._ended or ops.closed or ops.supersession.stops != self._stops)
 
     async def _keep_alive(self) -> None:
         loop = asyncio.get_running_loop()

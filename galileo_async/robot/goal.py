@@ -1,4 +1,5 @@
-"""Goals: GoalRunner follows each ``g N`` with a GoalTracker and a ProgressCheck."""
+"""Goals: GoalRunner follows each ``g N`` with a GoalTracker and a ProgressCheck, and pauses,
+resumes and cancels the goal."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from .._checks import check_timeout
 from ..errors import (
     AcceptTimeout,
     ConnectionLost,
@@ -16,12 +18,13 @@ from ..errors import (
     GoalStalled,
     LinkStale,
     OperationTimeout,
+    UnconfirmedOperation,
 )
 from ..events import GoalStalledEvent
-from ..models import GalileoStatus
-from ..protocol import Goto
+from ..models import GalileoStatus, TargetStatus
+from ..protocol import Cancel, Command, Goto, Pause, Resume
 from ..transitions import HostGoal
-from .operations import GOAL_READY, LEAVING, Operations, Sent
+from .operations import GOAL_READY, LEAVING, Confirm, Operations, Require, Sent
 from .progress import ProgressCheck
 from .runtime import Deadline
 from .tracker import ALREADY_THERE_FRAMES, ALREADY_THERE_TIME, GoalTracker, cancelling, settled
@@ -74,6 +77,56 @@ class GoalRunner:
         """Robot.cancel() was called: the running goal's end is a cancel, not a planner abort."""
         if self._running is not None:
             self._running.revise(cancelling)
+
+    async def pause(self, timeout: float | None) -> None:
+        """Pause the working goal (a user stop); see Robot.pause."""
+        self._ops.user_stopped("pause()")
+        await self._control(Pause(), TargetStatus.WORKING, TargetStatus.PAUSED, timeout)
+
+    async def resume(self, timeout: float | None) -> None:
+        """Resume the paused goal; see Robot.resume."""
+        await self._control(Resume(), TargetStatus.PAUSED, TargetStatus.WORKING, timeout)
+
+    async def cancel(self, timeout: float | None) -> None:
+        """Cancel the goal (a user stop), at once even while busy or stale; see Robot.cancel."""
+        ops = self._ops
+        ops.user_stopped("cancel()")
+        check_timeout("timeout", timeout)
+        ops.ensure_open()
+        self.cancelling()
+        await ops.send(Cancel(), what="cancel", even_stale=True)
+        stale = ops.store.link_error
+        if isinstance(stale, LinkStale):
+            raise LinkStale(
+                f"cancel: sent, but the status cannot confirm it: {stale}",
+                silent_for=stale.silent_for,
+            )
+        try:
+            await ops.store.wait_until(lambda s: not s.goal_active, timeout=timeout)
+        except GalileoTimeout as exc:
+            if exc.status is None:  # placeholders only: nothing is known of a goal
+                raise UnconfirmedOperation(
+                    f"cancel: sent, but the navigation system has not reported within "
+                    f"{timeout} s (only placeholder frames came), so no status can show it",
+                    None,
+                ) from None
+            raise UnconfirmedOperation(
+                f"cancel: sent, but a goal was still active after {timeout} s", exc.status
+            ) from None
+
+    async def _control(
+        self, command: Command, needed: TargetStatus, result: TargetStatus, timeout: float | None
+    ) -> None:
+        """Send pause or resume once the goal is ``needed``; return once it shows ``result``."""
+        what = type(command).__name__.lower()
+        check_timeout("timeout", timeout)
+        await self._ops.send(
+            command, what=what, deadline=Deadline(timeout),
+            require=Require(
+                lambda s: s.target_status == needed, f"the goal must be {needed.name.lower()}"
+            ),
+            then=Confirm(lambda s: s.target_status == result, field="target_status"),
+        )  # fmt: skip
 
     async def run(
         self,

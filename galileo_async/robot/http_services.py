@@ -200,7 +200,7 @@ class HttpServices:
                     )
                 )
 
-        unregister = self._ops.moving(halt, task=task_id)
+        unregister = self._ops.supersession.moving(halt, task=task_id)
         polling = asyncio.ensure_future(asyncio.wait_for(ended(), timeout))
         try:
             await asyncio.wait((polling, halted), return_when=asyncio.FIRST_COMPLETED)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
 
 import anyio
 
+from .._checks import check_timeout
 from ..errors import (
     CommandSuperseded,
     ConnectionLost,
@@ -25,7 +26,7 @@ from ..errors import (
 )
 from ..events import AbandonedGoalCancelled
 from ..models import GalileoStatus
-from ..protocol import Cancel, Command, Goto
+from ..protocol import Backward, Cancel, Command, Forward, Goto, TurnLeft, TurnRight
 from .runtime import Deadline
 from .supersede import Supersession
 
@@ -41,7 +42,6 @@ __all__ = [
     "LEAVING",
     "NAVIGATING",
     "NOT_NAVIGATING",
-    "ROTATE_TIMEOUT",
     "Confirm",
     "Follower",
     "Halt",
@@ -54,12 +54,14 @@ _log = logging.getLogger(__name__)
 
 #: Seconds for the status to confirm a simple command (patrol, mapping, pause …).
 DEFAULT_TIMEOUT = 10.0
-#: Seconds for a rotation to finish.
-ROTATE_TIMEOUT = 20.0
 #: Longest a shielded cancel (``i 2``) sent on the way out of an operation may take.
 CANCEL_SEND_TIMEOUT = 1.0
 #: What a goal leaves on while the robot may still drive, so that its exit cancel follows.
 LEAVING = (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost, CommandSuperseded)
+
+#: What a user stop supersedes while it waits (Supersession.user_stopped) among the commands
+#: sent unconfirmed: drive commands, and a goal sent as is with Robot.send().
+_SUPERSEDABLE = (Forward, Backward, TurnLeft, TurnRight, Goto)
 
 Predicate = Callable[[GalileoStatus], bool]
 #: Makes the error that ends a call awaiting motion, from the stop's name ("stop()").
@@ -148,13 +150,18 @@ class Confirm:
                 return status
 
 
-class Operations(Supersession):
-    """Send commands on behalf of one Robot, after checks, and follow their effect."""
+class Operations:
+    """Send commands on behalf of one Robot, after checks, and follow their effect.
+
+    The one place of a Robot's preconditions: its loop, open, the link up and fresh, no
+    drive session in the way of a goal, and the user's stops (its Supersession).
+    """
 
     def __init__(self, link: BaseLink, store: StatusStore) -> None:
-        super().__init__()
         self.link = link
         self.store = store
+        #: What a user stop reaches: waiting drive/goal commands, the drive session, motions.
+        self.supersession = Supersession()
         #: The event loop that connected the Robot: its link, timers and futures live there.
         self.loop = asyncio.get_running_loop()
         #: Set by Robot.close(): nothing is sent any more.
@@ -210,7 +217,8 @@ class Operations(Supersession):
         self.ensure_open()
         if not even_stale:
             self.check_link(what)
-        written = self.withdrawable(what, stops_at) if supersedable else None
+        stops = self.supersession
+        written = stops.withdrawable(what, stops_at) if supersedable else None
         try:
             status = self.store.status
             followed = require is not None or then is not None
@@ -234,7 +242,7 @@ class Operations(Supersession):
                 if written is not None and written.done():
                     await written  # superseded: raises before the follower starts anything
                 then.sending(self.store.status)
-                unregister = None if halt is None else self.moving(lambda by: watch.halt(halt(by)))
+                unregister = None if halt is None else stops.moving(lambda by: watch.halt(halt(by)))
                 try:
                     await self.link.send(command, written=written)
                     return await then.follow(watch, Sent(what, deadline, self.store.status))
@@ -243,7 +251,20 @@ class Operations(Supersession):
                         unregister()
         finally:
             if written is not None:
-                self.settled(written)
+                stops.settled(written)
+
+    async def send_unconfirmed(
+        self, command: Command, what: str, limit: float | None, require: Require | None = None
+    ) -> None:
+        """Send ``command`` (busy back-off within ``limit`` s, the caller's timeout); unconfirmed.
+
+        A drive or goal command (f, b, c, d, g) is supersedable: a user stop withdraws it.
+        """
+        check_timeout("timeout", limit)
+        await self.send(
+            command, what=what, deadline=Deadline(limit), require=require,
+            supersedable=isinstance(command, _SUPERSEDABLE),
+        )  # fmt: skip
 
     def ensure_open(self) -> None:
         """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed.
@@ -252,7 +273,7 @@ class Operations(Supersession):
         link closes: close() must not cut a stop in half.
         """
         self.ensure_loop()
-        if self.closed and asyncio.current_task() not in self.held:
+        if self.closed and asyncio.current_task() not in self.supersession.held:
             raise GalileoConnectionError("this Robot is closed")
 
     def ensure_loop(self) -> None:
@@ -279,6 +300,18 @@ class Operations(Supersession):
         if isinstance(error, LinkStale):
             raise LinkStale(message, silent_for=error.silent_for)
         raise ConnectionLost(message)
+
+    def user_stopped(self, what: str) -> None:
+        """A user stop ``what`` ("stop()" …): WrongEventLoop off the loop, else Supersession's."""
+        self.ensure_loop()
+        self.supersession.user_stopped(what)
+
+    def check_not_driving(self, what: str) -> None:
+        """NotReady inside an active drive block: a goal and the drive's speeds would fight."""
+        if self.supersession.drive.active:
+            raise NotReady(
+                f"{what}: a drive session is active; leave its block first", self.store.status
+            )
 
     def _check(self, require: Require, what: str) -> None:
         """Raise NotReady unless the latest status shows ``require``."""
@@ -373,7 +406,7 @@ class Operations(Supersession):
             return
         # Its own task: asyncio's task.cancel() (even twice) cannot stop the wait, which an
         # anyio shield alone does not prevent; the task bounds itself by CANCEL_SEND_TIMEOUT.
-        task = self.hold(self._await_cancel(written))
+        task = self.supersession.hold(self._await_cancel(written))
         with anyio.CancelScope(shield=True):
             await asyncio.shield(task)
 
@@ -386,8 +419,8 @@ class Operations(Supersession):
 
     async def aclose(self) -> None:
         """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
-        if self.held:
-            await asyncio.wait(set(self.held), timeout=CANCEL_SEND_TIMEOUT)
+        if self.supersession.held:
+            await asyncio.wait(set(self.supersession.held), timeout=CANCEL_SEND_TIMEOUT)
 
 
 def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:

@@ -14,20 +14,33 @@ from ..errors import (
     UnconfirmedOperation,
 )
 from ..events import Event
-from ..models import GalileoStatus
-from ..options import DEFAULT_ACCEPT_TIMEOUT, DEFAULT_GOAL_TIMEOUT, DEFAULT_WAIT_TIMEOUT
+from ..models import ChargeStatus, GalileoStatus
+from ..options import (
+    DEFAULT_ACCEPT_TIMEOUT,
+    DEFAULT_ANGLE_TOLERANCE,
+    DEFAULT_GOAL_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+)
 from ..protocol import (
     AddTarget,
+    Backward,
     Command,
+    Forward,
     Goto,
     PoseGoal,
+    ShutdownHost,
     StartNavigation,
+    Stop,
     StopNavigation,
+    TurnLeft,
+    TurnRight,
     Velocity,
 )
+from ..state.listeners import EventListener, StatusListener
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import BaseLink, LinkStats
+from ..transports import BaseLink, LinkState, LinkStats
+from ..transports.follow import LinkStateStream
 from .drive import (
     DEFAULT_DRIVE_RATE,
     DEFAULT_MAX_ANGULAR_SPEED,
@@ -35,7 +48,6 @@ from .drive import (
     DriveSession,
     SpeedLimits,
 )
-from .following import Following
 from .goal import GoalResult, GoalRunner
 from .http_services import HttpServices
 from .operations import (
@@ -44,7 +56,6 @@ from .operations import (
     GOAL_READY,
     NAVIGATING,
     NOT_NAVIGATING,
-    ROTATE_TIMEOUT,
     Confirm,
     Operations,
     Require,
@@ -59,10 +70,11 @@ from .runtime import (
     finish_shielded,
     or_default,
 )
-from .services import DEFAULT_ANGLE_TOLERANCE, RobotServices
+from .services import Charging, Mapping, Patrol
+from .stopping import DEFAULT_STOP_TIMEOUT, StopReport, stop_motion
 from .supersede import goal_superseded
 from .targets import DynamicTargets, landed_at
-from .turning import Turning
+from .turn import ROTATE_TIMEOUT, rotate, turn_in_place
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -87,12 +99,12 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(Turning, RobotServices, HttpServices, Following):
+class Robot(HttpServices):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
-    Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;
-    RobotServices holds the methods besides goto and navigation, Following the link state
-    and the listeners.
+    Composed by concern: an Operations (preconditions, the one send, the user's stops), a
+    GoalRunner (goals), the DynamicTargets, and the Patrol, Mapping and Charging parts; each
+    public method is defined here and delegates to one of them.
     """
 
     def __init__(
@@ -123,9 +135,11 @@ class Robot(Turning, RobotServices, HttpServices, Following):
                 "progress_timeout": progress_timeout,
             }
         )
-        ops = Operations(link, store)
-        super().__init__(ops, GoalRunner(ops), DynamicTargets(ops, map_targets))
         self._link, self._store = link, store
+        self._ops = ops = Operations(link, store)
+        self._goals = GoalRunner(ops)
+        self._targets = DynamicTargets(ops, map_targets)
+        self._patrol, self._mapping, self._charging = Patrol(ops), Mapping(ops), Charging(ops)
         #: Awaited first on close: what serves this Robot to others (the control socket).
         self._closers: list[Callable[[], Awaitable[None]]] = []
         OPEN_ROBOTS.add(self)
@@ -136,6 +150,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         self.wait_timeout = wait_timeout
         #: Default ``progress_timeout`` of goto/goto_point (None: never stalled).
         self.progress_timeout = progress_timeout
+        #: rotate_to and turn_to within this many degrees of the heading: done, nothing sent.
         self.angle_tolerance = float(angle_tolerance)
         #: Speeds at 100 % of the serial speed commands (drive() converts to percentages).
         self.speed_limits = SpeedLimits(float(max_linear_speed), float(max_angular_speed))
@@ -159,7 +174,8 @@ class Robot(Turning, RobotServices, HttpServices, Following):
 
     @property
     def link(self) -> LinkStats:
-        """Link statistics: frames, bytes, discards, lost frames, reconnects, layout …"""
+        """The link's statistics (a LinkStats), not the link: frames, bytes, discards, lost
+        frames, reconnects, layout, and ``state`` (also ``link_state``)."""
         return self._link.stats
 
     @property
@@ -202,6 +218,59 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         self._ops.ensure_loop()
         return self._store.events()
 
+    # --- link state and listeners ----------------------------------------------------
+
+    @property
+    def link_state(self) -> LinkState:
+        """Where the link is now: CONNECTING, UP, STALE, LOST or CLOSED (the link keeps it)."""
+        return self._link.state
+
+    def link_states(self) -> LinkStateStream:
+        """Async iterator of the link's state: the state now, then each change; ends after CLOSED.
+
+        Every change is kept (an outage is UP → STALE → LOST → UP); leaving the loop, or
+        cancelling the task in it, stops following.
+        """
+        self._ops.ensure_loop()
+        return self._link.states()
+
+    async def wait_link(
+        self, *states: LinkState, timeout: float | RobotDefault | None = ROBOT_DEFAULT
+    ) -> LinkState:
+        """Return the first of ``states`` the link is in, now or later.
+
+        Left out, ``timeout`` is the Robot's ``wait_timeout``; None: no limit. GalileoTimeout
+        after it; ConnectionLost once the link closes (unless CLOSED is one of ``states``);
+        InvalidArgument for no state or one that is not a LinkState.
+        """
+        if not states or not all(isinstance(state, LinkState) for state in states):
+            raise InvalidArgument(f"wait_link takes one or more LinkState, got {states!r}")
+        seconds = or_default(timeout, self.wait_timeout)
+        check_timeout("timeout", seconds)
+        self._ops.ensure_loop()
+        return await self._link.wait_state(*states, timeout=seconds)
+
+    def add_update_listener(self, listener: StatusListener) -> None:
+        """Call ``listener(status)`` with every later status, synchronously (keep it cheap).
+
+        Any number of listeners; a listener that raises is logged, the others still run.
+        """
+        self._store.add_update_listener(listener)
+
+    def remove_update_listener(self, listener: StatusListener) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._store.remove_update_listener(listener)
+
+    def add_event_listener(self, listener: EventListener) -> None:
+        """Call ``listener(event)`` with every later event, synchronously (keep it cheap)."""
+        self._store.add_event_listener(listener)
+
+    def remove_event_listener(self, listener: EventListener) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._store.remove_event_listener(listener)
+
+    # --- sending ---------------------------------------------------------------------
+
     async def send(self, command: Command, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
@@ -210,7 +279,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
         if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
             raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
-        await self._written(command, f"send({command!r})", timeout)
+        await self._ops.send_unconfirmed(command, f"send({command!r})", timeout)
 
     def drive(
         self, linear: float = 0.0, angular: float = 0.0, *, rate: float = DEFAULT_DRIVE_RATE
@@ -226,7 +295,63 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         (protocol.speed_commands); on ros:// a geometry_msgs/Twist on /cmd_vel.
         """
         self._ops.ensure_loop()
-        return DriveSession(self._ops, self.speed_limits, linear, angular, rate, self._drives)
+        slot = self._ops.supersession.drive
+        return DriveSession(self._ops, self.speed_limits, linear, angular, rate, slot)
+
+    # --- velocity and stopping ----------------------------------------------------------
+
+    # One command each: 22 chassis builds hold it until the next, others stop 1-3 s after
+    # it (VENDOR.md §2.5); drive() keeps a speed alive and always ends with a stop.
+
+    async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Write ``f`` once at ``percent`` (0-100) of max speed; the chassis decides how long."""
+        await self._ops.send_unconfirmed(Forward(percent), "forward", timeout)
+
+    async def backward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Write ``b`` once at ``percent`` (0-100) of max speed; as forward()."""
+        await self._ops.send_unconfirmed(Backward(percent), "backward", timeout)
+
+    async def turn_left(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Write ``c`` once at ``percent`` (0-100) of max angular speed; as forward()."""
+        await self._ops.send_unconfirmed(TurnLeft(percent), "turn_left", timeout)
+
+    async def turn_right(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Write ``d`` once at ``percent`` (0-100) of max angular speed; as forward()."""
+        await self._ops.send_unconfirmed(TurnRight(percent), "turn_right", timeout)
+
+    async def zero_speed(self, brake: int = 100) -> None:
+        """Write one ``Stop(brake)`` (both speeds 0); a goal or patrol drives on. Use stop().
+
+        Sent at once, even while busy or stale; a user stop: a drive or goal command called
+        before it that still waits is never written (Supersession.user_stopped).
+        """
+        command = Stop(brake)
+        self._ops.user_stopped("zero_speed()")
+        await self._ops.send(command, what="zero_speed", even_stale=True)
+
+    async def stop(
+        self, brake: int = 100, *, timeout: float | None = DEFAULT_STOP_TIMEOUT
+    ) -> StopReport:
+        """Halt every motion, whoever started it; return once the status shows it stopped.
+
+        Ends this Robot's drive()/turn_to() sessions and every call of it awaiting motion
+        at once (goto, goto_point, goto_pose: GoalCancelled; rotate_to, turn_to: CommandSuperseded;
+        each naming "stop()"), then writes, even while busy or stale: ``m 6`` (stop patrol)
+        unless the status shows none, ``i 2`` (cancel the goal; on http:// the nav task), and
+        a stop of both speeds with ``brake`` (0-100). Returns a StopReport once a status shows
+        no goal working or paused, no patrol and no speed (a layout without speeds, UDP,
+        cannot show one); StopUnconfirmed naming each part still shown after ``timeout`` s,
+        or at once on a stale link. ConnectionLost: the link is lost and nothing was sent.
+        """
+        command = Stop(brake)
+        check_timeout("timeout", timeout)
+        ops = self._ops
+        ops.ensure_open()
+        drive, goal = ops.supersession.drive.active, self._goals.running
+        ops.user_stopped("stop()")
+        self._goals.cancelling()  # the running goal's end is a cancel, not a planner abort
+        tasks = ops.supersession.halt_motions("stop()")
+        return await stop_motion(ops, command, timeout, goal=goal, drive=drive, tasks=tasks)
 
     # --- navigation --------------------------------------------------------------------
 
@@ -254,7 +379,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
 
     async def stop_navigation(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Stop navigation (also patrol and the goal); return once it is closed (a user stop)."""
-        self._user_stop("stop_navigation()")
+        self._ops.user_stopped("stop_navigation()")
         check_timeout("timeout", timeout)
         await self._ops.send(
             StopNavigation(), what="stop_navigation", deadline=Deadline(timeout),
@@ -295,7 +420,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         progress_timeout: float | RobotDefault | None,
         cancel_on_exit: bool,
     ) -> GoalResult:
-        self._refuse_while_driving("goto")
+        self._ops.check_not_driving("goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
@@ -329,7 +454,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         read at connect (sim://, ros://).
         """
         command = AddTarget(x, y)  # validate before anything is sent
-        self._refuse_while_driving("goto_point")
+        self._ops.check_not_driving("goto_point")
         if self._link.carries_pose_goals:  # http://: one nav task, followed as target -2
             result = await self._goto(PoseGoal(x=x, y=y), timeout, None, progress_timeout,
                                       cancel_on_exit)  # fmt: skip
@@ -341,7 +466,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         check_bool("cancel_on_exit", cancel_on_exit)
         first_id = self._targets.map_target_count("goto_point")
         deadline = Deadline(seconds)
-        stops_at = self._ops.stops  # a user stop supersedes every step still to come
+        stops_at = self._ops.supersession.stops  # a user stop supersedes every step still to come
         try:
             await self._targets.reset(
                 deadline, what="goto_point", require=GOAL_READY, stops_at=stops_at
@@ -359,6 +484,121 @@ class Robot(Turning, RobotServices, HttpServices, Following):
     def __repr__(self) -> str:
         return f"<Robot on {self._link!r}, link {self.link_state.value}>"
 
+    # --- goal control, dynamic targets ---------------------------------------------------
+
+    async def pause(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Pause the working goal; return once the status shows it paused (a user stop)."""
+        await self._goals.pause(timeout)
+
+    async def resume(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Resume the paused goal; return once the status shows it working."""
+        await self._goals.resume(timeout)
+
+    async def cancel(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Cancel the goal (sent at once, even while busy or stale); return once none is active.
+
+        On a stale link ``i 2`` is still sent (the transmit side may work), then LinkStale
+        is raised: the status cannot confirm it.
+        """
+        await self._goals.cancel(timeout)
+
+    async def add_target(
+        self, x: float, y: float, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> int:
+        """Append a dynamic target at (x, y) metres in the map frame; return its goal id."""
+        command = AddTarget(x, y)
+        check_timeout("timeout", timeout)
+        return await self._targets.add(command, Deadline(timeout))
+
+    async def reset_targets(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Drop every dynamic target (the map's own stay); not confirmable by status."""
+        check_timeout("timeout", timeout)
+        await self._targets.reset(Deadline(timeout))
+
+    # --- turning ---------------------------------------------------------------------------
+
+    async def rotate_to(
+        self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT, fallback: bool = False
+    ) -> None:
+        """Rotate to ``degrees`` (-180..180, rounded) in the map frame; wait angle_goal_status.
+
+        Returns once angle_goal_status shows this rotation done (0, then 1). A navigation
+        goal that runs meanwhile (this Robot's or another host's) raises OperationFailed:
+        it replaces the rotation, and on real firmware angle_goal_status follows it. Facing
+        ``degrees`` already, within ``angle_tolerance`` (-180 and 180 are one heading), it
+        returns at once and sends nothing. ``fallback``: when ``a`` is unconfirmed
+        (UnconfirmedOperation), turn_to() after it.
+        """
+        try:
+            await rotate(self._ops, degrees, limit=timeout, tolerance=self.angle_tolerance)
+        except UnconfirmedOperation:
+            if not fallback:
+                raise
+            await self.turn_to(degrees, timeout=timeout)
+
+    async def turn_to(self, degrees: float, *, timeout: float | None = ROTATE_TIMEOUT) -> None:
+        """Turn in place to ``degrees`` by drive() (every firmware), within angle_tolerance."""
+        self._ops.ensure_loop()
+        await turn_in_place(self, degrees, limit=timeout)
+
+    # --- patrol, mapping, charging, host -------------------------------------------------
+
+    async def start_patrol(
+        self, dwell: int | None = None, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> None:
+        """Start auto-patrol (``dwell`` s at each target if given); return once loop_status is 1."""
+        await self._patrol.start(dwell, timeout)
+
+    async def stop_patrol(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop auto-patrol, keep navigation (``m 6``); return once loop_status is 0."""
+        await self._patrol.stop(timeout)
+
+    async def set_patrol_dwell(
+        self, seconds: int, *, timeout: float | None = DEFAULT_TIMEOUT
+    ) -> None:
+        """Set the patrol wait at each target (0-255 s); the firmware also starts patrol."""
+        await self._patrol.set_dwell(seconds, timeout)
+
+    async def start_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Start building a map; return once map_status is 1. Navigation must be closed."""
+        await self._mapping.start(timeout)
+
+    async def stop_mapping(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop building the map; return once map_status is 0."""
+        await self._mapping.stop(timeout)
+
+    async def save_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Save the map; the status cannot confirm it and some firmware ignores it."""
+        await self._mapping.save(timeout)
+
+    async def update_map(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Update the map; the status cannot confirm it."""
+        await self._mapping.update(timeout)
+
+    async def start_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> ChargeStatus:
+        """Dock and charge (``j 0``); return the charge_status once it leaves FREE.
+
+        This is the local infrared docking only: it does not cross the map. The robot must
+        already be near the dock with navigation open; drive it there first (``goto_point``).
+        """
+        return await self._charging.start(timeout)
+
+    async def stop_charging(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Stop charging; return once charge_status is FREE."""
+        await self._charging.stop(timeout)
+
+    async def save_dock(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Save the current pose as the dock position; the status cannot confirm it."""
+        await self._charging.save_dock(timeout)
+
+    async def shutdown_host(self, *, confirm: bool = False) -> None:
+        """Power the navigation computer off; refuses unless ``confirm=True``."""
+        if confirm is not True:
+            raise InvalidArgument(
+                "shutdown_host powers the robot's computer off: pass confirm=True"
+            )
+        await self._ops.send(ShutdownHost(), what="shutdown_host")
+
     # --- lifecycle -----------------------------------------------------------------------
 
     async def close(self) -> None:
@@ -369,7 +609,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         self._ops.user_stopped("close()")
         task = self._close_task
         if task is None:
-            stop_written = self._drives.end()  # queued first, and written before closing
+            stop_written = self._ops.supersession.drive.end()  # queued by the user stop above
             self._ops.closed = True
             task = self._close_task = asyncio.get_running_loop().create_task(
                 self._shutdown(stop_written), name=f"close {self._link!r}"
@@ -379,7 +619,8 @@ class Robot(Turning, RobotServices, HttpServices, Following):
     async def _shutdown(self, stop_written: asyncio.Future[bool] | None) -> None:
         try:
             await asyncio.gather(*(closer() for closer in self._closers), return_exceptions=True)
-            waits = self._ops.held | ({stop_written} if stop_written is not None else set())
+            held = self._ops.supersession.held
+            waits = held | ({stop_written} if stop_written is not None else set())
             if waits:  # the drive's stop, and a stop() under way, are written in full first
                 await asyncio.wait(waits, timeout=CANCEL_SEND_TIMEOUT)
             await self._link.close()

@@ -136,9 +136,9 @@ async def stop_motion(
     if before is not None and before.charge_status in _DOCKING:
         commands.append((StopCharging(), True))  # the robot drives onto the dock
     commands += [(Cancel(), goal_shown), (stop, True)]
-    # Its own task, held by Operations: a caller cancelled meanwhile (a timeout, Ctrl-C, a
+    # Its own task, held by the Supersession: a caller cancelled meanwhile (a timeout, Ctrl-C, a
     # failing sibling) cannot keep the rest of the stop from being written.
-    sending = ops.hold(_send(ops, commands))
+    sending = ops.supersession.hold(_send(ops, commands))
     failed = await asyncio.shield(sending)
     if failed is not None:
         raise failed

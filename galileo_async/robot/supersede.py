@@ -1,20 +1,58 @@
-"""Supersession: a user stop withdraws every drive or goal command still waiting to be written."""
+"""What a user stop reaches: the drive or goal commands still waiting, the drive session,
+the calls awaiting motion, and the sends that must finish though their caller was cancelled."""
 
 from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable, Coroutine
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
-from ..errors import CommandSuperseded, GoalCancelled
+from ..errors import CommandSuperseded, GalileoError, GoalCancelled
 
-__all__ = ["Supersession", "goal_superseded"]
+__all__ = ["DriveSlot", "Supersession", "goal_superseded"]
 
 _R = TypeVar("_R")
 
 
+class _Session(Protocol):
+    """What a user stop uses of a DriveSession."""
+
+    @property
+    def active(self) -> bool:
+        """True while its block runs and no user stop ended it."""
+
+    @property
+    def stop_written(self) -> asyncio.Future[bool] | None:
+        """The write of its one stop, once queued."""
+
+    def end(self, by: str | None = None) -> GalileoError | None:
+        """End it now and queue its one stop."""
+
+
+class DriveSlot:
+    """The one drive session a Robot may have at a time."""
+
+    __slots__ = ("session",)
+
+    def __init__(self) -> None:
+        self.session: _Session | None = None
+
+    @property
+    def active(self) -> bool:
+        """True while a session's block runs and no user stop ended it."""
+        return self.session is not None and self.session.active
+
+    def end(self, by: str = "close()") -> asyncio.Future[bool] | None:
+        """End the session now (``by`` the user stop that did), its one stop queued; its future."""
+        session = self.session
+        if session is None:
+            return None
+        session.end(by)
+        return session.stop_written
+
+
 class Supersession:
-    """The part of Operations that knows the user's stops (Operations.send applies it)."""
+    """The user's stops of one Robot and what they reach; Operations holds one and applies it."""
 
     def __init__(self) -> None:
         #: Bumped synchronously (before any await) by every user stop: Robot.stop(), cancel(),
@@ -30,29 +68,28 @@ class Supersession:
         # How to end each call that awaits motion now (goto, rotate_to …), with the id of the
         # HTTP task it follows, if any; keyed by a token.
         self._motions: dict[object, tuple[Callable[[str], None], str | None]] = {}
+        #: The drive session inside whose block the caller is, if any; a user stop ends it.
+        self.drive = DriveSlot()
 
     @property
     def stopped_by(self) -> str:
         """The latest user stop's name ("stop()", "cancel()" …), or "a user stop" before one."""
         return self._stopped_by or "a user stop"
 
-    def ensure_loop(self) -> None:
-        """Raise WrongEventLoop unless called on the Robot's loop (Operations has it)."""
-        raise NotImplementedError
-
     def user_stopped(self, what: str) -> None:
-        """A user stop (``what``, e.g. "stop()") was called: supersede each waiting drive/goal.
+        """A user stop (``what``, e.g. "stop()"): supersede each waiting drive/goal, end the drive.
 
         Synchronous: a withdrawn command's write future fails now, so the link's writer, which
-        skips a command whose future is done, can never write it, even in this loop turn.
+        skips a command whose future is done, can never write it, even in this loop turn; the
+        drive session's one stop is queued after that.
         """
-        self.ensure_loop()
         self.stops += 1
         self._stopped_by = what
         waiting, self._withdrawable = self._withdrawable, {}
         for written, sent in waiting.items():
             if not written.done():
                 written.set_exception(_superseded(sent, what))
+        self.drive.end(what)
 
     def withdrawable(self, what: str, stops_at: int | None) -> asyncio.Future[bool]:
         """The write future of drive or goal command ``what``, which a user stop fails.

@@ -16,12 +16,13 @@ from ..robot import Robot
 from .models import Edge, Error, ErrorReference, Info, Node, reference
 from .order import OrderProgress, target_number
 
-__all__ = ["ROTATE_TIMEOUT", "Executor", "can_limit_speed"]
+__all__ = ["NODE_TURN_TIMEOUT", "Executor", "can_limit_speed"]
 
 _log = logging.getLogger(__name__)
 
-#: Seconds the turn to a node's theta may take (then the order fails: navigationTimeout).
-ROTATE_TIMEOUT = 10.0
+#: Seconds the turn in place to a node's theta may take (then the order fails:
+#: navigationTimeout); an order's own limit, not Robot.rotate_to's ROTATE_TIMEOUT.
+NODE_TURN_TIMEOUT = 10.0
 
 
 def can_limit_speed(robot: Robot) -> bool:
@@ -118,7 +119,7 @@ class Executor:
         await self.robot.goto_point(position.x, position.y)
         if position.theta is not None:
             # By velocity, not 'a': most firmware ignores the rotate command (PROTOCOL.md §2.g).
-            await self.robot.turn_to(math.degrees(position.theta), timeout=ROTATE_TIMEOUT)
+            await self.robot.turn_to(math.degrees(position.theta), timeout=NODE_TURN_TIMEOUT)
 
     def fail(self, error_type: str, description: str, refs: list[ErrorReference]) -> None:
         """End the order short with a WARNING error naming why."""
