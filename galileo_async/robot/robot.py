@@ -1,4 +1,5 @@
-"""Robot: awaitable operations with preconditions, busy back-off and confirmation."""
+"""Robot: awaitable operations with preconditions, busy back-off and confirmation, each
+defined here and carried out by the part of its concern."""
 
 from __future__ import annotations
 
@@ -102,9 +103,11 @@ _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 class Robot(HttpServices):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
-    Composed by concern: an Operations (preconditions, the one send, the user's stops), a
-    GoalRunner (goals), the DynamicTargets, and the Patrol, Mapping and Charging parts; each
-    public method is defined here and delegates to one of them.
+    Composed by concern, not stacked: it holds an Operations (preconditions, the one send,
+    the user's stops), a GoalRunner (goals), the DynamicTargets and the Patrol, Mapping and
+    Charging parts, each made on that Operations; turning (turn.py) and stop() (stopping.py)
+    are functions of it. Each public method is defined here and delegates to one of them;
+    HttpServices, its one base, adds the REST calls of http:// links.
     """
 
     def __init__(
