@@ -217,8 +217,8 @@ class Operations:
         self.ensure_open()
         if not even_stale:
             self.check_link(what)
-        stops = self.supersession
-        written = stops.withdrawable(what, stops_at) if supersedable else None
+        user_stops = self.supersession
+        written = user_stops.withdrawable(what, stops_at) if supersedable else None
         try:
             status = self.store.status
             followed = require is not None or then is not None
@@ -242,7 +242,9 @@ class Operations:
                 if written is not None and written.done():
                     await written  # superseded: raises before the follower starts anything
                 then.sending(self.store.status)
-                unregister = None if halt is None else stops.moving(lambda by: watch.halt(halt(by)))
+                unregister = (
+                    None if halt is None else user_stops.moving(lambda by: watch.halt(halt(by)))
+                )
                 try:
                     await self.link.send(command, written=written)
                     return await then.follow(watch, Sent(what, deadline, self.store.status))
@@ -251,7 +253,7 @@ class Operations:
                         unregister()
         finally:
             if written is not None:
-                stops.settled(written)
+                user_stops.settled(written)
 
     async def send_unconfirmed(
         self, command: Command, what: str, limit: float | None, require: Require | None = None
