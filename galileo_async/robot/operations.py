@@ -6,7 +6,7 @@ import asyncio
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeVar, overload
 
 import anyio
 
@@ -25,7 +25,7 @@ from ..errors import (
 )
 from ..events import AbandonedGoalCancelled
 from ..models import GalileoStatus
-from ..protocol import Cancel, Command, Goto
+from ..protocol import ApiCall, Cancel, Command, Goto
 from .runtime import Deadline
 from .supersede import Supersession
 
@@ -48,6 +48,7 @@ __all__ = [
     "Operations",
     "Require",
     "Sent",
+    "task_of",
 ]
 
 _log = logging.getLogger(__name__)
@@ -86,11 +87,15 @@ GOAL_READY = Require(
 
 
 class Sent(NamedTuple):
-    """A command just written: the operation's name, its deadline, the latest status then."""
+    """A command just written: the operation's name, its deadline, the latest status then.
+
+    ``task``: the id of the HTTP API task the write started (a PoseGoal's), else None.
+    """
 
     what: str
     deadline: Deadline
     status: GalileoStatus | None
+    task: str | None = None
 
 
 class Follower(Protocol[_R_co]):
@@ -126,7 +131,7 @@ class Confirm:
 
     async def follow(self, watch: Watch, sent: Sent) -> GalileoStatus:
         """The first status from the write on where ``done`` holds."""
-        what, deadline, latest = sent
+        what, deadline, latest = sent.what, sent.deadline, sent.status
         if latest is not None and getattr(latest, self.field) is None:
             raise UnconfirmedOperation(
                 f"{what}: sent, but the {latest.layout} status layout has no {self.field} "
@@ -234,16 +239,32 @@ class Operations(Supersession):
                 if written is not None and written.done():
                     await written  # superseded: raises before the follower starts anything
                 then.sending(self.store.status)
-                unregister = None if halt is None else self.moving(lambda by: watch.halt(halt(by)))
+                stop = None if halt is None else (lambda by: watch.halt(halt(by)))
+                unregister = None if stop is None else self.moving(stop)
                 try:
-                    await self.link.send(command, written=written)
-                    return await then.follow(watch, Sent(what, deadline, self.store.status))
+                    task = task_of(await self.link.send(command, written=written))
+                    if stop is not None and unregister is not None and task is not None:
+                        unregister()  # the same call, now naming its task for stop()'s report
+                        unregister = self.moving(stop, task=task)
+                    return await then.follow(watch, Sent(what, deadline, self.store.status, task))
                 finally:
                     if unregister is not None:
                         unregister()
         finally:
             if written is not None:
                 self.settled(written)
+
+    async def ask(self, call: ApiCall, *, what: str) -> Any:
+        """Make ``call`` through the link's one writer; its answer. ``what`` names it in errors.
+
+        Operations.send's checks first: the Robot is open and on its loop (WrongEventLoop,
+        GalileoConnectionError), the link is up (ConnectionLost: nothing was sent). A stale
+        link is no reason to refuse: the answer comes back over the call, not the status.
+        """
+        self.ensure_open()
+        if not isinstance(self.store.link_error, LinkStale):
+            self.check_link(what)
+        return await self.link.send(call)
 
     def ensure_open(self) -> None:
         """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed.
@@ -388,6 +409,12 @@ class Operations(Supersession):
         """Wait for exit cancels still being sent (call after link.close(), which fails them)."""
         if self.held:
             await asyncio.wait(set(self.held), timeout=CANCEL_SEND_TIMEOUT)
+
+
+def task_of(answer: Any) -> str | None:
+    """The id of the HTTP API task a link's ``answer`` describes, if it is one."""
+    task = answer.get("id") if isinstance(answer, dict) else None
+    return task if isinstance(task, str) else None
 
 
 def _log_unsent_cancel(written: asyncio.Future[bool]) -> None:

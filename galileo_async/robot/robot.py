@@ -7,17 +7,13 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 from types import TracebackType
 
 from .._checks import check_bool, check_timeout
-from ..errors import (
-    CommandSuperseded,
-    GalileoTimeout,
-    InvalidArgument,
-    UnconfirmedOperation,
-)
+from ..errors import CommandSuperseded, GalileoTimeout, InvalidArgument, UnconfirmedOperation
 from ..events import Event
 from ..models import GalileoStatus
 from ..options import DEFAULT_ACCEPT_TIMEOUT, DEFAULT_GOAL_TIMEOUT, DEFAULT_WAIT_TIMEOUT
 from ..protocol import (
     AddTarget,
+    ApiCall,
     Command,
     Goto,
     PoseGoal,
@@ -37,7 +33,7 @@ from .drive import (
 )
 from .following import Following
 from .goal import GoalResult, GoalRunner
-from .http_services import HttpServices
+from .http_part import HttpPart
 from .operations import (
     CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -87,12 +83,12 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(Turning, RobotServices, HttpServices, Following):
+class Robot(Turning, RobotServices, Following):
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
     Made of an Operations (checks, sends, follows), a GoalRunner and the DynamicTargets;
     RobotServices holds the methods besides goto and navigation, Following the link state
-    and the listeners.
+    and the listeners; ``http`` (an HttpPart) what only the HTTP API does, None off http(s)://.
     """
 
     def __init__(
@@ -126,6 +122,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         ops = Operations(link, store)
         super().__init__(ops, GoalRunner(ops), DynamicTargets(ops, map_targets))
         self._link, self._store = link, store
+        self.http: HttpPart | None = HttpPart(ops, self._goto) if link.carries_api_calls else None
         #: Awaited first on close: what serves this Robot to others (the control socket).
         self._closers: list[Callable[[], Awaitable[None]]] = []
         OPEN_ROBOTS.add(self)
@@ -210,6 +207,8 @@ class Robot(Turning, RobotServices, HttpServices, Following):
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
         if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
             raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
+        if isinstance(command, ApiCall) and not self._link.carries_api_calls:
+            raise InvalidArgument("an ApiCall goes over http:// only (robot.http is None here)")
         await self._written(command, f"send({command!r})", timeout)
 
     def drive(
@@ -295,7 +294,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         progress_timeout: float | RobotDefault | None,
         cancel_on_exit: bool,
     ) -> GoalResult:
-        self._refuse_while_driving("goto")
+        self._refuse_while_driving("goto_pose" if isinstance(command, PoseGoal) else "goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)
