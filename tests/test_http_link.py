@@ -288,6 +288,22 @@ async def test_robot_http_is_bound_to_the_robots_loop_and_closes_with_it() -> No
     assert face.requests == before
 
 
+async def test_robot_http_on_a_lost_link_sends_nothing() -> None:
+    async with robot_on_http({"reconnect": False}) as (_, robot, face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        async with asyncio.timeout(WAIT):
+            events = robot.events()
+            for request, _outbox in list(face.sockets.values()):
+                request.transport.abort()
+            async for event in events:
+                if isinstance(event, ConnectionLostEvent):
+                    break
+        before = face.requests
+        with pytest.raises(galileo.ConnectionLost, match=r"maps\(\): nothing was sent"):
+            await http_of(robot).maps()
+        assert face.requests == before
+
+
 # --- error paths -----------------------------------------------------------------------------
 
 
