@@ -33,21 +33,25 @@ async def main() -> int:
     async with http_url(URL) as url:
         try:
             async with galileo.connect(url) as robot:
-                info = await robot.info()
+                http = robot.http  # None on a link without the HTTP API
+                if http is None:
+                    print(f"{url} is no http:// or https:// link", file=sys.stderr)
+                    return 2
+                info = await http.info()
                 print(f"firmware {info.version} ({info.code_name})")
-                print(f"battery: {await robot.battery_percent()} %")
-                print(f"maps: {', '.join(await robot.maps())}")
-                current = await robot.current_map()
+                print(f"battery: {await http.battery_percent()} %")
+                print(f"maps: {', '.join(await http.maps())}")
+                current = await http.current_map()
                 print(f"current map: {current.map}, path {current.path}")
-                for index, point in enumerate(await robot.targets()):
+                for index, point in enumerate(await http.targets()):
                     print(f"target {index}: ({point.x:.2f}, {point.y:.2f})")
-                switched = await robot.switch_map(current.map)  # no navigation restart
+                switched = await http.switch_map(current.map)  # no navigation restart
                 print(f"switched to {switched.map}, path {switched.path}")
                 await robot.start_navigation(timeout=60)
                 try:
-                    result = await robot.goto_pose(1.0, 0.5, 0.0, timeout=120)
-                except galileo.TaskFailed as exc:
-                    print(f"goal by pose ended {exc.state}")
+                    result = await http.goto_pose(1.0, 0.5, 0.0, timeout=120)
+                except galileo.GoalError as exc:
+                    print(f"goal by pose failed: {type(exc).__name__}: {exc}")
                     return 1
                 print(f"arrived at (1.0, 0.5) after {result.elapsed:.1f} s")
         except galileo.GalileoConnectionError as exc:

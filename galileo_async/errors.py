@@ -32,7 +32,6 @@ __all__ = [
     "OperationTimeout",
     "PortBusy",
     "StopUnconfirmed",
-    "TaskFailed",
     "UnconfirmedOperation",
     "WrongEventLoop",
 ]
@@ -248,14 +247,3 @@ class HttpTimeout(HttpError, GalileoTimeout):  # type: ignore[misc]
 
     def __init__(self, message: str, *, endpoint: str) -> None:
         super().__init__(message, endpoint=endpoint, status=None)
-
-
-class TaskFailed(GoalError):
-    """An HTTP API task ended CANCELLED or ERROR: ``state`` and ``task_id`` say which."""
-
-    def __init__(
-        self, message: str, *, state: str, task_id: str, status: GalileoStatus | None = None
-    ) -> None:
-        super().__init__(message, target_id=-2, status=status)
-        self.state = state
-        self.task_id = task_id

@@ -1,7 +1,9 @@
 """One goal state machine: goto's verdict and events()' first goal end agree on every sequence.
 
 The same frames (and the same "what this host sent") go to GoalTracker, goto's follower,
-and to a StatusStore's events(); both decide by transitions.goal_step.
+and to a StatusStore's events(); both decide by transitions.goal_step. The goal is a map
+target or a pose goal (goto_pose, goto_point over http://: target -2, which the machine
+treats as no id when it only observes: an error under it is no rejection).
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from galileo_async.state import StatusStore
 from galileo_async.transitions import GoalChange, HostGoal, derive_events, goal_step
 
 TARGET = 3
+#: The id the robot shows for a goal by pose (an HTTP API nav task).
+POSE = -2
 TOLERANCE = 0.3
 
 Verdict = tuple[int, str, Any] | None
@@ -35,7 +39,9 @@ def frame(nav: int, target_id: int, target_status: int, distance: float) -> Gali
     )
 
 
-ids = st.sampled_from([-1, 1, TARGET, 5])
+ids = st.sampled_from([-1, POSE, 1, TARGET, 5])
+#: The goal this host sends: a map target, or a pose goal.
+targets = st.sampled_from([TARGET, POSE])
 #: The protocol's values, and values newer firmware may add (the enum keeps them): they tell
 #: nothing, so both sides must compare across them alike.
 states = st.sampled_from([-1, 0, 1, 2, 3, 4, 7, -5])
@@ -45,9 +51,11 @@ frames = st.builds(frame, st.sampled_from([0, 1, 1, 1]), ids, states, distances)
 befores = st.builds(frame, st.just(1), ids, states, distances)
 
 
-def by_goto(before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None) -> Verdict:
-    """GoalTracker's verdict on goal TARGET: (frame index, end, detail), None: not ended."""
-    tracker = GoalTracker(TARGET, before=before, arrive_tolerance=TOLERANCE)
+def by_goto(
+    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None, target: int
+) -> Verdict:
+    """GoalTracker's verdict on goal ``target``: (frame index, end, detail), None: not ended."""
+    tracker = GoalTracker(target, before=before, arrive_tolerance=TOLERANCE)
     for index, status in enumerate(sequence):
         if index == cancel_at and tracker.host is not None:
             tracker.host = cancelling(tracker.host)
@@ -64,21 +72,21 @@ def by_goto(before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int
 
 
 def by_events(
-    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None
+    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None, target: int
 ) -> Verdict:
-    """The first end of goal TARGET that events() reports, told what this host sent."""
+    """The first end of goal ``target`` that events() reports, told what this host sent."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
     store.listen_events(seen.append)
     store.update(before)
     origin = object()
-    store.follow_goal(HostGoal.sent(TARGET, before, origin))
+    store.follow_goal(HostGoal.sent(target, before, origin))
     for index, status in enumerate(sequence):
         if index == cancel_at:
             store.revise_goal(origin, cancelling)
         store.update(status)
         for event in seen:
-            if not isinstance(event, ev.GoalEvent) or event.target_id != TARGET:
+            if not isinstance(event, ev.GoalEvent) or event.target_id != target:
                 continue
             if isinstance(event, ev.GoalReached):
                 return index, "reached", event.distance
@@ -97,26 +105,47 @@ def by_events(
     before=befores,
     sequence=st.lists(frames, min_size=1, max_size=8),
     cancel_at=st.none() | st.integers(0, 7),
+    target=targets,
 )
 def test_goto_and_events_agree_on_every_frame_sequence(
-    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None
+    before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None, target: int
 ) -> None:
-    assert by_goto(before, sequence, cancel_at) == by_events(before, sequence, cancel_at)
+    verdict = by_goto(before, sequence, cancel_at, target)
+    assert verdict == by_events(before, sequence, cancel_at, target)
+
+
+def test_a_pose_goal_is_followed_to_its_end_like_a_map_target() -> None:
+    # The cases the generated sequences must reach for target -2 (so they cover it).
+    before = frame(1, -1, 0, 0.0)
+    working = frame(1, POSE, 1, 2.0)
+    for end, verdict in (
+        (frame(1, POSE, 0, 0.1), (1, "reached", 0.1)),
+        (frame(1, POSE, 0, 2.0), (1, "aborted", 2.0)),
+        (frame(0, POSE, 0, 2.0), (1, "cancelled", False)),
+    ):
+        sequence = [working, end]
+        assert by_goto(before, sequence, None, POSE) == verdict
+        assert by_events(before, sequence, None, POSE) == verdict
+    refused = [frame(1, POSE, -1, -1.0)]
+    assert by_goto(before, refused, None, POSE) == (0, "rejected", None)
+    assert by_events(before, refused, None, POSE) == (0, "rejected", None)
 
 
 #: The end of a goal that ran; a rejected goal (GoalRejected) never ran.
 RUN_ENDS = (ev.GoalReached, ev.GoalAbortedEvent, ev.GoalCancelledEvent)
 
 
-def ended_twice(before: GalileoStatus, sequence: list[GalileoStatus], send: bool) -> list[Any]:
+def ended_twice(
+    before: GalileoStatus, sequence: list[GalileoStatus], send: bool, target: int = TARGET
+) -> list[Any]:
     """Goal ids events() ends twice: a run's end after an end of that id with no GoalAccepted
-    between (``send``: this host wrote ``g TARGET`` at ``before``)."""
+    between (``send``: this host wrote goal ``target`` at ``before``)."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
     store.listen_events(seen.append)
     store.update(before)
     if send:
-        store.follow_goal(HostGoal.sent(TARGET, before))
+        store.follow_goal(HostGoal.sent(target, before))
     for status in sequence:
         store.update(status)
     ended: set[int | None] = set()
@@ -134,11 +163,16 @@ def ended_twice(before: GalileoStatus, sequence: list[GalileoStatus], send: bool
 
 
 @settings(max_examples=1500, deadline=None)
-@given(before=frames, sequence=st.lists(frames, min_size=1, max_size=8), send=st.booleans())
+@given(
+    before=frames,
+    sequence=st.lists(frames, min_size=1, max_size=8),
+    send=st.booleans(),
+    target=targets,
+)
 def test_events_end_each_goal_once(
-    before: GalileoStatus, sequence: list[GalileoStatus], send: bool
+    before: GalileoStatus, sequence: list[GalileoStatus], send: bool, target: int
 ) -> None:
-    assert ended_twice(before, sequence, send) == []
+    assert ended_twice(before, sequence, send, target) == []
 
 
 @settings(max_examples=500, deadline=None)

@@ -10,6 +10,7 @@ from collections.abc import AsyncIterator
 
 import pytest
 from aiohttp import web
+from test_http_link import http_of
 
 import galileo_async as galileo
 from galileo_async import AuthenticationError, GalileoTimeout, HttpError, HttpTimeout
@@ -113,7 +114,7 @@ async def test_no_token_or_a_refused_token_is_an_authentication_error() -> None:
         async with galileo.connect(url, token="t0ken") as robot:
             face.tokens.clear()  # revoked: a REST call is refused
             with pytest.raises(AuthenticationError, match="refused the token") as info:
-                await robot.maps()
+                await http_of(robot).maps()
             assert (info.value.status, info.value.endpoint) == (401, "/map/image")
 
 

@@ -17,15 +17,16 @@ from cancel_ways import WAYS, stop_waiting
 
 import galileo_async as galileo
 from galileo_async import (
+    GoalCancelled,
     HttpError,
     InvalidArgument,
     NotSupported,
     TargetStatus,
-    TaskFailed,
 )
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored, LinkStaleEvent
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
-from galileo_async.protocol import Stop, Velocity
+from galileo_async.protocol import ApiCall, Stop, Velocity
+from galileo_async.robot import HttpPart
 from galileo_async.sim import Simulator
 from galileo_async.transports import link_kind
 
@@ -47,6 +48,12 @@ async def robot_on_http(
         url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
         async with galileo.connect(url, map_targets=len(TARGETS), **(robot_options or {})) as robot:
             yield sim, robot, face
+
+
+def http_of(robot: galileo.Robot) -> HttpPart:
+    """``robot.http``, which an http:// Robot has."""
+    assert robot.http is not None
+    return robot.http
 
 
 async def navigating(robot: galileo.Robot) -> None:
@@ -128,7 +135,7 @@ async def test_goto_by_index_pause_resume_and_cancel() -> None:
 async def test_goto_pose_returns_the_tasks_result() -> None:
     async with robot_on_http() as (sim, robot, _):
         await navigating(robot)
-        result = await robot.goto_pose(1.0, 1.0, 0.5, timeout=WAIT)
+        result = await http_of(robot).goto_pose(1.0, 1.0, 0.5, timeout=WAIT)
         assert result.target_id == -2
         assert result.distance is not None
         assert result.distance < 0.3
@@ -160,30 +167,32 @@ async def test_goto_and_goto_point_cancelled_stop_the_robot(how: str) -> None:
         assert not sim.state.status.goal_active
 
 
-async def test_goto_pose_cancelled_by_the_user_is_a_task_failed() -> None:
-    async with robot_on_http() as (_, robot, _face):
+async def test_goto_pose_cancelled_by_the_user_is_goal_cancelled() -> None:
+    async with robot_on_http() as (_, robot, face):
         await navigating(robot)
-        going = asyncio.ensure_future(robot.goto_pose(40.0, 0.0, timeout=WAIT))
+        going = asyncio.ensure_future(http_of(robot).goto_pose(40.0, 0.0, timeout=WAIT))
         await robot.wait_until(lambda s: s.target_num_id == -2 and s.goal_active, timeout=WAIT)
         await robot.cancel(timeout=WAIT)
-        with pytest.raises(TaskFailed) as info:
+        with pytest.raises(GoalCancelled) as info:
             await going
-        assert info.value.state == "CANCELLED"
+        assert (info.value.target_id, info.value.preempted) == (-2, False)
+        assert [task["state"] for task in face.tasks.values()] == ["CANCELLED"]
 
 
-async def test_goto_pose_refused_is_an_error_task() -> None:
-    async with robot_on_http() as (_, robot, _face):
+async def test_goto_pose_with_navigation_closed_is_not_ready_nothing_sent() -> None:
+    async with robot_on_http() as (_, robot, face):
         await robot.wait_until(lambda s: True, timeout=WAIT)
-        with pytest.raises(TaskFailed) as info:  # navigation closed: the model refuses
-            await robot.goto_pose(1.0, 0.0, timeout=WAIT)
-        assert info.value.state == "ERROR"
+        with pytest.raises(galileo.NotReady, match="navigation must be open"):
+            await http_of(robot).goto_pose(1.0, 0.0, timeout=WAIT)
+        assert face.tasks == {}
 
 
 @pytest.mark.parametrize("how", WAYS)
 async def test_goto_pose_cancelled_stops_the_task(how: str) -> None:
     async with robot_on_http() as (sim, robot, face):
         await navigating(robot)
-        await stop_waiting(how, lambda: robot.goto_pose(40.0, 0.0, timeout=WAIT), 0.3)
+        await stop_waiting(how, lambda: http_of(robot).goto_pose(40.0, 0.0, timeout=WAIT), 0.3)
+        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)  # as goto's cancel
         assert [task["state"] for task in face.tasks.values()] == ["CANCELLED"]
         assert not sim.state.status.goal_active
 
@@ -213,18 +222,18 @@ async def test_charging_and_shutdown() -> None:
 
 async def test_http_only_methods() -> None:
     async with robot_on_http() as (_, robot, face):
-        assert await robot.maps() == ["sim", "floor2"]
-        assert (await robot.current_map()).map == "sim"
-        switched = await robot.switch_map("floor2", "path2")
+        assert await http_of(robot).maps() == ["sim", "floor2"]
+        assert (await http_of(robot).current_map()).map == "sim"
+        switched = await http_of(robot).switch_map("floor2", "path2")
         assert (switched.map, switched.path) == ("floor2", "path2")
-        assert (await robot.current_map()).path == "path2"
-        points = await robot.targets()
+        assert (await http_of(robot).current_map()).path == "path2"
+        points = await http_of(robot).targets()
         assert [(p.x, p.y) for p in points] == list(TARGETS)
-        info = await robot.info()
+        info = await http_of(robot).info()
         assert info.version == "5.1.0"
         assert info.code_name
-        assert 0 <= (await robot.battery_percent() or 0) <= 100
-        await robot.say("hello")
+        assert 0 <= (await http_of(robot).battery_percent() or 0) <= 100
+        await http_of(robot).say("hello")
         assert face.spoken == ["hello"]
 
 
@@ -241,13 +250,58 @@ async def test_commands_without_an_http_form_are_not_supported_nothing_sent() ->
         assert robot.link.commands_sent == sent
 
 
-async def test_http_only_methods_are_not_supported_elsewhere() -> None:
+async def test_robot_http_is_there_on_http_links_only() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        assert isinstance(robot.http, HttpPart)
     async with galileo.connect("sim://?speed=40") as robot:
-        for call in (robot.maps, robot.current_map, robot.targets, robot.info):
-            with pytest.raises(NotSupported, match="http://"):
-                await call()
-        with pytest.raises(NotSupported):
-            await robot.goto_pose(1.0, 1.0)
+        assert robot.http is None
+        with pytest.raises(InvalidArgument, match=r"robot\.http is None"):
+            await robot.send(ApiCall("GET", "/map/image"))
+        assert robot.link.commands_sent == 0
+
+
+async def test_rest_calls_go_through_the_links_one_writer() -> None:
+    async with robot_on_http() as (_, robot, face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        sent = robot.link.commands_sent
+        link = robot._link  # type: ignore[attr-defined]
+        assert await link.send(ApiCall("GET", "/map/image")) == ["sim", "floor2"]
+        await http_of(robot).say("hi")
+        assert robot.link.commands_sent == sent + 2
+        assert face.spoken == ["hi"]
+
+
+async def test_robot_http_is_bound_to_the_robots_loop_and_closes_with_it() -> None:
+    async with robot_on_http() as (_, robot, face):
+        http = http_of(robot)
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        before = face.requests
+
+        async def elsewhere() -> None:
+            await http.maps()
+
+        with pytest.raises(galileo.WrongEventLoop):
+            await asyncio.to_thread(asyncio.run, elsewhere())
+        assert face.requests == before
+    with pytest.raises(galileo.GalileoConnectionError, match="closed"):
+        await http.maps()
+    assert face.requests == before
+
+
+async def test_robot_http_on_a_lost_link_sends_nothing() -> None:
+    async with robot_on_http({"reconnect": False}) as (_, robot, face):
+        await robot.wait_until(lambda s: True, timeout=WAIT)
+        async with asyncio.timeout(WAIT):
+            events = robot.events()
+            for request, _outbox in list(face.sockets.values()):
+                request.transport.abort()
+            async for event in events:
+                if isinstance(event, ConnectionLostEvent):
+                    break
+        before = face.requests
+        with pytest.raises(galileo.ConnectionLost, match=r"maps\(\): nothing was sent"):
+            await http_of(robot).maps()
+        assert face.requests == before
 
 
 # --- error paths -----------------------------------------------------------------------------
@@ -262,7 +316,7 @@ async def test_401_names_endpoint_and_status() -> None:
         assert info.value.status == 401
         url = f"http://admin:admin@127.0.0.1:{port}?ws_port={ws_port}"
         async with galileo.connect(url) as robot:
-            assert await robot.maps() == ["sim", "floor2"]
+            assert await http_of(robot).maps() == ["sim", "floor2"]
 
 
 #: Set when a bare server closes: its silent handlers then answer.
@@ -283,7 +337,7 @@ async def test_a_token_option_and_no_secret_in_logs(caplog: pytest.LogCaptureFix
         face.tokens.add("t0ken-5ecret")
         url = f"http://127.0.0.1:{port}?ws_port={ws_port}"
         async with galileo.connect(url, token="t0ken-5ecret") as robot:
-            assert await robot.maps() == ["sim", "floor2"]
+            assert await http_of(robot).maps() == ["sim", "floor2"]
             assert "t0ken-5ecret" not in repr(robot._link)  # type: ignore[attr-defined]
             face.tokens.clear()  # revoked: the failure is logged and raised without it
             with pytest.raises(HttpError) as info:
@@ -291,7 +345,7 @@ async def test_a_token_option_and_no_secret_in_logs(caplog: pytest.LogCaptureFix
             assert "t0ken-5ecret" not in str(info.value)
         login = f"http://admin:admin@127.0.0.1:{port}?ws_port={ws_port}"
         async with galileo.connect(login) as robot:
-            assert await robot.current_map()
+            assert await http_of(robot).current_map()
     for secret in ("t0ken-5ecret", "admin:admin", "password=admin"):
         assert secret not in caplog.text
     assert "***" in caplog.text or "HTTP 401" in caplog.text
@@ -494,7 +548,7 @@ def test_cli_sim_http_and_status_goto_over_http() -> None:
 async def test_closing_the_robot_ends_a_running_goto_pose() -> None:
     async with robot_on_http() as (_, robot, _face):
         await navigating(robot)
-        going = asyncio.ensure_future(robot.goto_pose(40.0, 0.0, timeout=WAIT))
+        going = asyncio.ensure_future(http_of(robot).goto_pose(40.0, 0.0, timeout=WAIT))
         await robot.wait_until(lambda s: s.target_num_id == -2 and s.goal_active, timeout=WAIT)
         await robot.close()
         with pytest.raises(galileo.GalileoConnectionError):

@@ -33,10 +33,6 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "remove_update_listener": (print,),
     "add_event_listener": (print,),
     "remove_event_listener": (print,),
-    "switch_map": ("map",),
-    "say": ("hello",),
-    "goto_pose": (1.0, 2.0),
-    "set_navigation_speed": (0.5,),
 }
 KEYWORDS: dict[str, dict[str, Any]] = {"shutdown_host": {"confirm": True}}
 

@@ -1,4 +1,4 @@
-"""set_navigation_speed over http:// against the simulator's HTTP face; elsewhere NotSupported."""
+"""robot.http.set_navigation_speed against the simulator's HTTP face; no robot.http elsewhere."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import math
 
 import pytest
 from sim_integration import speeds_of
-from test_http_link import WAIT, navigating, robot_on_http
+from test_http_link import WAIT, http_of, navigating, robot_on_http
 
 import galileo_async as galileo
-from galileo_async import InvalidArgument, NotSupported
+from galileo_async import InvalidArgument
 from galileo_async.testing import SimulatedDevice
 
 pytestmark = pytest.mark.timeout(60)
@@ -17,10 +17,10 @@ pytestmark = pytest.mark.timeout(60)
 
 async def test_navigation_speed_reaches_the_sim_and_limits_goals() -> None:
     async with robot_on_http() as (_, robot, face):
-        assert await robot.navigation_speed() == pytest.approx(0.8)
-        assert await robot.set_navigation_speed(0.1) == pytest.approx(0.1)
+        assert await http_of(robot).navigation_speed() == pytest.approx(0.8)
+        assert await http_of(robot).set_navigation_speed(0.1) == pytest.approx(0.1)
         assert face.device.model.navigation_speed == pytest.approx(0.1)
-        assert await robot.navigation_speed() == pytest.approx(0.1)
+        assert await http_of(robot).navigation_speed() == pytest.approx(0.1)
         await navigating(robot)
         async with speeds_of(robot) as speeds:
             await robot.goto(0, timeout=WAIT * 3)
@@ -33,16 +33,13 @@ async def test_bad_navigation_speeds_rejected_before_sending() -> None:
         before = face.requests
         for bad in (math.nan, -0.1, 0.0, math.inf, "fast", True):
             with pytest.raises(InvalidArgument):
-                await robot.set_navigation_speed(bad)  # type: ignore[arg-type]
+                await http_of(robot).set_navigation_speed(bad)  # type: ignore[arg-type]
         assert face.requests == before
 
 
-async def test_navigation_speed_not_supported_elsewhere(
+async def test_navigation_speed_is_an_http_call_only(
     galileo_robot: galileo.Robot, galileo_device: SimulatedDevice
 ) -> None:
     # The simulated robot of galileo_async.testing, over sim://: no HTTP API behind it.
-    with pytest.raises(NotSupported, match="http://"):
-        await galileo_robot.set_navigation_speed(0.1)
-    with pytest.raises(NotSupported, match="http://"):
-        await galileo_robot.navigation_speed()
-    assert galileo_device.commands == []  # refused before anything was sent
+    assert galileo_robot.http is None
+    assert galileo_device.commands == []

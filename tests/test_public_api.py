@@ -22,7 +22,7 @@ PUBLIC = {
     "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
     "GoalStalled", "LinkState",
     "DuplicateVehicle",
-    "HttpError", "NotSupported", "TaskFailed",
+    "HttpError", "NotSupported",
     "AuthenticationError", "HttpTimeout",
     "StopReport", "StopUnconfirmed",
 }  # fmt: skip

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from sim_integration import FAR, MAP_TARGETS, SPEED, TARGETS, WAIT, Mode, robot_on_sim
+from test_http_link import http_of
 
 import galileo_async as galileo
 from galileo_async import CommandSuperseded, GoalCancelled, StopReport
@@ -149,7 +150,7 @@ async def test_stop_ends_goto_pose_and_its_task_over_http() -> None:
         url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
         async with galileo.connect(url, map_targets=MAP_TARGETS) as robot:
             await robot.start_navigation(timeout=WAIT)
-            task = asyncio.ensure_future(robot.goto_pose(-25.0, 0.0, 0.0, timeout=WAIT))
+            task = asyncio.ensure_future(http_of(robot).goto_pose(-25.0, 0.0, 0.0, timeout=WAIT))
             await driving(robot, sim)
             report = await robot.stop()
             error = await halted(task, GoalCancelled)

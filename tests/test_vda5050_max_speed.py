@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 from sim_integration import speeds_of
+from test_http_link import http_of
 from test_vda5050_vehicle import action_status, vehicle_on
 from vda5050_support import (
     Broker,
@@ -70,7 +71,7 @@ async def test_edge_max_speed_is_driven_at_over_http_then_restored(broker: Broke
         assert max(speeds) > 0.05  # it drove
         assert max(speeds) <= 0.1 + 1e-6
         assert face.device.model.navigation_speed == pytest.approx(TOP)
-        assert await robot.navigation_speed() == pytest.approx(TOP)
+        assert await http_of(robot).navigation_speed() == pytest.approx(TOP)
 
 
 async def test_edge_max_speed_restored_after_a_cancel(broker: Broker) -> None:

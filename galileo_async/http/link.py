@@ -21,6 +21,7 @@ from ..errors import (
     NotSupported,
 )
 from ..protocol import commands as cmd
+from ..protocol.api_call import ApiCall
 from ..protocol.velocity import PoseGoal, Velocity
 from ..transports.base import BaseLink
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
@@ -59,14 +60,15 @@ _Call = Callable[[], Awaitable[Any]]
 class HttpLink(BaseLink):
     """The vendor's HTTP API (REST on 3546) and WebSocket status (3547) as one link.
 
-    Each command becomes its REST call, made in order by one worker; send() returns once
-    the call answered and raises its HttpError if it failed (a command queued without a
-    sender waiting, e.g. a cancel on exit, is logged instead). A Velocity is PUT
-    /system/speed.
+    Each command becomes its REST call, made in order by one worker; send() returns the
+    call's answer and raises its HttpError if it failed (a command queued without a sender
+    waiting, e.g. a cancel on exit, is logged instead). An ApiCall is that call as is; a
+    Velocity is PUT /system/speed.
     """
 
     carries_velocity = True
     carries_pose_goals = True
+    carries_api_calls = True
 
     def __init__(
         self,
@@ -209,12 +211,13 @@ class HttpLink(BaseLink):
 
     async def send(
         self, command: cmd.Command, *, written: asyncio.Future[bool] | None = None
-    ) -> None:
-        """Queue ``command``; return once its REST call answered (HttpError if it failed)."""
+    ) -> Any:
+        """Queue ``command``; once its REST call answered, the answer (HttpError if it failed)."""
         await super().send(command, written=written)
         answer = self._answers.pop(id(command), None)
-        if answer is not None:
-            await asyncio.shield(answer)  # a cancelled sender leaves the call to finish
+        if answer is None:
+            return None  # dropped before its write: no call was made
+        return await asyncio.shield(answer)  # a cancelled sender leaves the call to finish
 
     async def _call_worker(self) -> None:
         calls = self._calls
@@ -272,6 +275,10 @@ class HttpLink(BaseLink):
         fixed = _FIXED.get(type(command))
         if fixed is not None:
             return lambda: api.call(*fixed)
+        if isinstance(command, ApiCall):
+            params = None if command.params is None else dict(command.params)
+            body = None if command.body is None else dict(command.body)
+            return lambda: api.call(command.method, command.endpoint, params, body)
         if isinstance(command, PoseGoal):
             body = {"x": command.x, "y": command.y, "theta": command.theta}
             return lambda: api.call("POST", "/navigation/start_nav_task", body=body)

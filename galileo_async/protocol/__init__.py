@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .api_call import ApiCall
 from .commands import (
     COMMAND_TYPES,
     MAX_COMMAND_PAYLOAD,
@@ -61,6 +62,7 @@ __all__ = [
     "UDP_LAYOUTS",
     "V2_DEFAULTS",
     "AddTarget",
+    "ApiCall",
     "Backward",
     "Cancel",
     "Command",

@@ -15,6 +15,7 @@ from .drive import (
     SpeedLimits,
 )
 from .goal import GoalResult
+from .http_part import HttpPart, MapPath, NavPoint, RobotInfo
 from .robot import (
     DEFAULT_ACCEPT_TIMEOUT,
     DEFAULT_ARRIVE_TOLERANCE,
@@ -50,10 +51,14 @@ __all__ = [
     "Connection",
     "DriveSession",
     "GoalResult",
+    "HttpPart",
     "LinkState",
     "LinkStateStream",
+    "MapPath",
+    "NavPoint",
     "Robot",
     "RobotDefault",
+    "RobotInfo",
     "SpeedLimits",
     "StopReport",
     "connect",

@@ -196,7 +196,7 @@ class _Goal:
 
     __slots__ = (
         "_runner", "accept_timeout", "arrive_tolerance", "halted_by", "preempted",
-        "progress_timeout", "target_id", "tracker", "written",
+        "progress_timeout", "target_id", "task", "tracker", "written",
     )  # fmt: skip
 
     def __init__(
@@ -218,12 +218,15 @@ class _Goal:
         self.preempted = False
         #: The call of this Robot that halted the goal ("stop()"), if one did.
         self.halted_by: str | None = None
+        #: The HTTP API task the goal's write started (a PoseGoal's), once written.
+        self.task: str | None = None
 
     def halted(self, by: str) -> GoalCancelled:
         """The error that ends this goal's goto at once: ``by`` (stop()) cancels the goal."""
         self.halted_by = by
+        task = "" if self.task is None else f" (task {self.task})"
         return GoalCancelled(
-            f"goal {self.target_id} was cancelled by {by}",
+            f"goal {self.target_id}{task} was cancelled by {by}",
             target_id=self.target_id,
             status=self._runner._ops.store.status,
             cancelled_by=by,
@@ -248,6 +251,7 @@ class _Goal:
     async def follow(self, watch: Watch, sent: Sent) -> GoalResult:
         """Follow the goal from its write to its end: a GoalResult, or GoalError / timeout."""
         self.written = True
+        self.task = sent.task
         tracker = self.tracker
         assert tracker is not None
         ops, deadline, target_id = self._runner._ops, sent.deadline, self.target_id

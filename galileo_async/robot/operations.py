@@ -6,7 +6,7 @@ import asyncio
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, overload
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import anyio
 
@@ -19,20 +19,18 @@ from ..errors import (
     GalileoTimeout,
     LinkStale,
     NotReady,
-    OperationFailed,
     OperationTimeout,
-    UnconfirmedOperation,
     WrongEventLoop,
 )
 from ..events import AbandonedGoalCancelled
 from ..models import GalileoStatus
-from ..protocol import Backward, Cancel, Command, Forward, Goto, TurnLeft, TurnRight
+from ..protocol import ApiCall, Backward, Cancel, Command, Forward, Goto, TurnLeft, TurnRight
+from .follower import Confirm, Follower, Predicate, Sent, task_of
 from .runtime import Deadline
 from .supersede import Supersession
 
 if TYPE_CHECKING:
     from ..state.store import StatusStore
-    from ..state.streams import Watch
     from ..transports import BaseLink
 
 __all__ = [
@@ -48,6 +46,7 @@ __all__ = [
     "Operations",
     "Require",
     "Sent",
+    "task_of",
 ]
 
 _log = logging.getLogger(__name__)
@@ -63,11 +62,9 @@ LEAVING = (asyncio.CancelledError, GalileoTimeout, LinkStale, ConnectionLost, Co
 #: sent unconfirmed: drive commands, and a goal sent as is with Robot.send().
 _SUPERSEDABLE = (Forward, Backward, TurnLeft, TurnRight, Goto)
 
-Predicate = Callable[[GalileoStatus], bool]
 #: Makes the error that ends a call awaiting motion, from the stop's name ("stop()").
 Halt = Callable[[str], GalileoError]
 _R = TypeVar("_R")
-_R_co = TypeVar("_R_co", covariant=True)
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,69 +82,6 @@ GOAL_READY = Require(
     lambda s: s.navigating and s.visual_initialised,
     "navigation must be open and the visual system initialised",
 )
-
-
-class Sent(NamedTuple):
-    """A command just written: the operation's name, its deadline, the latest status then."""
-
-    what: str
-    deadline: Deadline
-    status: GalileoStatus | None
-
-
-class Follower(Protocol[_R_co]):
-    """What Operations.send does around the write of a command that has an effect."""
-
-    def sending(self, before: GalileoStatus | None) -> None:
-        """Called after every check, right before the write; may still refuse by raising."""
-
-    async def follow(self, watch: Watch, sent: Sent) -> _R_co:
-        """The command was written; ``watch`` holds every status since just before the write."""
-
-
-class Confirm:
-    """Follow a command until a later status shows ``done``; the Follower of most operations.
-
-    UnconfirmedOperation when the status layout lacks ``field`` or the deadline passes
-    (``hint`` says why the robot may not have shown it), OperationFailed once ``failed``
-    holds for a later status. Returns that status.
-    """
-
-    __slots__ = ("done", "failed", "field", "hint")
-
-    def __init__(
-        self, done: Predicate, *, field: str, failed: Predicate | None = None, hint: str = ""
-    ) -> None:
-        self.done = done
-        self.field = field
-        self.failed = failed
-        self.hint = hint
-
-    def sending(self, before: GalileoStatus | None) -> None:
-        """Nothing to prepare: only statuses after the write count."""
-
-    async def follow(self, watch: Watch, sent: Sent) -> GalileoStatus:
-        """The first status from the write on where ``done`` holds."""
-        what, deadline, latest = sent
-        if latest is not None and getattr(latest, self.field) is None:
-            raise UnconfirmedOperation(
-                f"{what}: sent, but the {latest.layout} status layout has no {self.field} "
-                f"field, so the driver cannot confirm it{self.hint}",
-                latest,
-            )
-        while True:
-            try:
-                status = await watch.next(deadline.remaining())
-            except GalileoTimeout as exc:
-                raise UnconfirmedOperation(
-                    f"{what}: sent, but {self.field} did not show it within {deadline.timeout} s"
-                    f"{self.hint}",
-                    exc.status,
-                ) from None
-            if self.failed is not None and self.failed(status):
-                raise OperationFailed(f"{what}: the robot reported a failure", status)
-            if self.done(status):
-                return status
 
 
 class Operations:
@@ -242,12 +176,14 @@ class Operations:
                 if written is not None and written.done():
                     await written  # superseded: raises before the follower starts anything
                 then.sending(self.store.status)
-                unregister = (
-                    None if halt is None else user_stops.moving(lambda by: watch.halt(halt(by)))
-                )
+                stop = None if halt is None else (lambda by: watch.halt(halt(by)))
+                unregister = None if stop is None else user_stops.moving(stop)
                 try:
-                    await self.link.send(command, written=written)
-                    return await then.follow(watch, Sent(what, deadline, self.store.status))
+                    task = task_of(await self.link.send(command, written=written))
+                    if stop is not None and unregister is not None and task is not None:
+                        unregister()  # the same call, now naming its task for stop()'s report
+                        unregister = user_stops.moving(stop, task=task)
+                    return await then.follow(watch, Sent(what, deadline, self.store.status, task))
                 finally:
                     if unregister is not None:
                         unregister()
@@ -267,6 +203,18 @@ class Operations:
             command, what=what, deadline=Deadline(limit), require=require,
             supersedable=isinstance(command, _SUPERSEDABLE),
         )  # fmt: skip
+
+    async def ask(self, call: ApiCall, *, what: str) -> Any:
+        """Make ``call`` through the link's one writer; its answer. ``what`` names it in errors.
+
+        Operations.send's checks first: the Robot is open and on its loop (WrongEventLoop,
+        GalileoConnectionError), the link is up (ConnectionLost: nothing was sent). A stale
+        link is no reason to refuse: the answer comes back over the call, not the status.
+        """
+        self.ensure_open()
+        if not isinstance(self.store.link_error, LinkStale):
+            self.check_link(what)
+        return await self.link.send(call)
 
     def ensure_open(self) -> None:
         """Raise WrongEventLoop off the Robot's loop, GalileoConnectionError once it is closed.

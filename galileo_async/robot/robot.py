@@ -8,12 +8,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 from types import TracebackType
 
 from .._checks import check_bool, check_timeout
-from ..errors import (
-    CommandSuperseded,
-    GalileoTimeout,
-    InvalidArgument,
-    UnconfirmedOperation,
-)
+from ..errors import CommandSuperseded, GalileoTimeout, InvalidArgument, UnconfirmedOperation
 from ..events import Event
 from ..models import ChargeStatus, GalileoStatus
 from ..options import (
@@ -24,6 +19,7 @@ from ..options import (
 )
 from ..protocol import (
     AddTarget,
+    ApiCall,
     Backward,
     Command,
     Forward,
@@ -50,7 +46,7 @@ from .drive import (
     SpeedLimits,
 )
 from .goal import GoalResult, GoalRunner
-from .http_services import HttpServices
+from .http_part import HttpPart
 from .operations import (
     CANCEL_SEND_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -100,14 +96,14 @@ NAVIGATION_TIMEOUT = 60.0
 _NOT_MAPPING = Require(lambda s: not s.mapping, "the robot is building a map")
 
 
-class Robot(HttpServices):
+class Robot:
     """A connected Galileo robot; every method validates, then sends through Operations.send.
 
     Composed by concern, not stacked: it holds an Operations (preconditions, the one send,
     the user's stops), a GoalRunner (goals), the DynamicTargets and the Patrol, Mapping and
     Charging parts, each made on that Operations; turning (turn.py) and stop() (stopping.py)
     are functions of it. Each public method is defined here and delegates to one of them;
-    HttpServices, its one base, adds the REST calls of http:// links.
+    ``http`` (an HttpPart) is what only the HTTP API does, None off http(s)://.
     """
 
     def __init__(
@@ -143,6 +139,7 @@ class Robot(HttpServices):
         self._goals = GoalRunner(ops)
         self._targets = DynamicTargets(ops, map_targets)
         self._patrol, self._mapping, self._charging = Patrol(ops), Mapping(ops), Charging(ops)
+        self.http: HttpPart | None = HttpPart(ops, self._goto) if link.carries_api_calls else None
         #: Awaited first on close: what serves this Robot to others (the control socket).
         self._closers: list[Callable[[], Awaitable[None]]] = []
         OPEN_ROBOTS.add(self)
@@ -282,6 +279,8 @@ class Robot(HttpServices):
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
         if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
             raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
+        if isinstance(command, ApiCall) and not self._link.carries_api_calls:
+            raise InvalidArgument("an ApiCall goes over http:// only (robot.http is None here)")
         await self._ops.send_unconfirmed(command, f"send({command!r})", timeout)
 
     def drive(
@@ -423,7 +422,7 @@ class Robot(HttpServices):
         progress_timeout: float | RobotDefault | None,
         cancel_on_exit: bool,
     ) -> GoalResult:
-        self._ops.check_not_driving("goto")
+        self._ops.check_not_driving("goto_pose" if isinstance(command, PoseGoal) else "goto")
         seconds = or_default(timeout, self.goal_timeout)
         check_timeout("timeout", seconds)
         check_timeout("accept_timeout", accept_timeout)

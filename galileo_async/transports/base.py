@@ -41,6 +41,8 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     carries_velocity: ClassVar[bool] = False
     #: True when the link writes a PoseGoal itself (http://); others add a target and go to it.
     carries_pose_goals: ClassVar[bool] = False
+    #: True when the link makes ApiCalls (http://, https://): the Robot then has ``http``.
+    carries_api_calls: ClassVar[bool] = False
 
     def __init__(
         self,

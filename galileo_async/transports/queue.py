@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections import deque
+from typing import Any
 
 from ..errors import GalileoConnectionError
 from ..protocol import Command
@@ -62,8 +63,11 @@ class CommandQueue:
         self._queue_ready.set()
         return future
 
-    async def send(self, command: Command, *, written: asyncio.Future[bool] | None = None) -> None:
-        """Queue one command for the paced writer (waiting while full); return once written.
+    async def send(self, command: Command, *, written: asyncio.Future[bool] | None = None) -> Any:
+        """Queue one command for the paced writer (waiting while full); once written, its answer.
+
+        The answer is what the link got back for the command (an ApiCall's JSON); None
+        where commands get none.
 
         ``written``, if given, is the future the writer resolves: the caller may fail it
         (or cancel it) to withdraw the command; as long as that happens before its turn,
@@ -81,6 +85,7 @@ class CommandQueue:
         finally:
             if future.done() and (future.cancelled() or future.exception() is not None):
                 self._unqueue(future)  # not written: free its place now
+        return None
 
     def _supersede(self, kind: type[Command]) -> None:
         """Drop the queued commands that a command of type ``kind`` supersedes."""

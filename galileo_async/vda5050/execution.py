@@ -27,7 +27,7 @@ NODE_TURN_TIMEOUT = 10.0
 
 def can_limit_speed(robot: Robot) -> bool:
     """True when ``robot``'s link can set a navigation speed (an edge maxSpeed is honoured)."""
-    return robot.has_http_api
+    return robot.http is not None
 
 
 class Executor:
@@ -92,20 +92,21 @@ class Executor:
     @contextlib.asynccontextmanager
     async def _speed_limit(self, edge: Edge) -> AsyncIterator[None]:
         """While driving ``edge``: navigation speed at most its maxSpeed, then as before."""
-        if edge.maxSpeed is None or not can_limit_speed(self.robot):
+        http = self.robot.http
+        if edge.maxSpeed is None or http is None:
             yield
             return
-        previous = await self.robot.navigation_speed()
+        previous = await http.navigation_speed()
         if edge.maxSpeed >= previous:
             yield
             return
-        await self.robot.set_navigation_speed(edge.maxSpeed)
+        await http.set_navigation_speed(edge.maxSpeed)
         try:
             yield
         finally:
             with anyio.CancelScope(shield=True):
                 try:
-                    await self.robot.set_navigation_speed(previous)
+                    await http.set_navigation_speed(previous)
                 except GalileoError as exc:
                     _log.warning("navigation speed not restored to %g m/s: %s", previous, exc)
 
