@@ -80,7 +80,7 @@ class _Rotation(Confirm):
         super().__init__(
             self._done, field="angle_goal_status",
             failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
-            # No published firmware handles 'a' (PROTOCOL.md §2.g).
+            # No published firmware handles 'a' (docs/protocol.md §2.g).
             hint="; many firmware versions ignore the rotate command 'a' entirely",
         )  # fmt: skip
         self._what = what
@@ -95,7 +95,7 @@ class _Rotation(Confirm):
         """True once the rotation is done; OperationFailed once a navigation goal ran."""
         if status.goal_active or status.target_num_id != self._goal_id:
             # A goal replaces a rotation, and real firmware derives angle_goal_status from
-            # the goal state (PROTOCOL.md §1 field 12): its 0 then 1 would look like ours.
+            # the goal state (docs/protocol.md §1 field 12): its 0 then 1 would look like ours.
             raise OperationFailed(
                 f"{self._what}: navigation goal {status.target_num_id} started while "
                 "waiting for the rotation; a goal replaces a rotation, and angle_goal_status "
@@ -213,7 +213,7 @@ class RobotServices:
     # --- teleoperation ---------------------------------------------------------------
 
     # One command each: 22 chassis builds hold it until the next, others stop 1-3 s after
-    # it (VENDOR.md §2.5); drive() keeps a speed alive and always ends with a stop.
+    # it (docs/protocol.md §6.5); drive() keeps a speed alive and always ends with a stop.
 
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Write ``f`` once at ``percent`` (0-100) of max speed; the chassis decides how long."""
@@ -284,7 +284,7 @@ class RobotServices:
         """Stop auto-patrol, keep navigation (``m 6``); return once loop_status is 0."""
         check_timeout("timeout", timeout)
         # The document's 'm' 4 would stop navigation; firmware stops patrol with 'm' 6
-        # (PROTOCOL.md §2.g).
+        # (docs/protocol.md §2.g).
         await self._ops.send(
             StopPatrol(), what="stop_patrol", deadline=Deadline(timeout),
             then=Confirm(lambda s: not s.patrolling, field="loop_status"),
