@@ -38,9 +38,9 @@ test: $(TEST_STAMP)
 	@if [ "$$(id -u)" = 0 ]; then export GALILEO_REQUIRE_PEERS=1; fi; $(BIN)/python -m pytest -q
 
 lint: $(TEST_STAMP)
-	$(BIN)/python -m ruff check galileo_async tests examples benchmarks
-	$(BIN)/python -m ruff format --check galileo_async tests examples benchmarks
-	$(BIN)/python -m mypy --strict galileo_async
+	$(BIN)/python -m ruff check galileo_async galileo_async_pytest.py tests examples benchmarks
+	$(BIN)/python -m ruff format --check galileo_async galileo_async_pytest.py tests examples benchmarks
+	$(BIN)/python -m mypy --strict galileo_async galileo_async_pytest.py
 
 bench: $(TEST_STAMP)
 	$(BIN)/python -m benchmarks

@@ -3,7 +3,7 @@
     python examples/teleop.py [URL]    # default: $GALILEO_PORT, else sim://
 
 Some chassis hold the last speed command forever, others stop 1 to 3 s after it
-(VENDOR.md §2.5). ``robot.drive()`` re-sends the speed while its block runs and writes
+(docs/protocol.md §6.5). ``robot.drive()`` re-sends the speed while its block runs and writes
 one stop when the block is left, whatever way (an error, a cancellation, Ctrl-C).
 """
 

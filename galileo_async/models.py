@@ -1,4 +1,4 @@
-"""Status model and wire enums shared by every layer (PROTOCOL.md §1)."""
+"""Status model and wire enums shared by every layer (docs/protocol.md §1)."""
 
 from __future__ import annotations
 
@@ -28,13 +28,13 @@ __all__ = [
     "float32_decimal",
 ]
 
-#: ``abs(target_distance)`` below this means "arrived" (PROTOCOL.md §1, field 11): the
+#: ``abs(target_distance)`` below this means "arrived" (docs/protocol.md §1, field 11): the
 #: deprecated GalileoStatus.arrived only; goals end by transitions.goal_step.
 ARRIVED_DISTANCE = 0.01
 
 #: What the vendor's serial node sends, with a counting time_stamp, until the navigation
 #: system's first status reaches it, and again after it restarts: its constructor's
-#: defaults (PROTOCOL.md §1). The robot's own status never has all of them at once: its
+#: defaults (docs/protocol.md §1). The robot's own status never has all of them at once: its
 #: pose is -1 when unknown and its supply voltage is not 0.
 _PLACEHOLDER: dict[str, float] = {
     "nav_status": 0, "visual_status": 0, "map_status": 0, "gc_status": 0, "gba_status": 0,
@@ -196,16 +196,16 @@ class AngleGoalStatus(_TolerantIntEnum):
 
 
 class StatusLayout(str, enum.Enum):
-    """Wire layout a status frame was decoded from (PROTOCOL.md §1; udp_*: VENDOR.md §3)."""
+    """Wire layout a status frame was decoded from (docs/protocol.md §1; udp_*: §7)."""
 
     V1 = "v1"
     V1_CHARGE = "v1_charge"
     V2_TRUNCATED = "v2_truncated"
     V2 = "v2"
     ROS = "ros"
-    #: The UDP port's 44-byte status frame, without target_distance (VENDOR.md §3.3).
+    #: The UDP port's 44-byte status frame, without target_distance (docs/protocol.md §7.3).
     UDP_V1 = "udp_v1"
-    #: The UDP port's 48-byte status frame, with target_distance (VENDOR.md §3.2).
+    #: The UDP port's 48-byte status frame, with target_distance (docs/protocol.md §7.2).
     UDP_V2 = "udp_v2"
 
     def __str__(self) -> str:
@@ -364,7 +364,7 @@ class GalileoStatus(BaseModel):
 
     @property
     def is_placeholder(self) -> bool:
-        """The vendor serial node's start-up defaults, not the robot's status (PROTOCOL.md §1)."""
+        """The serial node's start-up defaults, not the robot's status (docs/protocol.md §1)."""
         if self.power != 0.0:
             return False
         for name, default in _PLACEHOLDER.items():

@@ -2,7 +2,7 @@
 
 Runs under the system Python with Debian's rospy and genpy (not the project's venv), so
 it is self-contained: its own message texts (as the robot's .msg files) and a small robot
-model following the real firmware (PROTOCOL.md §2). It publishes
+model following the real firmware (docs/protocol.md §2). It publishes
 ``/galileo/status`` at 30 Hz and applies ``/galileo/cmds``.
 
 ``--hostname NAME`` makes it advertise NAME (as ROS_HOSTNAME does) while it listens on
@@ -139,7 +139,7 @@ class RobotModel:
                 self.target_status = 1
             elif arg == 2 and self.target_status in (1, 2):
                 self.target_status = 0
-                self.target_id = -1  # firmware: cancel resets the id (PROTOCOL.md §2.c)
+                self.target_id = -1  # firmware: cancel resets the id (docs/protocol.md §2.c)
         elif op == ord("V"):
             if arg == 0:
                 self._stop_nav()
@@ -352,7 +352,7 @@ def main() -> None:
             last = now
             time.sleep(max(0.0, period - (time.monotonic() - now)))
             continue
-        while held and not model.busy(now):  # busy: commands wait (PROTOCOL.md §2)
+        while held and not model.busy(now):  # busy: commands wait (docs/protocol.md §2)
             model.apply(held.pop(0), now)
         publish_goal_num()
         model.step(now, now - last)

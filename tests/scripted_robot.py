@@ -3,7 +3,7 @@
 It sends status frames (``protocol.encode_status``) every ``period`` seconds and parses
 what it receives with ``protocol.CommandDecoder``, the firmware's own parser rules. Each
 command type runs a script (an async function of the fake and the command); the defaults
-model the real firmware (PROTOCOL.md §2), tests replace them per command type. Every
+model the real firmware (docs/protocol.md §2), tests replace them per command type. Every
 default reacts only after two more frames, so the driver always sees stale frames first.
 """
 
@@ -61,7 +61,7 @@ READY: dict[str, Any] = {
     "current_angle": 0.0,
     "busy_status": 0,
 }
-#: What the firmware sends before its first real status (PROTOCOL.md §1).
+#: What the firmware sends before its first real status (docs/protocol.md §1).
 DEFAULTS: dict[str, Any] = READY | {
     "nav_status": 0,
     "visual_status": 0,
@@ -224,7 +224,7 @@ class ScriptedRobot:
             tick.set()
 
 
-# --- default scripts: the real firmware's behaviour (PROTOCOL.md §2) -----------------
+# --- default scripts: the real firmware's behaviour (docs/protocol.md §2) -----------------
 
 
 async def _start_navigation(fake: ScriptedRobot, command: Any) -> None:
@@ -267,9 +267,9 @@ async def drive(fake: ScriptedRobot, target_id: int) -> None:
 async def _goto(fake: ScriptedRobot, command: Goto) -> None:
     await fake.frames(REACTION_FRAMES)
     if not fake.status.visual_initialised:
-        return  # ignored (PROTOCOL.md §2.b)
+        return  # ignored (docs/protocol.md §2.b)
     if command.target_id >= fake.map_targets + fake.dynamic_targets:
-        # Firmware: error as -1, target_num_id left as it was (PROTOCOL.md §2.b).
+        # Firmware: error as -1, target_num_id left as it was (docs/protocol.md §2.b).
         fake.stop_motion()
         fake.set(target_status=TargetStatus.INVALID)
         return
@@ -329,7 +329,7 @@ FIRMWARE_SCRIPTS: dict[type[Command], Script] = {
     StopCharging: _setter(charge_status=ChargeStatus.FREE),
     ResetTargets: _reset_targets,
     AddTarget: _add_target,
-}  # RotateTo is absent: no published firmware handles 'a' (PROTOCOL.md §2.g).
+}  # RotateTo is absent: no published firmware handles 'a' (docs/protocol.md §2.g).
 
 
 async def ignore(fake: ScriptedRobot, command: Any) -> None:

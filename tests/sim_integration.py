@@ -111,7 +111,7 @@ MODES: tuple[Mode, ...] = (
     Mode("document", StatusLayout.V2_TRUNCATED, "tcp"),
     Mode("document", StatusLayout.V1, "pty"),
     Mode("document", StatusLayout.V1_CHARGE, "tcp"),
-    # The robot's UDP port (VENDOR.md §3): its own 48-byte layout, real firmware only.
+    # The robot's UDP port (docs/protocol.md §7): its own 48-byte layout, real firmware only.
     Mode("real", StatusLayout.UDP_V2, "udp"),
 )
 
@@ -150,7 +150,7 @@ async def robot_on_sim(
             url = sim.open_pty()
         connect_options: dict[str, Any] = {"map_targets": MAP_TARGETS, **(robot_options or {})}
         async with galileo.connect(url, **connect_options) as robot:
-            # Auto-detection must find the simulator's layout (PROTOCOL.md §1).
+            # Auto-detection must find the simulator's layout (docs/protocol.md §1).
             assert robot.link.layout is mode.layout
             if navigate:
                 await robot.start_navigation(timeout=WAIT)

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+PROTOCOL = ROOT / "docs" / "protocol.md"
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 #: A fenced Python snippet, with the line before it (where a "not run" comment goes).
 SNIPPET = re.compile(r"(?P<before>[^\n]*)\n```python[^\n]*\n(?P<code>.*?)^```", re.S | re.M)
@@ -80,3 +81,98 @@ def test_cli_jq_example_prints_statuses(tmp_path: Path) -> None:
         ["jq", "-c", jq_filter], input=decoded.stdout, check=True, capture_output=True, text=True
     )
     assert shown.stdout.splitlines()[0].startswith("[")
+
+
+# --- docs/protocol.md: the one page every citation of the protocol points to -------------
+
+#: The developers' notes docs/protocol.md replaced: no file may cite them (spelt here in
+#: pieces, so that this file does not match itself).
+ABSENT = tuple(name + ".md" for name in ("PROTOCOL", "VENDOR"))
+#: A numbered heading of docs/protocol.md: "## 2. Commands", "### 2.a …", "### 7.5 …".
+NUMBERED = re.compile(r"^#{2,6} +(\d+(?:\.[0-9a-z]+)?)\.? ", re.M)
+HEADING = re.compile(r"^#{1,6} +(.+?) *$", re.M)
+#: A § reference after a mention of protocol.md, up to the line's end or another page's name.
+CITED = re.compile(r"protocol\.md(?P<scope>(?:(?!\b[\w-]+\.md\b)[^\n])*)")
+SECTION = re.compile(r"§(\d+(?:\.[0-9a-z]+)?)(?:[-–](\d+\.[0-9a-z]+))?")
+ANCHOR = re.compile(r"\]\((?:[\w./-]*protocol\.md)?#([^)\s]+)\)")
+
+
+def tracked_text_files() -> dict[str, str]:
+    """Every file git tracks here, by its path, that reads as UTF-8 text."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z"], cwd=ROOT, check=True, capture_output=True
+    ).stdout.decode()
+    files = {}
+    for name in filter(None, listed.split("\0")):
+        try:
+            files[name] = (ROOT / name).read_text(encoding="utf-8")
+        except (UnicodeDecodeError, FileNotFoundError, IsADirectoryError):
+            continue
+    return files
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor of a heading."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def protocol_sections(text: str) -> set[str]:
+    """The numbered sections ("2", "2.a", "7.5") of a page like docs/protocol.md."""
+    return set(NUMBERED.findall(text))
+
+
+def cited_sections(text: str) -> set[str]:
+    """The § sections a text cites of docs/protocol.md (ranges give both ends)."""
+    found: set[str] = set()
+    for citation in CITED.finditer(text):
+        for first, last in SECTION.findall(citation["scope"]):
+            found.update(filter(None, (first, last)))
+    return found
+
+
+def protocol_anchors(name: str, text: str) -> set[str]:
+    """The #anchors of docs/protocol.md that a page links to."""
+    own = name == "docs/protocol.md"
+    return {match[1] for match in ANCHOR.finditer(text) if own or "protocol.md#" in match[0]}
+
+
+def test_no_file_cites_the_absent_notes() -> None:
+    files = tracked_text_files()
+    assert "docs/protocol.md" in files
+    citing = sorted(
+        f"{name}:{text[: text.index(absent)].count(chr(10)) + 1}"
+        for name, text in files.items()
+        for absent in ABSENT
+        if absent in text
+    )
+    assert citing == [], "cite docs/protocol.md instead"
+
+
+def test_every_cited_section_of_protocol_md_exists() -> None:
+    text = PROTOCOL.read_text(encoding="utf-8")
+    sections = protocol_sections(text)
+    anchors = {slug(heading) for heading in HEADING.findall(text)}
+    assert {"1", "2", "2.a", "2.h", "3", "4", "5.4", "6.5", "7.2", "7.6"} <= sections
+    missing = []
+    cited_somewhere = set()
+    for name, content in tracked_text_files().items():
+        cited = cited_sections(content)
+        cited_somewhere |= cited
+        missing += [f"{name}: §{s}" for s in sorted(cited - sections)]
+        if name.endswith(".md"):
+            linked = protocol_anchors(name, content)
+            missing += [f"{name}: #{a}" for a in sorted(linked - anchors)]
+    assert missing == []
+    assert {"1", "2.b", "6.5", "7.5"} <= cited_somewhere  # the scan sees the citations
+
+
+def test_the_citation_checks_see_what_they_check() -> None:
+    page = "## 1. Status\n### 2.a Start and stop\n### 7.5 Command datagrams\n"
+    assert protocol_sections(page) == {"1", "2.a", "7.5"}
+    assert slug("1. Status frames (robot → host)") == "1-status-frames-robot--host"
+    code = "# (docs/protocol.md §1 field 12, §2.g); (docs/protocol.md §7.5-7.6)\n# notes.md §9\n"
+    assert cited_sections(code) == {"1", "2.g", "7.5", "7.6"}
+    assert cited_sections("[protocol.md](protocol.md) and BENCHMARKS.md §9") == set()
+    doc = "see [protocol.md §2.a](protocol.md#2a-start) and [§7](#7-udp) and [x](other.md#y)"
+    assert protocol_anchors("docs/guide.md", doc) == {"2a-start"}
+    assert protocol_anchors("docs/protocol.md", doc) == {"2a-start", "7-udp"}

@@ -143,7 +143,7 @@ async def test_the_speed_is_re_sent_at_the_rate_then_one_stop() -> None:
 
 
 async def test_the_keep_alive_beats_the_chassis_watchdog() -> None:
-    # A chassis that stops 3 s after the last speed command (chitu-noetic, VENDOR.md §2.5).
+    # A chassis that stops 3 s after the last speed command (chitu-noetic, docs/protocol.md §6.5).
     async with robot_and_wire(sim_options={"cmd_vel_timeout": 3.0}) as (robot, _wire):
         await robot.forward(50)
         await robot.wait_until(lambda s: s.control_speed_x == 0.0, timeout=WAIT)  # one-shot

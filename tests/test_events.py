@@ -117,7 +117,7 @@ def test_goal_aborted_far_from_target() -> None:
 
 
 def test_goal_rejected_document_and_firmware_codes() -> None:
-    # Document: error = 3. Firmware: -1 and target_num_id left unchanged (PROTOCOL.md §2.b).
+    # Document: error = 3. Firmware: -1 and target_num_id left unchanged (docs/protocol.md §2.b).
     for code in (3, -1):
         (event,) = derive_events(
             st(target_num_id=2, target_status=0), st(target_num_id=2, target_status=code)

@@ -92,7 +92,7 @@ async def test_goto_and_events_name_each_ending_alike(case: str) -> None:
 
 
 async def test_a_rejected_goal_is_reported_with_its_own_id() -> None:
-    # goto(1) runs; goto(42) is rejected as -1 with the id left at 1 (PROTOCOL.md §2.b).
+    # goto(1) runs; goto(42) is rejected as -1 with the id left at 1 (docs/protocol.md §2.b).
     async with connected(ScriptedRobot(**ENDLESS)) as (robot, _):
         events = robot.events()
         try:

@@ -81,7 +81,7 @@ def test_a_goal_shown_working_again_when_navigation_reopens_is_a_new_run() -> No
 
 
 def test_an_error_shown_when_navigation_reopens_is_a_new_goal_rejected() -> None:
-    # A g 3 rejected as -1 leaves the id alone (PROTOCOL.md §2.b): a new goal, refused.
+    # A g 3 rejected as -1 leaves the id alone (docs/protocol.md §2.b): a new goal, refused.
     frames = [status(), status(nav=0), status(nav=0, state=0), status(state=-1)]
     assert ends_of(goal_events(frames), 3) == ["GoalCancelled", "GoalRejected"]
 
@@ -95,7 +95,7 @@ def test_goto_ends_where_events_end_a_goal_navigation_closed_under() -> None:
 
 
 def test_goto_sent_under_a_goal_shown_working_with_navigation_closed_is_no_restart() -> None:
-    # The goal shown is gone with the navigation (PROTOCOL.md §2.a): g 3 is a new goal,
+    # The goal shown is gone with the navigation (docs/protocol.md §2.a): g 3 is a new goal,
     # not a restart of a running one, so only a frame showing 3 working accepts it.
     before = status(nav=0)
     tracker = GoalTracker(3, before=before, arrive_tolerance=TOLERANCE)

@@ -27,7 +27,7 @@ from galileo_async.transitions import (
 WORKING, FREE = int(TargetStatus.WORKING), int(TargetStatus.FREE)
 
 #: (target_status, target_distance) steps of goal 3, then the outcome both sides must report.
-#: -1 is an invalid distance (PROTOCOL.md §1): the last valid one seen while the goal ran counts.
+#: -1 is an invalid distance (docs/protocol.md §1): the last valid one seen while it ran counts.
 ENDS: dict[str, tuple[list[tuple[int, float]], bool, float | None]] = {
     "free at -1 after 0.0 m": ([(WORKING, 1.0), (WORKING, 0.0), (FREE, -1.0)], True, 0.0),
     "-1 while working, then free at -1": (

@@ -115,7 +115,7 @@ async def test_finished_between_two_frames_counts_when_the_id_changed() -> None:
 
 
 async def test_sending_the_running_goal_again_survives_the_restart() -> None:
-    # The firmware cancels the running goal before starting the new one (PROTOCOL.md §2.b):
+    # The firmware cancels the running goal before starting the new one (docs/protocol.md §2.b):
     # a frame showing it cancelled must not end the new goal.
     async def restart(fake: ScriptedRobot, command: Goto) -> None:
         await fake.frames(REACTION_FRAMES)

@@ -1,4 +1,4 @@
-"""The simulator's HTTP tasks and status against what the vendor's own code does (VENDOR.md §1).
+"""The simulator's HTTP tasks and status against the vendor's own code (docs/protocol.md §5).
 
 Sources: BluewhaleRobot/system_monitor, branch noetic (e2502ff),
 src/system_monitor/utils/galileo_status_service.py: how /galileo/status shows an HTTP nav task.

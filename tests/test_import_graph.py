@@ -9,16 +9,23 @@ one line, so none is allowed.
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+
+import pytest
 
 import galileo_async
 
 PACKAGE = "galileo_async"
 PACKAGE_DIR = Path(galileo_async.__file__).parent
-#: The package's lazy loader (``galileo_async.X`` on first use, so that ``import
-#: galileo_async.protocol`` loads no asyncio layer); its targets must be imported visibly too.
-LAZY_LOADER = PACKAGE
+#: The package's lazy loaders (``galileo_async.X`` on first use, so that ``import
+#: galileo_async.protocol`` loads no asyncio layer; ``galileo_async.testing.X`` likewise, so
+#: that importing galileo_async.testing loads no simulator); their targets must be imported
+#: visibly too.
+LAZY_LOADERS = (PACKAGE, f"{PACKAGE}.testing")
 
 
 def module_files(root: Path = PACKAGE_DIR, package: str = PACKAGE) -> dict[str, Path]:
@@ -149,10 +156,10 @@ def test_the_graph_covers_the_package() -> None:
 
 
 def test_no_own_module_is_loaded_by_name() -> None:
-    """Only the package's lazy loader may; every module it loads is also imported visibly."""
+    """Only the lazy loaders may; every module they load is also imported visibly."""
     hidden = []
     for module, path in FILES.items():
-        if module == LAZY_LOADER:
+        if module in LAZY_LOADERS:
             continue
         for call in import_by_name_calls(path.read_text(encoding="utf-8")):
             name = (
@@ -161,9 +168,39 @@ def test_no_own_module_is_loaded_by_name() -> None:
             if not isinstance(name, str) or name == PACKAGE or name.startswith(f"{PACKAGE}."):
                 hidden.append(f"{module}:{call.lineno} loads {name or 'a computed name'}")
     assert hidden == [], "import own modules with import statements"
-    lazy = {f"{PACKAGE}.{name}" for name in lazy_targets(FILES[LAZY_LOADER].read_text())}
-    assert lazy
-    assert lazy <= GRAPH[LAZY_LOADER], "import the lazy loader's modules under TYPE_CHECKING"
+    for loader in LAZY_LOADERS:
+        lazy = {f"{loader}.{name}" for name in lazy_targets(FILES[loader].read_text())}
+        assert lazy, loader
+        assert lazy <= GRAPH[loader], f"import {loader}'s lazy modules under TYPE_CHECKING"
+
+
+@pytest.mark.parametrize("loader", LAZY_LOADERS)
+def test_a_lazy_loader_loads_its_modules_on_first_use_only(loader: str) -> None:
+    lazy = sorted({f"{loader}.{name}" for name in lazy_targets(FILES[loader].read_text())})
+    names = sorted(_lazy_table(loader))
+    script = (
+        "import importlib, json, sys\n"
+        f"package = importlib.import_module({loader!r})\n"
+        f"before = [m for m in {lazy!r} if m in sys.modules]\n"
+        f"getattr(package, {names[0]!r})\n"
+        f"after = [m for m in {lazy!r} if m in sys.modules]\n"
+        "print(json.dumps([before, after]))\n"
+    )
+    ran = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert ran.returncode == 0, ran.stderr
+    before, after = json.loads(ran.stdout)
+    assert before == [], f"importing {loader} loaded {before}"
+    assert after, f"{loader}.{names[0]} loaded none of {lazy}"
+
+
+def _lazy_table(loader: str) -> dict[str, str]:
+    """The ``_LAZY`` table of a lazy loader: public name → module."""
+    for node in ast.walk(ast.parse(FILES[loader].read_text(encoding="utf-8"))):
+        if isinstance(node, ast.AnnAssign) and getattr(node.target, "id", None) == "_LAZY":
+            return dict(ast.literal_eval(node.value))
+    raise AssertionError(f"{loader} has no _LAZY table")
 
 
 # --- the checks themselves ---------------------------------------------------------------

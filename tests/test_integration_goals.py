@@ -92,7 +92,7 @@ async def test_goto_the_goal_that_is_already_running(mode: Mode) -> None:
 async def test_goto_invalid_id_on_real_firmware(mode: Mode) -> None:
     async with robot_on_sim(mode) as (sim, robot):
         # A fresh robot already shows -1 (the firmware default), so a rejection, also
-        # reported as -1 with the id unchanged, shows no change at all (PROTOCOL.md §2.b).
+        # reported as -1 with the id unchanged, shows no change at all (docs/protocol.md §2.b).
         assert robot.status is not None
         assert robot.status.target_status == TargetStatus.INVALID
         with pytest.raises(AcceptTimeout, match="real firmware reports errors as -1"):
@@ -125,7 +125,7 @@ async def test_goto_invalid_id_on_document_firmware(mode: Mode) -> None:
 
 
 async def _invalid_goal_ends_the_running_one(robot: galileo.Robot, sim: Simulator) -> None:
-    """An invalid id cancels the running goal first (PROTOCOL.md §2.b), then fails."""
+    """An invalid id cancels the running goal first (docs/protocol.md §2.b), then fails."""
     running = asyncio.create_task(robot.goto(FAR, timeout=WAIT))
     try:
         await _working(robot, FAR)
@@ -169,7 +169,7 @@ async def test_goto_point_and_dynamic_targets(mode: Mode) -> None:
 @modes()
 async def test_goto_point_nudges_a_header_inside_a_float(mode: Mode) -> None:
     # These float bytes are CD EB D7 3F: sent as is, the firmware parser would abort the
-    # command at the header inside it (PROTOCOL.md §2.d).
+    # command at the header inside it (docs/protocol.md §2.d).
     x = struct.unpack("<f", b"\xcd\xeb\xd7\x3f")[0]
     async with robot_on_sim(mode) as (sim, robot):
         log = record_commands(sim)
@@ -212,7 +212,7 @@ async def test_pause_resume_cancel(mode: Mode) -> None:
             goal.cancel()
         state = sim.state.status
         assert state.target_status == TargetStatus.FREE
-        # Real firmware drops the id on cancel (PROTOCOL.md §2.c); the document keeps it.
+        # Real firmware drops the id on cancel (docs/protocol.md §2.c); the document keeps it.
         assert state.target_num_id == (-1 if mode.real else FAR)
         assert _no_goal(sim.state)
 

@@ -62,7 +62,7 @@ async def test_patrol_start_and_stop(mode: Mode) -> None:
         )
 
         if mode.real:
-            # 'm' 6 stops the patrol and its goal but keeps navigation (PROTOCOL.md §2.g).
+            # 'm' 6 stops the patrol and its goal but keeps navigation (docs/protocol.md §2.g).
             if mode.has("loop_status"):
                 await robot.stop_patrol(timeout=WAIT)
             else:
@@ -106,7 +106,7 @@ async def test_patrol_with_dwell(mode: Mode) -> None:
         leaving = asyncio.ensure_future(robot.wait_until(left_near, timeout=WAIT))
         await asyncio.sleep(0)  # both are registered
         if mode.real:
-            # Firmware: 'm' 5 TT sets the wait and starts patrol (PROTOCOL.md §2.g).
+            # Firmware: 'm' 5 TT sets the wait and starts patrol (docs/protocol.md §2.g).
             if mode.has("loop_status"):
                 await robot.start_patrol(dwell=2, timeout=WAIT)
             else:
@@ -139,7 +139,7 @@ async def test_set_patrol_dwell(mode: Mode) -> None:
     async with robot_on_sim(mode) as (sim, robot):
         await robot.set_patrol_dwell(5)
         await sim_reaches(robot, sim, lambda s: s.patrol_dwell == 5.0)
-        # Firmware: setting the wait also starts patrol (PROTOCOL.md §2.g); not in the document.
+        # Firmware: setting the wait also starts patrol (docs/protocol.md §2.g); the document: no.
         if mode.real:
             await sim_reaches(robot, sim, lambda s: s.status.loop_status == 1)
         else:
@@ -159,7 +159,7 @@ async def test_mapping(mode: Mode) -> None:
             await robot.start_mapping()
         assert sim.state.status.map_status == 0
 
-        # Start mapping also stops navigation (PROTOCOL.md §2.h).
+        # Start mapping also stops navigation (docs/protocol.md §2.h).
         await robot.send(StartMapping())
         await robot.wait_until(lambda s: not s.navigating, timeout=WAIT)
         await sim_reaches(robot, sim, lambda s: s.status.map_status == 1)

@@ -74,7 +74,7 @@ async def test_navigation_start_and_stop(mode: Mode) -> None:
         status = robot.status
         assert status is not None
         assert not status.navigating
-        # The firmware's defaults before any goal (PROTOCOL.md §1).
+        # The firmware's defaults before any goal (docs/protocol.md §1).
         assert (status.target_num_id, status.target_status) == (-1, TargetStatus.INVALID)
         assert status.target_distance == -1.0
 
@@ -95,7 +95,7 @@ async def test_navigation_start_and_stop(mode: Mode) -> None:
             await robot.goto(NEAR)
 
         if mode.real:
-            # PROTOCOL.md §2.a.
+            # docs/protocol.md §2.a.
             with pytest.raises(UnconfirmedOperation, match="ignores a start"):
                 await robot.start_navigation(timeout=SHORT)
             assert sim.state.status.nav_status == 0
@@ -140,7 +140,7 @@ async def test_rotate_is_ignored_by_real_firmware(mode: Mode) -> None:
         with pytest.raises(UnconfirmedOperation, match="ignore the rotate command 'a'"):
             await robot.rotate_to(90, timeout=SHORT)
         assert sim.state.pose.theta == 0.0
-        # Firmware derives angle_goal_status from the goal state (PROTOCOL.md §1, §2.g).
+        # Firmware derives angle_goal_status from the goal state (docs/protocol.md §1, §2.g).
         assert robot.status is not None
         if mode.has("angle_goal_status"):
             assert robot.status.angle_goal_status == AngleGoalStatus.INVALID

@@ -22,7 +22,7 @@ from galileo_async.models import GalileoStatus
 
 
 def at(x: float, y: float, theta: float = 0.0, **fields: object) -> GalileoStatus:
-    # Navigation open: no goal runs while it is closed (PROTOCOL.md §2.a).
+    # Navigation open: no goal runs while it is closed (docs/protocol.md §2.a).
     pose = {"current_pose_x": x, "current_pose_y": y, "current_angle": theta}
     return make_status(**({"nav_status": 1} | pose | fields))
 
@@ -89,7 +89,7 @@ def test_targets_learned_on_arrival_and_sources_ranked() -> None:
 
 def test_the_map_learns_the_arrivals_goto_and_events_report() -> None:
     # One rule (transitions.goal_step): free within arrive_tolerance of the last valid
-    # distance; -1 at the end keeps the last valid one (PROTOCOL.md §1).
+    # distance; -1 at the end keeps the last valid one (docs/protocol.md §1).
     model = MapModel()
     for target_id, end in ((1, 0.2), (2, -1.0)):
         model.update("a", at(1.0, 1.0, target_num_id=target_id, target_status=1, target_distance=1))

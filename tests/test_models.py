@@ -1,4 +1,4 @@
-"""GalileoStatus, its enums and convenience properties (PROTOCOL.md §1)."""
+"""GalileoStatus, its enums and convenience properties (docs/protocol.md §1)."""
 
 from __future__ import annotations
 
@@ -196,7 +196,7 @@ def test_flag_properties(
     [
         (0, 0.0, True),
         (0, 0.005, True),
-        (0, -0.005, True),  # abs() < 0.01 (PROTOCOL.md §1, field 11)
+        (0, -0.005, True),  # abs() < 0.01 (docs/protocol.md §1, field 11)
         (0, ARRIVED_DISTANCE, False),
         (0, 1.5, False),  # free far away: the planner gave up
         (0, -1.0, False),  # invalid distance

@@ -108,7 +108,8 @@ def test_make_dist_builds_a_wheel_that_installs_into_a_fresh_venv(tmp_path: Path
     assert "galileo_async/py.typed" in names
     assert not any(name.startswith(("tests/", "benchmarks/", "examples/")) for name in names)
     assert "galileo = galileo_async.cli:main" in entries
-    assert "[pytest11]" in entries
+    assert "[pytest11]\ngalileo_async = galileo_async_pytest" in entries
+    assert "galileo_async_pytest.py" in names  # the plugin module beside the package
     with tarfile.open(sdist) as archive:
         members = {Path(name).relative_to(f"galileo_async-{version}").as_posix()
                    for name in archive.getnames() if "/" in name}  # fmt: skip

@@ -1,4 +1,4 @@
-"""Command objects: golden frames of PROTOCOL.md §2, validation, the header nudge."""
+"""Command objects: golden frames of docs/protocol.md §2, validation, the header nudge."""
 
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ def test_every_command_type_has_a_golden_vector() -> None:
 
 
 def test_stop_patrol_is_the_firmware_m6_not_the_documented_m4() -> None:
-    # PROTOCOL.md §2.g: 'm' 4 stops the whole navigation service.
+    # docs/protocol.md §2.g: 'm' 4 stops the whole navigation service.
     assert StopPatrol().payload() == b"m\x06"
 
 
@@ -159,7 +159,7 @@ def test_raw_command_keeps_bytes() -> None:
     assert encode(raw) == v.command_frame("cdebd7 02 6d 00")
 
 
-# --- the CD EB D7 nudge (PROTOCOL.md §2.d) --------------------------------------------------
+# --- the CD EB D7 nudge (docs/protocol.md §2.d) --------------------------------------------------
 
 
 def header_floats() -> list[float]:

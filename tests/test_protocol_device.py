@@ -1,4 +1,4 @@
-"""Device side: CommandDecoder (the firmware parser, PROTOCOL.md §2) and encode_status."""
+"""Device side: CommandDecoder (the firmware parser, docs/protocol.md §2) and encode_status."""
 
 from __future__ import annotations
 
@@ -101,7 +101,7 @@ def test_bytes_outside_frames_are_ignored() -> None:
 
 
 def test_header_float_yields_the_measured_spurious_command() -> None:
-    # PROTOCOL.md §2: 'g' 'i' whose float bytes are "cd eb d7 02" aborts, the 02 becomes a
+    # docs/protocol.md §2: 'g' 'i' whose float bytes are "cd eb d7 02" aborts, the 02 becomes a
     # length byte, and the next write's "cd eb" completes a 2-byte command.
     decoder = CommandDecoder()
     assert decoder.feed(HEADER + b"\x0agi" + b"\x00\x00\xc0\x3f" + HEADER + b"\x02") == []
@@ -160,7 +160,7 @@ def test_unknown_or_out_of_range_payload_is_a_raw_command(payload: bytes) -> Non
     assert CommandDecoder().feed(HEADER + bytes((len(payload),)) + payload) == [RawCommand(payload)]
 
 
-# --- encode_status: the robot's side of the status stream (PROTOCOL.md §1) ----------------
+# --- encode_status: the robot's side of the status stream (docs/protocol.md §1) ----------------
 
 
 def test_protocol_example_frame_is_the_firmware_defaults() -> None:

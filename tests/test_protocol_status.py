@@ -1,4 +1,4 @@
-"""StatusDecoder: golden vectors of PROTOCOL.md §1, layout detection, resync, bounds, fuzz."""
+"""StatusDecoder: golden vectors of docs/protocol.md §1, layout detection, resync, bounds, fuzz."""
 
 from __future__ import annotations
 
@@ -156,7 +156,7 @@ def test_terminated_frame_is_decoded_on_its_last_byte(frame: bytes, status: Gali
 
 
 def test_truncated_frame_waits_for_the_next_header() -> None:
-    # No terminator: the frame ends where the next header starts (PROTOCOL.md §1).
+    # No terminator: the frame ends where the next header starts (docs/protocol.md §1).
     decoder = StatusDecoder(V2T)
     assert decoder.feed(v.V2_TRUNCATED_A + b"\x00") == []  # not a header: rejected
     assert decoder.stats.bytes_discarded == len(v.V2_TRUNCATED_A) + 1
@@ -184,7 +184,7 @@ def test_v1_and_v1_charge_told_apart_by_content() -> None:
 
 
 def test_v1_with_zero_power_is_ambiguous_until_the_stream_is_known() -> None:
-    # PROTOCOL.md §1: a stale 0.0 V reading has the int32 bits of charge_status 0.
+    # docs/protocol.md §1: a stale 0.0 V reading has the int32 bits of charge_status 0.
     zero = v1_frame(0.0)
     (fresh,) = StatusDecoder().feed(zero)
     assert fresh.layout is V1C
@@ -389,7 +389,7 @@ def test_frame_losing_bytes_in_the_middle(intact: list[GalileoStatus], pin: Stat
             out = decoder.feed(broken + tail)
             extra = 0
             if pin is None and len(broken) == 53 and broken[:4] == HEADER + b"\x55":
-                # Byte for byte a v2_truncated frame: no decoder can tell (PROTOCOL.md §1).
+                # Byte for byte a v2_truncated frame: no decoder can tell (docs/protocol.md §1).
                 assert out[0].layout is V2T
                 out, extra = out[1:], 1
             assert out == intact, (start, lost)

@@ -1,4 +1,4 @@
-"""The UDP port's status frames (VENDOR.md §3.2-3.3) and command parser (§3.5): vectors, fuzz."""
+"""The UDP port's status frames (docs/protocol.md §7.2-7.3) and parser (§7.5): vectors, fuzz."""
 
 from __future__ import annotations
 
@@ -260,7 +260,7 @@ def test_the_registration_frame_is_valid_and_does_nothing() -> None:
 
 
 def test_carry_over_as_measured_on_the_vendor_service() -> None:
-    # VENDOR.md §3.5: the stale partial frame survives later whole frames and, with a
+    # docs/protocol.md §7.5: the stale partial frame survives later whole frames and, with a
     # stray byte, becomes a phantom f 20.
     out = _feed(
         DatagramCommandDecoder(),

@@ -1,4 +1,4 @@
-"""Discovery: robots' UDP announcements (PROTOCOL.md §3), from a test broadcaster on loopback."""
+"""Discovery: robots' UDP announcements (docs/protocol.md §3), from a broadcaster on loopback."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from galileo_async.ros.discovery import DiscoveredRobot, discover, parse_announc
 pytestmark = pytest.mark.timeout(20)
 
 ANNOUNCEMENT = {"id": "galileo-7", "port": 11311, "mac": "00:11:22:33:44:55", "version": "5.1"}
-#: A 5.x robot with the HTTP API announces its port 3546 (VENDOR.md §1.2).
+#: A 5.x robot with the HTTP API announces its port 3546 (docs/protocol.md §5.2).
 HTTP_ANNOUNCEMENT = {"id": "galileo-8", "port": 3546, "version": "5.0.0"}
 
 

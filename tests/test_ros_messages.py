@@ -172,7 +172,7 @@ def test_cmds_serialisation_matches_genpy(genpy_results: dict[str, Any]) -> None
 
 def test_start_navigation_cmds_layout() -> None:
     data = m.encode_cmds(StartNavigation(), seq=1, stamp=0.0)
-    # header (seq, secs, nsecs, empty frame_id), length 2, data [0x6d, 0] (PROTOCOL.md §3)
+    # header (seq, secs, nsecs, empty frame_id), length 2, data [0x6d, 0] (docs/protocol.md §3)
     assert data == struct.pack("<IIII", 1, 0, 0, 0) + struct.pack("<II", 2, 2) + b"m\x00"
 
 

@@ -82,7 +82,7 @@ async def test_goto_rejected_keeps_the_id(robot: Robot) -> None:
     assert caught.value.target_id == 9
     status = robot.status
     assert status is not None
-    # Real firmware: the error is -1 and target_num_id is not updated (PROTOCOL.md §2.b).
+    # Real firmware: the error is -1 and target_num_id is not updated (docs/protocol.md §2.b).
     assert status.target_status == TargetStatus.INVALID
     assert status.target_num_id == 2
 

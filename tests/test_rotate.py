@@ -1,4 +1,4 @@
-"""rotate_to reports success only when the angle goal it sent is done (PROTOCOL.md §2.g).
+"""rotate_to reports success only when the angle goal it sent is done (docs/protocol.md §2.g).
 
 Real firmware ignores ``a`` and derives angle_goal_status from the goal state (0 while a
 goal works, 1 once free), so a navigation goal that starts and ends while rotate_to waits

@@ -449,7 +449,7 @@ async def test_events_from_updates_and_link() -> None:
 async def test_events_with_custom_arrive_tolerance() -> None:
     store = StatusStore(arrive_tolerance=1.0)
     stream = store.events()
-    # Navigation open: a goal shown under closed navigation does not run (PROTOCOL.md §2.a).
+    # Navigation open: a goal shown under closed navigation does not run (docs/protocol.md §2.a).
     store.update(st(1, nav_status=1, target_num_id=2, target_status=1, target_distance=3.0))
     store.update(st(2, nav_status=1, target_num_id=2, target_status=0, target_distance=0.8))
     event = await asyncio.wait_for(anext(stream), 5)

@@ -1,9 +1,11 @@
-"""The pytest plugin (galileo_async.testing.plugin): fixtures, galileo_sim, leak checks."""
+"""The pytest plugin (galileo_async_pytest): fixtures, galileo_sim, leak checks, what it loads."""
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -309,3 +311,71 @@ def test_without_pytest_asyncio_or_the_fixtures_pytest_keeps_its_words(
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*async def functions are not natively supported*"])
     assert "async test not run" not in result.stdout.str()
+
+
+# ----------------------------------------------------------------------- what it loads
+
+#: Prints, as the session ends, the modules of galileo-async the session imported.
+LOADED_MODULES_CONFTEST = """
+import json
+import sys
+
+
+def pytest_sessionfinish(session):
+    loaded = sorted(name for name in sys.modules if name.startswith("galileo_async"))
+    config = session.config
+    report = {
+        "modules": loaded,
+        "plugin": config.pluginmanager.has_plugin("galileo_async"),
+        "marker": any(line.startswith("galileo_sim(") for line in config.getini("markers")),
+    }
+    print("\\nLOADED " + json.dumps(report))
+"""
+
+
+def loaded_report(result: pytest.RunResult) -> dict[str, Any]:
+    """What the conftest above printed at the end of the session."""
+    (line,) = (line for line in result.stdout.lines if line.startswith("LOADED "))
+    report: dict[str, Any] = json.loads(line.removeprefix("LOADED "))
+    return report
+
+
+def test_an_unrelated_session_loads_no_module_of_the_package(
+    run: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Any project's session, with galileo-async installed: the plugin comes through the
+    # installed entry point, and must not load the package while nothing of it is used.
+    monkeypatch.delenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", raising=False)
+    run.makeconftest(LOADED_MODULES_CONFTEST)
+    run.makepyfile(test_unrelated="def test_arithmetic():\n    assert 1 + 1 == 2\n")
+    result = pytest_run(run, "-s")
+    result.assert_outcomes(passed=1)
+    report = loaded_report(result)
+    assert report["plugin"]  # loaded through its entry point
+    assert report["marker"]  # and its marker declared
+    assert len(report["modules"]) <= 2, report["modules"]
+    assert report["modules"] == ["galileo_async_pytest"]  # the plugin alone, no package
+
+
+def test_a_session_that_uses_the_fixtures_loads_them_when_used(
+    run: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", raising=False)
+    run.makeconftest(LOADED_MODULES_CONFTEST)
+    run.makeini("[pytest]\nasyncio_mode = auto\nasyncio_default_fixture_loop_scope = function\n")
+    run.makepyfile(
+        test_app="""
+import pytest
+
+
+@pytest.mark.galileo_sim(map_targets=2)
+async def test_goes(galileo_robot, galileo_device):
+    assert (await galileo_robot.goto(1)).target_id == 1
+    assert [type(c).__name__ for c in galileo_device.received()] == ["Goto"]
+"""
+    )
+    result = pytest_run(run, "-s")
+    result.assert_outcomes(passed=1)
+    modules = loaded_report(result)["modules"]
+    # The report sees what a session loads: here the simulated robot behind the fixture.
+    assert {"galileo_async_pytest", "galileo_async.testing.robot"} <= set(modules)

@@ -1,4 +1,4 @@
-"""udp:// against the simulator's UDP face and plain UDP sockets on 127.0.0.1 (VENDOR.md §3)."""
+"""udp:// against the simulator's UDP face and plain sockets on loopback (docs/protocol.md §7)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,9 @@
-"""Golden wire vectors written out from PROTOCOL.md, independent of the encoders under test.
+"""Golden wire vectors written out from docs/protocol.md, independent of the encoders under test.
 
 Also the hypothesis strategies that generate statuses exactly representable on the wire.
 
-Command frames are hex strings copied from the PROTOCOL.md §2 table. Status frames are
-packed here with ``struct`` straight from the PROTOCOL.md §1 tables (field order and
+Command frames are hex strings copied from the docs/protocol.md §2 table. Status frames are
+packed here with ``struct`` straight from the docs/protocol.md §1 tables (field order and
 types spelled out again below, not taken from ``galileo_async.protocol.layouts``), except
 the §1 example frame, which is the document's hex verbatim.
 """
@@ -48,7 +48,7 @@ from galileo_async.protocol import (
 
 HEADER = bytes.fromhex("cdebd7")
 
-# --- commands (PROTOCOL.md §2) ------------------------------------------------------------
+# --- commands (docs/protocol.md §2) ------------------------------------------------------------
 
 #: (command, frame as hex) — every command class appears at least once.
 COMMAND_VECTORS: list[tuple[Command, str]] = [
@@ -101,7 +101,7 @@ def command_frame(hex_text: str) -> bytes:
     return bytes.fromhex(hex_text.replace(" ", ""))
 
 
-# --- status frames (PROTOCOL.md §1) -------------------------------------------------------
+# --- status frames (docs/protocol.md §1) -------------------------------------------------------
 
 #: v2 struct, fields 1-21: 7 ints, power f, target_num_id i, target_status i,
 #: target_distance f, angle_goal_status i, 4 speed floats, time_stamp I, 3 pose floats, busy i.
@@ -131,7 +131,7 @@ V1_CHARGE_NAMES = (
     "current_speed_x", "current_speed_theta",
 )  # fmt: skip
 
-#: PROTOCOL.md §1 example: robot idle, firmware defaults, time_stamp = 1 (verbatim).
+#: docs/protocol.md §1 example: robot idle, firmware defaults, time_stamp = 1 (verbatim).
 V2_EXAMPLE = bytes.fromhex(
     "cdebd755" + "00" * 32 + "ffffffff"
     "ffffffff"
@@ -172,7 +172,7 @@ V1_CHARGE_STATUS = _status(StatusLayout.V1_CHARGE, V1_CHARGE_NAMES, V1_CHARGE_VA
 
 
 def _truncated(values: tuple[int | float, ...]) -> bytes:
-    # Firmware bug (PROTOCOL.md §1 v2_truncated): length byte 0x55 but only the first
+    # Firmware bug (docs/protocol.md §1 v2_truncated): length byte 0x55 but only the first
     # 49 payload bytes, no terminator.
     return HEADER + b"\x55" + struct.pack(V2_FORMAT, *values)[:49]
 
@@ -236,7 +236,7 @@ def statuses(
 
 
 def unambiguous(layout: StatusLayout) -> st.SearchStrategy[GalileoStatus]:
-    """Statuses whose 0x31 layout is clear from content (PROTOCOL.md §1, field 3)."""
+    """Statuses whose 0x31 layout is clear from content (docs/protocol.md §1, field 3)."""
     if layout is V1:  # int32 bits of power outside -1..5 (0.0, denormals and one NaN are in)
         return statuses(layout, power=FLOAT32.map(lambda p: p if abs(p) > 1e-30 else 12.5))
     if layout is V1C:

@@ -41,7 +41,7 @@ app = typer.Typer(
 )
 
 
-#: Layouts of the serial status stream (PROTOCOL.md §1) that --layout accepts: the
+#: Layouts of the serial status stream (docs/protocol.md §1) that --layout accepts: the
 #: layout option's (galileo_async.options).
 _LAYOUTS = STREAM_LAYOUTS
 

@@ -200,7 +200,7 @@ CLEAR_ERROR_TIMEOUT = 1.0
 async def clear_goal_error(robot: Robot) -> None:
     """Cancel an earlier goal error (-1) first, so that a rejection of the new id shows.
 
-    Real firmware reports a bad id as -1 and leaves target_num_id alone (PROTOCOL.md §2.b):
+    Real firmware reports a bad id as -1 and leaves target_num_id alone (docs/protocol.md §2.b):
     with -1 already showing, a second rejection changes nothing on the wire. Its cancel
     (``i 2``) turns an error back to free.
     """

@@ -137,7 +137,7 @@ def goto_point(
 
 #: Default --timeout of ``galileo rotate``, shorter than Robot.rotate_to's ROTATE_TIMEOUT: a
 #: half turn takes a few seconds, and many firmware versions drop 'a' silently
-#: (PROTOCOL.md §2.g), so do not keep the user waiting long.
+#: (docs/protocol.md §2.g), so do not keep the user waiting long.
 CLI_ROTATE_TIMEOUT = 10.0
 
 
@@ -237,7 +237,7 @@ async def start_patrol(robot: Robot, dwell: int | None) -> None:
     """Set the dwell (when given), then start patrol and wait for loop_status to show it.
 
     Firmware starts patrol on the dwell command ('m' 5 TT) alone; the document does not
-    (PROTOCOL.md §2.g), so 'm' 5 follows either way (a no-op on a running patrol).
+    (docs/protocol.md §2.g), so 'm' 5 follows either way (a no-op on a running patrol).
     """
     if dwell is not None:
         await robot.set_patrol_dwell(dwell)

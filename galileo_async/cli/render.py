@@ -212,7 +212,7 @@ def dashboard(
     """The monitor screen: states, pose and speeds, goal, link statistics, recent events."""
     if status is None:
         if getattr(link, "frames", 0):
-            # Frames arrive, but only the serial node's placeholders (PROTOCOL.md §1).
+            # Frames arrive, but only the serial node's placeholders (docs/protocol.md §1).
             return Panel(
                 f"{url}: the link is up, but the navigation system has not reported yet …",
                 title="galileo monitor",

@@ -172,7 +172,7 @@ def teleop(
         try:
             status = robot.status
             if status is not None and status.goal_active:
-                # Teleop and planner speeds override each other (PROTOCOL.md §2.e).
+                # Teleop and planner speeds override each other (docs/protocol.md §2.e).
                 await robot.cancel()
                 err_console().print("cancelled the running goal to take over")
             err_console().print(HELP)

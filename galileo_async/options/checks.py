@@ -19,12 +19,13 @@ DEFAULT_GOAL_TIMEOUT = 600.0
 DEFAULT_WAIT_TIMEOUT = 30.0
 DEFAULT_PROGRESS_TIMEOUT = 60.0
 DEFAULT_ANGLE_TOLERANCE = 2.0
-#: m/s at 100 % of ``f``/``b`` (the vendor's MAX_VEL, VENDOR.md §2.3).
+#: m/s at 100 % of ``f``/``b`` (the vendor's MAX_VEL, docs/protocol.md §6.3).
 DEFAULT_MAX_LINEAR_SPEED = 0.8
 #: rad/s at 100 % of ``c``/``d`` (kinetic builds; noetic builds use 1.2).
 DEFAULT_MAX_ANGULAR_SPEED = 1.5
 FIRST_STATUS_TIMEOUT = 3.0
-#: The document allows at most 100 commands/s; back-to-back writes lose commands (PROTOCOL.md §2).
+#: The document allows at most 100 commands/s; back-to-back writes lose commands
+#: (docs/protocol.md §2).
 DEFAULT_MIN_COMMAND_INTERVAL = 0.010
 #: Status arrives at 30 Hz; this long without a valid frame makes the link stale.
 DEFAULT_STALE_TIMEOUT = 1.0
@@ -35,7 +36,7 @@ DEFAULT_DRAIN_TIMEOUT = 2.0
 DEFAULT_MAX_QUEUED_COMMANDS = 100
 DEFAULT_RECONNECT_INITIAL = 0.1
 DEFAULT_RECONNECT_MAX = 5.0
-#: The navigation serial port runs at 115200 baud, 8N1 (PROTOCOL.md, introduction).
+#: The navigation serial port runs at 115200 baud, 8N1 (docs/protocol.md, "Links and framing").
 DEFAULT_BAUDRATE = 115200
 DEFAULT_CONNECT_TIMEOUT = 5.0
 DEFAULT_RPC_TIMEOUT = 2.0
@@ -46,7 +47,7 @@ DEFAULT_PING_INTERVAL = 1.0
 #: Seconds one REST call of the http:// link may take before it fails with HttpTimeout.
 DEFAULT_REQUEST_TIMEOUT = 5.0
 DEFAULT_MASTER_CHECK_INTERVAL = 1.0
-#: Goal ids are one byte (PROTOCOL.md §2.b).
+#: Goal ids are one byte (docs/protocol.md §2.b).
 MAX_TARGET_ID = 255
 #: Most commands a link may queue (far above any use: a bound, not a setting).
 MAX_QUEUED_COMMANDS_LIMIT = 1_000_000
@@ -73,7 +74,7 @@ def check_degrees(name: str, value: object) -> None:
 
 
 def check_speed_limit(name: str, value: object) -> None:
-    # The vendor's node turns a percentage of these into a speed (VENDOR.md §2.2, §2.3).
+    # The vendor's node turns a percentage of these into a speed (docs/protocol.md §6.2, §6.3).
     check_number(name, value, low=0.0, low_open=True, high=10.0)
 
 

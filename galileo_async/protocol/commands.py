@@ -1,4 +1,4 @@
-"""Command objects (validated at construction) and their byte encoding (PROTOCOL.md §2)."""
+"""Command objects (validated at construction) and their byte encoding (docs/protocol.md §2)."""
 
 from __future__ import annotations
 
@@ -88,7 +88,7 @@ class StartNavigation(_Fixed):
     data: ClassVar[bytes] = b"m\x00"
 
 
-# 'm' 4 stops the whole navigation service, patrol included (PROTOCOL.md §2.a).
+# 'm' 4 stops the whole navigation service, patrol included (docs/protocol.md §2.a).
 @dataclass(frozen=True, slots=True)
 class StopNavigation(_Fixed):
     """Stop navigation, patrol and the goal ('m' 4)."""
@@ -138,7 +138,7 @@ class StartPatrol(_Fixed):
     data: ClassVar[bytes] = b"m\x05"
 
 
-# Firmware stops patrol with 'm' 6; the document's 'm' 4 stops navigation (PROTOCOL.md §2.g).
+# Firmware stops patrol with 'm' 6; the document's 'm' 4 stops navigation (docs/protocol.md §2.g).
 @dataclass(frozen=True, slots=True)
 class StopPatrol(_Fixed):
     """Stop auto-patrol and keep navigation ('m' 6)."""
@@ -350,7 +350,7 @@ def _f32_from_bits(bits: int) -> float:
 def nudge_coordinates(x: float, y: float) -> tuple[float, float]:
     """Return float32 (x, y), each moved by one ulp while their bytes would contain CD EB D7."""
     # The firmware parser resyncs on a header anywhere, even inside a payload, and would
-    # abort the command (PROTOCOL.md §2 parser note and §2.d).
+    # abort the command (docs/protocol.md §2 parser note and §2.d).
     bits = [_f32_bits(x), _f32_bits(y)]
     for _ in range(8):
         data = b"\x0agi" + _U32.pack(bits[0]) + _U32.pack(bits[1])

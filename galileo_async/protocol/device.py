@@ -89,7 +89,7 @@ class CommandDecoderStats:
 
 
 class CommandDecoder:
-    """Byte-wise parser with the firmware's rules (PROTOCOL.md §2, parser note)."""
+    """Byte-wise parser with the firmware's rules (docs/protocol.md §2, parser note)."""
 
     def __init__(self) -> None:
         self._window = b""
@@ -130,7 +130,7 @@ class CommandDecoder:
 
 
 class DatagramCommandDecoder:
-    """The UDP port's command parser (system_monitor ReqParser; VENDOR.md §3.5), carry-over and all.
+    """The UDP port's command parser (ReqParser; docs/protocol.md §7.5), carry-over and all.
 
     Splits on every header; a piece is a frame only if its length byte counts exactly the
     bytes up to the next header or the datagram's end. The datagram's last piece, when not
@@ -177,7 +177,7 @@ class StatusEncoder:
         self._stamp_at: int | None = None
         source_fields: tuple[str, ...]
         if name in UDP_LAYOUTS:
-            # The UDP frame packs a flags byte from five fields (VENDOR.md §3.2).
+            # The UDP frame packs a flags byte from five fields (docs/protocol.md §7.2).
             udp = UDP_LAYOUTS[name]
             source_fields = UDP_SOURCE_FIELDS
             self._pack: Callable[..., bytes] = lambda *values: pack_udp_payload(name, values)
@@ -186,7 +186,7 @@ class StatusEncoder:
             self._size = udp.struct.size
         else:
             target = LAYOUTS[name]
-            # The truncated layout is the v2 struct cut short (PROTOCOL.md §1, v2_truncated).
+            # The truncated layout is the v2 struct cut short (docs/protocol.md §1, v2_truncated).
             source = LAYOUTS[StatusLayout.V2] if name is StatusLayout.V2_TRUNCATED else target
             source_fields = source.fields
             self._pack = source.struct.pack

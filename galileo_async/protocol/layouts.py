@@ -1,4 +1,4 @@
-"""Byte layouts of the four status frame formats (PROTOCOL.md §1)."""
+"""Byte layouts of the four status frame formats (docs/protocol.md §1)."""
 
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ ENUM_FIELDS: dict[str, type[Any]] = {
     "angle_goal_status": AngleGoalStatus,
 }
 
-#: What the firmware sends before its first real status (PROTOCOL.md §1).
+#: What the firmware sends before its first real status (docs/protocol.md §1).
 V2_DEFAULTS: dict[str, int | float] = {
     name: (0.0 if kind == "f" else 0) for name, kind in _TYPES.items()
 } | {"target_num_id": -1, "target_status": -1, "angle_goal_status": -1, "target_distance": -1.0}
@@ -113,7 +113,7 @@ LAYOUTS: dict[StatusLayout, Layout] = {
     StatusLayout.V1: _layout(StatusLayout.V1, LENGTH_V1, _V1_FIELDS),
     StatusLayout.V1_CHARGE: _layout(StatusLayout.V1_CHARGE, LENGTH_V1, _V1_CHARGE_FIELDS),
     # A firmware bug sent only the first 49 payload bytes: fields 1-12 and one byte of
-    # field 13, with no terminator (PROTOCOL.md §1, v2_truncated).
+    # field 13, with no terminator (docs/protocol.md §1, v2_truncated).
     StatusLayout.V2_TRUNCATED: Layout(
         StatusLayout.V2_TRUNCATED, LENGTH_V2, _V2_FIELDS[:12], 4 + 49, terminated=False
     ),

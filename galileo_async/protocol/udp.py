@@ -1,4 +1,4 @@
-"""The status frames of the robot's UDP port 20001 (system_monitor; VENDOR.md §3): layouts, decoder.
+"""The status frames of the robot's UDP port 20001 (docs/protocol.md §7): layouts, decoder.
 
 Two layouts, told apart by the length byte: ``udp_v2`` (0x2c, 48 bytes, with
 target_distance) and ``udp_v1`` (0x28, 44 bytes, without). The environment-sensor frame
@@ -119,7 +119,7 @@ def pack_udp_payload(layout: StatusLayout, values: Sequence[Any]) -> bytes:
 def _visual(flags: int) -> Visual:
     # Two bits for four states: "lost" (2) and "not initialised" (0) both read 0x04
     # without 0x08. Taken as not initialised, so nothing that needs the visual system
-    # initialised is sent on a robot that may not be (VENDOR.md §3.2).
+    # initialised is sent on a robot that may not be (docs/protocol.md §7.2).
     if flags & FLAG_TRACKING:
         return Visual.TRACKING
     return Visual.NOT_INITIALISED if flags & FLAG_VISUAL_ON else Visual.OFF

@@ -33,7 +33,7 @@ class Velocity(Command):
 class PoseGoal(Goto):
     """A goal by pose, ``x``, ``y`` m and ``theta`` rad; http:// links only (a nav task).
 
-    The robot shows such a goal as target -2 (VENDOR.md §1.4), which is its ``target_id``.
+    The robot shows such a goal as target -2 (docs/protocol.md §5.4), which is its ``target_id``.
     """
 
     target_id: int = -2
@@ -57,7 +57,7 @@ def speed_commands(
 ) -> tuple[Command, Command]:
     """The two commands, linear first, that make the vendor's node publish this velocity.
 
-    The vendor keeps linear and angular separately (VENDOR.md §2.2): ``f``/``b`` set
+    The vendor keeps linear and angular separately (docs/protocol.md §6.2): ``f``/``b`` set
     linear.x = max_linear·p/100 and leave angular alone; ``c``/``d`` set angular.z =
     max_angular·p/100/s, s = max(1, |linear.x|) read at that moment, and leave linear
     alone. So linear goes first and the angular percentage is multiplied by s; a zero

@@ -358,7 +358,7 @@ def _timeout(
         )
     hint = ""
     if status is not None and status.goal_failed:
-        # Real firmware leaves target_num_id alone and reports -1 (PROTOCOL.md §2.b): with
+        # Real firmware leaves target_num_id alone and reports -1 (docs/protocol.md §2.b): with
         # -1 already showing before the command, a rejection looks like a lost command.
         hint = (
             f"; target_status still shows {int(status.target_status or 0)}, so the robot may"

@@ -135,7 +135,7 @@ class Operations:
         fresh (ConnectionLost, LinkStale: nothing was sent), unless ``even_stale`` (the
         transmit side may work while the status is silent); with ``require`` or ``then``,
         the robot's first real status, waited for within ``deadline``: before it the link
-        may carry only the serial node's placeholders (PROTOCOL.md §1); ``require`` holds
+        may carry only the serial node's placeholders (docs/protocol.md §1); ``require`` holds
         (NotReady); ``unless`` holds: done, nothing is sent (returns None); busy_status 0,
         waited for within ``deadline`` (no deadline: sent at once), then ``require`` again;
         ``then`` registered for every later status (before the write, so no status that
@@ -339,7 +339,7 @@ class Operations:
         """Queue Cancel (``i 2``) now, in call order; a goal (``g``) queued after it drops it.
 
         A dropped exit cancel is not needed: the newer goal replaces the old one on the
-        robot (PROTOCOL.md §2.b), and written after it the cancel would stop the new goal.
+        robot (docs/protocol.md §2.b), and written after it the cancel would stop the new goal.
         """
         if self.link.closed:
             return None  # a closed link cannot carry it

@@ -303,7 +303,7 @@ class Robot:
     # --- velocity and stopping ----------------------------------------------------------
 
     # One command each: 22 chassis builds hold it until the next, others stop 1-3 s after
-    # it (VENDOR.md §2.5); drive() keeps a speed alive and always ends with a stop.
+    # it (docs/protocol.md §6.5); drive() keeps a speed alive and always ends with a stop.
 
     async def forward(self, percent: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Write ``f`` once at ``percent`` (0-100) of max speed; the chassis decides how long."""

@@ -46,7 +46,7 @@ class Patrol:
         """See Robot.stop_patrol."""
         check_timeout("timeout", timeout)
         # The document's 'm' 4 would stop navigation; firmware stops patrol with 'm' 6
-        # (PROTOCOL.md §2.g).
+        # (docs/protocol.md §2.g).
         await self._ops.send(
             StopPatrol(), what="stop_patrol", deadline=Deadline(timeout),
             then=Confirm(lambda s: not s.patrolling, field="loop_status"),

@@ -20,7 +20,7 @@ class GoalTracker:
     """Decide acceptance and the end of goal ``target_id`` from the statuses after the send.
 
     ``before`` is the latest status when the command was sent: the first frames after
-    ``g N`` may still show it (a cached status re-sent with a new counter, PROTOCOL.md §1),
+    ``g N`` may still show it (a cached status re-sent with a new counter, docs/protocol.md §1),
     so only transitions away from it count, never levels that it already showed. The
     verdicts are transitions.goal_step's, through a GoalMachine as the store's events().
     """

@@ -76,7 +76,7 @@ class _Rotation(Confirm):
         super().__init__(
             self._done, field="angle_goal_status",
             failed=lambda s: s.angle_goal_status == AngleGoalStatus.ERROR,
-            # No published firmware handles 'a' (PROTOCOL.md §2.g).
+            # No published firmware handles 'a' (docs/protocol.md §2.g).
             hint="; many firmware versions ignore the rotate command 'a' entirely",
         )  # fmt: skip
         self._what = what
@@ -91,7 +91,7 @@ class _Rotation(Confirm):
         """True once the rotation is done; OperationFailed once a navigation goal ran."""
         if status.goal_active or status.target_num_id != self._goal_id:
             # A goal replaces a rotation, and real firmware derives angle_goal_status from
-            # the goal state (PROTOCOL.md §1 field 12): its 0 then 1 would look like ours.
+            # the goal state (docs/protocol.md §1 field 12): its 0 then 1 would look like ours.
             raise OperationFailed(
                 f"{self._what}: navigation goal {status.target_num_id} started while "
                 "waiting for the rotation; a goal replaces a rotation, and angle_goal_status "

@@ -1,4 +1,4 @@
-"""Find robots on the LAN: they broadcast JSON on UDP port 22002 at 10 Hz (PROTOCOL.md §3)."""
+"""Find robots on the LAN: they broadcast JSON on UDP port 22002 at 10 Hz (docs/protocol.md §3)."""
 
 from __future__ import annotations
 

@@ -44,7 +44,7 @@ _log = logging.getLogger(__name__)
 DEFAULT_MASTER_PORT = 11311
 #: The robot's target count, kept by its navigation node and read by the vendor's SDK.
 GOAL_NUM_PARAM = "/galileo/goal_num"
-#: Goal ids are one byte (PROTOCOL.md §2.b).
+#: Goal ids are one byte (docs/protocol.md §2.b).
 _MAX_TARGETS = 255
 _QUERY_OPTIONS: dict[str, Any] = {
     "host": str,

@@ -44,7 +44,7 @@ __all__ = [
 CMDS_TOPIC = "/galileo/cmds"
 STATUS_TOPIC = "/galileo/status"
 CMDS_TYPE = "galileo_serial_server/GalileoNativeCmds"
-#: Velocity commands for the chassis driver (VENDOR.md §2.1): only linear.x and angular.z.
+#: Velocity commands for the chassis driver (docs/protocol.md §6.1): only linear.x and angular.z.
 CMD_VEL_TOPIC = "/cmd_vel"
 TWIST_TYPE = "geometry_msgs/Twist"
 STATUS_TYPE = "galileo_serial_server/GalileoStatus"
@@ -54,7 +54,7 @@ _HEADER_TEXT = (
     "# sequence ID: consecutively increasing ID\n" + HEADER_DEFINITION
 )
 
-#: PROTOCOL.md §3: the command bytes after the length byte.
+#: docs/protocol.md §3: the command bytes after the length byte.
 CMDS_DEFINITION = "Header header\nuint32 length\nuint8[] data\n"
 
 
@@ -79,7 +79,7 @@ def _status_text(names: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: The final GalileoStatus (PROTOCOL.md §3).
+#: The final GalileoStatus (docs/protocol.md §3).
 STATUS_DEFINITION = _status_text(list(ROS_FIELD_NAMES))
 #: The 13-field GalileoStatus of the vendor document (older robots).
 STATUS_DEFINITION_13 = _status_text(

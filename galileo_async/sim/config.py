@@ -15,7 +15,7 @@ from ..protocol import LAYOUTS, UDP_LAYOUTS
 
 __all__ = ["DEFAULT_TARGETS", "FRAME_RATE", "Faults", "SimConfig", "parse_sim_url"]
 
-#: Status frames per second of simulated time (PROTOCOL.md §1).
+#: Status frames per second of simulated time (docs/protocol.md §1).
 FRAME_RATE = 30
 #: The default map: six targets spread over a ~10 m area around the start pose (0, 0).
 DEFAULT_TARGETS: tuple[tuple[float, float], ...] = (
@@ -114,15 +114,15 @@ class SimConfig:
     seed: int = 0
     visual_init_time: float = 2.0
     #: A start-navigation within this long of the previous one is ignored; None: 10 s on
-    #: real firmware, 0 in document mode (PROTOCOL.md §2.a).
+    #: real firmware, 0 in document mode (docs/protocol.md §2.a).
     start_ignore_time: float | None = None
     busy_on_start: float = 1.0
     busy_on_map_stop: float = 2.0
     busy_on_save: float = 1.0
-    #: How long a command waits for busy to end before it is dropped (PROTOCOL.md §2).
+    #: How long a command waits for busy to end before it is dropped (docs/protocol.md §2).
     busy_max_wait: float = 180.0
     patrol_dwell: float = 3.0
-    #: Some firmware versions ignore 'V' 2 (PROTOCOL.md §2.h).
+    #: Some firmware versions ignore 'V' 2 (docs/protocol.md §2.h).
     ignore_save_map: bool = False
     #: Several commands in one write keep only the first and last; None: on for real firmware.
     concat_loss: bool | None = None
@@ -130,7 +130,7 @@ class SimConfig:
     max_turn_rate: float = 1.5
     #: Seconds after the last speed command (f, b, c, d) that the chassis zeroes both
     #: speeds; None: the last speed holds forever, as on 22 of the vendor's chassis builds
-    #: (VENDOR.md §2.5; chitu-noetic stops after 3 s).
+    #: (docs/protocol.md §6.5; chitu-noetic stops after 3 s).
     cmd_vel_timeout: float | None = None
     acceleration: float = 1.0
     angular_acceleration: float = 3.0

@@ -225,7 +225,7 @@ class SimDevice:
         self.stats.commands_received += len(commands)
         if self._concat_loss and len(commands) > 2:
             # The serial node's queue of one keeps only the first and the last command of
-            # one write (PROTOCOL.md §2, "Firmware (measured…)").
+            # one write (docs/protocol.md §2, "Firmware (measured…)").
             self.stats.commands_lost += len(commands) - 2
             commands = [commands[0], commands[-1]]
         self.execute(commands)

@@ -57,7 +57,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
         self.shutdown = False
         self.commands_handled = 0
         self.commands_dropped = 0
-        # Wire state: defaults until navigation starts (PROTOCOL.md §1).
+        # Wire state: defaults until navigation starts (docs/protocol.md §1).
         self.nav_status = 0
         self.visual_status = 0
         self.map_status = 0
@@ -136,7 +136,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
 
     @property
     def angle_goal_status(self) -> int:
-        """Real firmware derives it from the goal state (PROTOCOL.md §1 field 12, §2.g)."""
+        """Real firmware derives it from the goal state (docs/protocol.md §1 field 12, §2.g)."""
         if not self.config.real_firmware:
             return self.rotate_status
         if self.target_status == FREE:
@@ -275,7 +275,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
     def _start_navigation(self, _: object) -> None:
         window = self.config.effective_start_ignore_time
         if self._last_start is not None and self.time - self._last_start < window:
-            return  # firmware ignores a start within 5-30 s of the previous (PROTOCOL.md §2.a)
+            return  # firmware ignores a start within 5-30 s of the previous (docs/protocol.md §2.a)
         if self.nav_status == 1 or self.map_status == 1:
             return
         self._last_start = self.time
@@ -284,7 +284,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
         self.set_busy(self.config.busy_on_start)
 
     def _stop_navigation(self, _: object) -> None:
-        # 'm' 4 stops navigation, patrol and the goal, and zeroes the speed (PROTOCOL.md §2.a).
+        # 'm' 4 stops navigation, patrol and the goal, and zeroes the speed (docs/protocol.md §2.a).
         if self.target_status in ACTIVE:
             self._drop_goal()
         self.nav_status, self.loop_status = 0, 0
@@ -303,7 +303,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
 
     def _goto(self, command: cmd.Goto) -> None:
         if self.nav_status != 1 or not self.visual_initialised:
-            return  # PROTOCOL.md §2.b: ignored until the visual system is initialised
+            return  # docs/protocol.md §2.b: ignored until the visual system is initialised
         self.loop_status = 0  # a goal by hand ends the patrol
         self._begin_goal(command.target_id)
 
@@ -313,7 +313,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
         if self.target_status in ACTIVE:
             self._drop_goal()
         if self.take_rejection() or target_id >= len(self.targets):
-            # Firmware reports the error as -1 and keeps the id (PROTOCOL.md §2.b).
+            # Firmware reports the error as -1 and keeps the id (docs/protocol.md §2.b).
             if self.config.real_firmware:
                 self.target_status = INVALID
             else:
@@ -361,7 +361,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
 
     def _teleop(self, *, v: float | None = None, w: float | None = None) -> None:
         # Linear and angular are kept separately (arcs); without cmd_vel_timeout the speed
-        # holds until changed, as on chassis builds without a watchdog (VENDOR.md §2.5).
+        # holds until changed, as on chassis builds without a watchdog (docs/protocol.md §6.5).
         self._speed_at = self.time
         if v is not None:
             self.control_v = v
@@ -370,7 +370,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
 
     def _rotate(self, command: cmd.RotateTo) -> None:
         if self.config.real_firmware:
-            return  # no published firmware handles 'a' (PROTOCOL.md §2.g)
+            return  # no published firmware handles 'a' (docs/protocol.md §2.g)
         if not self.visual_initialised:
             return
         if self.target_status in ACTIVE:
@@ -381,7 +381,7 @@ class RobotModel(Scripting, ServiceCommands, Body):
         self._fresh = True
 
     def goto_pose(self, x: float, y: float) -> None:
-        """A goal by pose, as an HTTP API nav task: it shows target_num_id -2 (VENDOR.md §1.4)."""
+        """A goal by pose, as an HTTP API nav task: target_num_id -2 (docs/protocol.md §5.4)."""
         if self.nav_status == 1 and self.visual_initialised:
             self.targets.append((x, y))  # _begin_goal takes its goal by index
             self._begin_goal(len(self.targets) - 1)

@@ -59,7 +59,7 @@ class Scripting:
         """Navigation open and tracking, no goal shown (free, id -1), nothing busy.
 
         As on a robot in service: its goal status left free by the last goal or cancel,
-        so a refused goal shows as -1 (PROTOCOL.md §2.b).
+        so a refused goal shows as -1 (docs/protocol.md §2.b).
         """
         self.nav_status, self.visual_status = 1, 1
         self.target_status, self.target_num_id = FREE, -1
@@ -69,7 +69,7 @@ class Scripting:
         """Begin the firmware's start lockout now, as a start a moment ago would.
 
         A navigation start within ``start_ignore_time`` (5-30 s on real robots) is ignored
-        (PROTOCOL.md §2.a).
+        (docs/protocol.md §2.a).
         """
         self._last_start = self.time
 

@@ -86,13 +86,15 @@ class ServiceCommands:
     def _set_patrol_dwell(self, command: cmd.SetPatrolDwell) -> None:
         self.patrol_dwell = float(command.seconds)
         if self.config.real_firmware:
-            self._start_patrol(None)  # firmware: 'm' 5 TT also starts patrol (PROTOCOL.md §2.g)
+            self._start_patrol(
+                None
+            )  # firmware: 'm' 5 TT also starts patrol (docs/protocol.md §2.g)
 
     # ------------------------------------------------------------------ mapping
     def _start_mapping(self, _: object) -> None:
         if self.map_status == 1:
             return
-        self._stop_navigation(None)  # PROTOCOL.md §2.h: start mapping also stops navigation
+        self._stop_navigation(None)  # docs/protocol.md §2.h: start mapping also stops navigation
         self.map_status, self.visual_status = 1, 1
 
     def _stop_mapping(self, _: object) -> None:

@@ -1,4 +1,4 @@
-"""Wire values of the simulated robot's goal and charge states (PROTOCOL.md §1)."""
+"""Wire values of the simulated robot's goal and charge states (docs/protocol.md §1)."""
 
 from __future__ import annotations
 

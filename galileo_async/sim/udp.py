@@ -1,4 +1,4 @@
-"""The simulator's UDP face: the robot's port 20001 as system_monitor serves it (VENDOR.md §3)."""
+"""The simulator's UDP face: port 20001 as system_monitor serves it (docs/protocol.md §7)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ class UdpFace(asyncio.DatagramProtocol):
     Nothing is sent before the first datagram. Several frames in one datagram run in
     order; a frame split over datagrams is completed as the vendor's parser does. An empty
     datagram ends the service (no more status); a ``gi`` shorter than 10 bytes ends its
-    command handling (status keeps flowing); ``a`` (rotate) is ignored (VENDOR.md §3.5-3.6).
+    command handling (status keeps flowing); ``a`` (rotate) is ignored (docs/protocol.md §7.5-7.6).
     """
 
     def __init__(self, device: SimDevice) -> None:

@@ -65,7 +65,7 @@ async def simulated_robot(
 ) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
     """``async with simulated_robot() as (robot, device)``: a Robot on a simulated robot.
 
-    ``firmware``: the simulated robot's ("real" or "document", PROTOCOL.md); ``layout``
+    ``firmware``: the simulated robot's ("real" or "document", docs/protocol.md); ``layout``
     (an option): its status layout, default "v2" (the Robot detects it, as on a real
     port); ``map_targets`` (an option): its map size (default 6, or ``len(targets)``), and
     the Robot's; ``targets``: the map's (x, y) points;

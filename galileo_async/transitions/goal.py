@@ -41,7 +41,7 @@ DEFAULT_ARRIVE_TOLERANCE = 0.3
 
 #: target_status values of a goal that runs (working or paused).
 ACTIVE = (TargetStatus.WORKING, TargetStatus.PAUSED)
-#: target_status values of an error: 3 in the document, -1 on real firmware (PROTOCOL.md §1).
+#: target_status values of an error: 3 in the document, -1 on real firmware (docs/protocol.md §1).
 FAILED = (TargetStatus.ERROR, TargetStatus.INVALID)
 #: The target_status values the goal rule knows; another (newer firmware) tells nothing.
 KNOWN = frozenset(TargetStatus)
@@ -98,7 +98,7 @@ class GoalStep(NamedTuple):
 
 
 def valid_distance(value: float | None) -> float | None:
-    """``value`` as a distance in metres, or None when unknown (-1 is invalid, PROTOCOL.md §1)."""
+    """``value`` as a distance in metres, or None when unknown (-1, docs/protocol.md §1)."""
     return value if value is not None and value >= 0.0 else None
 
 
@@ -110,7 +110,7 @@ def end_distance(status: GalileoStatus, last: float | None) -> float | None:
 
 def arrived(distance: float | None, arrive_tolerance: float) -> bool:
     """THE goal rule: a goal that ended free at ``distance`` (end_distance) was reached."""
-    # Unknown (no valid distance while it ran, PROTOCOL.md §1: -1) cannot prove an arrival.
+    # Unknown (no valid distance while it ran, docs/protocol.md §1: -1) cannot prove an arrival.
     return distance is not None and distance <= arrive_tolerance
 
 
@@ -133,7 +133,7 @@ def _closed(status: GalileoStatus) -> bool:
 
 
 def _running(status: GalileoStatus) -> bool:
-    # Closing navigation cancels the goal (PROTOCOL.md §2.a): one still shown then is gone.
+    # Closing navigation cancels the goal (docs/protocol.md §2.a): one still shown then is gone.
     return status.target_status in ACTIVE and not _closed(status)
 
 
@@ -213,7 +213,7 @@ def _pending(
         return GoalStep(before + _accepted(cur, tid), None, host._replace(pending=False))
     if failed_newly(prev, cur):
         # The document reports a bad goal as 3; the firmware as -1, leaving target_num_id
-        # unchanged (PROTOCOL.md §2.b): an id check cannot be used.
+        # unchanged (docs/protocol.md §2.b): an id check cannot be used.
         return GoalStep((*before, (GoalChange.REJECTED, tid)), None, None)
     if ours and host.before_id != tid and cur.target_status == TargetStatus.FREE:
         # Accepted and finished between two frames: the id changing to ours is the proof.
@@ -261,7 +261,7 @@ def _host_result(step: GoalStep, host: HostGoal | None) -> GoalStep:
         if target_id == host.target_id and change in ENDS:
             if change is GoalChange.ABORTED and host.cancelled:
                 # The document's cancel leaves target_num_id alone (only real firmware sets
-                # -1, PROTOCOL.md §2.c): free far away after our cancel is that cancel.
+                # -1, docs/protocol.md §2.c): free far away after our cancel is that cancel.
                 step = step._replace(changes=tuple(
                     (GoalChange.CANCELLED if c is change else c, t) for c, t in step.changes
                 ))  # fmt: skip
@@ -349,5 +349,5 @@ class GoalMachine:
         if self._latest:
             self.prev = status
             distance = status.target_distance
-            if distance is not None and distance >= 0.0:  # -1 is invalid (PROTOCOL.md §1)
+            if distance is not None and distance >= 0.0:  # -1 is invalid (docs/protocol.md §1)
                 self.measured = status

@@ -334,7 +334,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
                     await asyncio.sleep(wait)
                     continue
             # A stalled transport flushes what it buffered back to back in one segment, and
-            # the firmware loses commands written back to back (PROTOCOL.md §2): write only
+            # the firmware loses commands written back to back (docs/protocol.md §2): write only
             # into an empty buffer.
             buffered = self._write_buffer_size()
             if buffered:

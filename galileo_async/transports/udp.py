@@ -1,7 +1,7 @@
 """UdpLink: the robot's UDP port 20001 (system_monitor) on asyncio's datagram transport.
 
 The robot streams its status to the source address of the last datagram it received and
-to nobody else (VENDOR.md §3.4): the link registers with ``cd eb d7 00`` (a valid frame
+to nobody else (docs/protocol.md §7.4): the link registers with ``cd eb d7 00`` (a valid frame
 that does nothing) on every (re)connect and whenever it turns stale, and a stale link
 says that another host may have taken the stream.
 """
@@ -29,7 +29,7 @@ DEFAULT_UDP_PORT = 20001
 #: An empty frame: the robot parses it, does nothing, and streams to its sender from then on.
 REGISTRATION = HEADER + b"\x00"
 #: The shortest ``gi`` payload the robot's UDP service survives: a shorter one kills its
-#: command thread until it restarts (VENDOR.md §3.6).
+#: command thread until it restarts (docs/protocol.md §7.6).
 _MIN_GI_PAYLOAD = 10
 
 
@@ -122,7 +122,7 @@ class UdpLink(BaseLink):
         try:
             with translate_errors(f"cannot open {self.name}"):
                 # Connected: the robot answers from its port 20001, and only its datagrams
-                # reach this socket (VENDOR.md §3.1).
+                # reach this socket (docs/protocol.md §7.1).
                 transport, _ = await loop.create_datagram_endpoint(
                     lambda: protocol, remote_addr=(self.host, self.port)
                 )
@@ -150,7 +150,7 @@ class UdpLink(BaseLink):
         transport = self._transport
         if transport is None or transport.is_closing():
             raise ConnectionLost("not connected")
-        data = encode(command)  # one whole frame, never empty (VENDOR.md §3.5, §3.6)
+        data = encode(command)  # one whole frame, never empty (docs/protocol.md §7.5, §7.6)
         if frames_log.isEnabledFor(logging.DEBUG):
             frames_log.debug("tx %s %s", data.hex(" "), command)
         transport.sendto(data)

@@ -19,7 +19,7 @@ __all__ = [
     "redact_url",
 ]
 
-#: The robot reports 30 status frames per second (PROTOCOL.md §1): faster says nothing new.
+#: The robot reports 30 status frames per second (docs/protocol.md §1): faster says nothing new.
 MAX_VISUALIZATION_RATE = 30.0
 _DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
 #: What a password is shown as in URLs, reprs, logs and error messages.

@@ -17,7 +17,7 @@ __all__ = [
     "target_number",
 ]
 
-#: Map target numbers the goto command accepts (PROTOCOL.md §2).
+#: Map target numbers the goto command accepts (docs/protocol.md §2).
 MAX_TARGET_NUMBER = 255
 
 Decision = Literal["ignore", "new", "stitch"]

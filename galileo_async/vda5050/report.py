@@ -28,7 +28,7 @@ __all__ = [
 ]
 
 #: Volts → percent of a 24 V pack at rest, linear between the points. The robot reports
-#: voltage only (PROTOCOL.md §1 ``power``), so batteryCharge is an estimate.
+#: voltage only (docs/protocol.md §1 ``power``), so batteryCharge is an estimate.
 BATTERY_CURVE: tuple[tuple[float, float], ...] = (
     (22.0, 0.0),
     (23.5, 10.0),

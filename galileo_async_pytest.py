@@ -1,4 +1,4 @@
-"""The pytest plugin (entry point pytest11): galileo_robot, galileo_device, galileo_fleet …
+"""galileo_async's pytest plugin (entry point pytest11): galileo_robot, galileo_device, …
 
 ``galileo_robot`` and ``galileo_device`` are the two halves of one fresh
 simulated_robot() per test, on a virtual clock; ``@pytest.mark.galileo_sim(...)`` passes
@@ -8,6 +8,10 @@ when it leaves a Robot, task or timer behind; ``galileo_no_leaks`` gives any asy
 the same check. The fixtures need pytest-asyncio (the extra ``testing``); the plugin
 loads without it. An async test no plugin ran (unmarked in pytest-asyncio's strict mode)
 fails saying what to add, where pytest would say only that async tests need a plugin.
+
+A module of its own beside the package: pytest loads it into every session of every
+project that has galileo-async installed, and it imports nothing of galileo_async until
+a test uses one of its fixtures.
 """
 
 from __future__ import annotations
@@ -20,9 +24,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import pytest
 
 if TYPE_CHECKING:
-    from ..fleet import Fleet
-    from ..robot import Robot
-    from .device import SimulatedDevice
+    from galileo_async.fleet import Fleet
+    from galileo_async.robot import Robot
+    from galileo_async.testing.device import SimulatedDevice
 
 __all__ = [
     "galileo_device", "galileo_devices", "galileo_fleet", "galileo_fleet_simulation",
@@ -129,7 +133,7 @@ def _sim_arguments(request: pytest.FixtureRequest, name: str = MARKER) -> dict[s
 
 
 async def _no_leaks() -> AsyncIterator[None]:
-    from .leaks import LeakCheck
+    from galileo_async.testing.leaks import LeakCheck
 
     check = LeakCheck()
     yield
@@ -143,7 +147,7 @@ async def _checked(
     arguments: dict[str, Any],
 ) -> AsyncIterator[_Pair]:
     """``simulation(**arguments)`` for one test, with the leak check around it."""
-    from .leaks import LeakCheck
+    from galileo_async.testing.leaks import LeakCheck
 
     check = LeakCheck()
     async with simulation(**arguments) as pair:
@@ -157,7 +161,7 @@ async def _checked(
 async def _simulation(
     request: pytest.FixtureRequest,
 ) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
-    from .robot import simulated_robot
+    from galileo_async.testing.robot import simulated_robot
 
     async for pair in _checked(simulated_robot, _sim_arguments(request)):
         yield pair
@@ -166,7 +170,7 @@ async def _simulation(
 async def _fleet_simulation(
     request: pytest.FixtureRequest,
 ) -> AsyncIterator[tuple[Fleet, dict[str, SimulatedDevice]]]:
-    from .fleet import simulated_fleet
+    from galileo_async.testing.fleet import simulated_fleet
 
     async for pair in _checked(simulated_fleet, _sim_arguments(request, FLEET_MARKER)):
         yield pair
