@@ -122,8 +122,10 @@ def run_probe(
 
 
 def verdict(before: Sequence[float], after: Sequence[float]) -> str:
-    """Lower is better: "slower" only if after's median is above before's max by more than
-    the larger side's spread; "faster" the mirror; else "within spread"; "n/a" under 2 rounds.
+    """Lower is better; "slower", "faster", "within spread", or "n/a" under 2 rounds a side.
+
+    "slower" only when the after median lies above the before side's max and exceeds the
+    before median by more than the larger side's spread (max - min); "faster" the mirror.
     """
     if len(before) < 2 or len(after) < 2:
         return "n/a"
