@@ -184,7 +184,9 @@ async def _window(seconds: float, server: _Server) -> tuple[float, float, float]
     return cpu, wall, server_after["cpu"] - server_before["cpu"]
 
 
-async def _bare(server: _Server, seconds: float, *, kind: str = "protocol") -> _Phase:
+async def _bare(
+    server: _Server, seconds: float, *, kind: str = "protocol", warmup: float = WARMUP
+) -> _Phase:
     """Bare counters: ``kind`` "protocol", "buffered" or "tasks" (a woken task each)."""
     loop = asyncio.get_running_loop()
     factories: dict[str, Callable[[], _Counter | _BufferedCounter]] = {
@@ -207,7 +209,7 @@ async def _bare(server: _Server, seconds: float, *, kind: str = "protocol") -> _
         if isinstance(counter, _WakingCounter)
     ]
     try:
-        await asyncio.sleep(WARMUP)
+        await asyncio.sleep(warmup)
         before = sum(c.bytes for c in counters)
         phase = _Phase()
         phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)

@@ -365,14 +365,24 @@ def latency(options: dict[str, Any]) -> Figures:
 # --- fleet --------------------------------------------------------------------------------
 
 
-async def _fleet(count: int, seconds: float, server_path: str | None, expected: Path) -> Figures:
-    """The fleet's figures; the server runs ``server_path``'s package, found at ``expected``."""
+async def _fleet(
+    count: int,
+    seconds: float,
+    warmups: tuple[float, float],
+    server_path: str | None,
+    expected: Path,
+) -> Figures:
+    """The fleet's figures; the server runs ``server_path``'s package, found at ``expected``.
+
+    ``warmups``: seconds before the first phase, and before each phase's window.
+    """
     import galileo_async
 
     from . import fleet
 
     env = None if server_path is None else {**os.environ, "PYTHONPATH": server_path}
     server = fleet._Server(count, env=env)
+    server_warmup, warmup = warmups
     if server_path is not None and not Path(server.info["package"]).is_relative_to(expected):
         server.close()
         raise RuntimeError(f"the fleet server ran {server.info['package']}, not {expected}")
@@ -417,7 +427,7 @@ async def _fleet(count: int, seconds: float, server_path: str | None, expected: 
             else:
                 tasks = [asyncio.create_task(sample())]
             try:
-                await asyncio.sleep(fleet.WARMUP)
+                await asyncio.sleep(warmup)
                 recording = True
                 cpu, frames, wall = await window()
                 recording = False
@@ -430,8 +440,8 @@ async def _fleet(count: int, seconds: float, server_path: str | None, expected: 
         return cpu, frames, wall, ages
 
     try:
-        await fleet._bare(server, fleet.SERVER_WARMUP)  # untimed: warms both processes up
-        bare = await fleet._bare(server, seconds)
+        await fleet._bare(server, server_warmup, warmup=0)  # untimed: warms both processes up
+        bare = await fleet._bare(server, seconds, warmup=warmup)
         task_cpu, task_frames, _wall, ages = await robots_phase(tasks_per_robot=True)
         sampled_cpu, sampled_frames, _wall, _ = await robots_phase(tasks_per_robot=False)
     finally:
@@ -459,10 +469,14 @@ def fleet_probe(options: dict[str, Any]) -> Figures:
 
     raise_fd_limit()
     pin_malloc()
+    from . import fleet
+
     count, seconds = int(options.get("fleet", 1000)), float(options.get("seconds", 6))
+    warmups = (float(options.get("server_warmup", fleet.SERVER_WARMUP)),
+               float(options.get("warmup", fleet.WARMUP)))  # fmt: skip
     server_path = os.environ.get(SERVER_PATH_ENV)
     expected = Path(server_path or ".", "galileo_async").resolve()
-    return asyncio.run(_fleet(count, seconds, server_path, expected))
+    return asyncio.run(_fleet(count, seconds, warmups, server_path, expected))
 
 
 PROBES: dict[str, Callable[[dict[str, Any]], Figures]] = {
