@@ -16,6 +16,7 @@ import argparse
 import json
 import os
 import pickle
+import re
 import statistics
 import subprocess
 import sys
@@ -42,6 +43,12 @@ __all__ = [
 THIS_CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
 PROBE_NAMES = ("ingest", "fleet", "latency")
+#: Run only when named: ingest's instructions per frame under cachegrind (deterministic).
+EXTRA_NAMES = ("instructions",)
+#: Frames per cachegrind run (the count, then three times it) of each part of ingest.
+INSTRUCTION_FRAMES = {"decode": 1000, "path": 300}
+#: Instruction counts repeat to about 0.1 %: a difference beyond this is a verdict.
+INSTRUCTION_TOLERANCE = 0.01
 #: Probe options: a full run, and --quick.
 FULL: dict[str, Any] = {"frames": 10_000, "repeats": 5, "path_frames": 3000,
                         "samples": 2000, "fleet": 1000, "seconds": 6.0}  # fmt: skip
@@ -100,14 +107,20 @@ def _env(staging: Path, server_staging: Path, cache: Path) -> dict[str, str]:
 
 
 def run_probe(
-    tree: Tree, name: str, options: dict[str, Any], env: dict[str, str], cwd: Path
+    tree: Tree,
+    name: str,
+    options: dict[str, Any],
+    env: dict[str, str],
+    cwd: Path,
+    prefix: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Run probe ``name`` in a fresh process on ``tree``; check it imported that tree's package.
 
     ``cwd`` must hold neither package: ``python -m`` puts it first on ``sys.path``.
+    ``prefix`` runs the process under another program (valgrind).
     """
     done = subprocess.run(
-        [sys.executable, "-m", "benchmarks.probe", name, json.dumps(options)],
+        [*prefix, sys.executable, "-m", "benchmarks.probe", name, json.dumps(options)],
         cwd=cwd, env=env, capture_output=True, text=True, timeout=PROBE_TIMEOUT,
     )  # fmt: skip
     if done.returncode != 0:
@@ -119,6 +132,29 @@ def run_probe(
     if not package.is_relative_to((tree.path / "galileo_async").resolve()):
         raise RuntimeError(f"probe {name} on {tree.describe()} imported {package}")
     return result
+
+
+def instructions(
+    tree: Tree, options: dict[str, Any], env: dict[str, str], cwd: Path
+) -> dict[str, list[Any]]:
+    """Instructions per frame of each part of ingest on ``tree``: two cachegrind runs each."""
+    figures: dict[str, list[Any]] = {}
+    names = {"decode": "ingest instructions: decode → GalileoStatus, per frame",
+             "path": "ingest instructions: socket:// frame → 3 statuses() + 1 wait_until, "
+                     "per frame"}  # fmt: skip
+    for part, count in INSTRUCTION_FRAMES.items():
+        totals = []
+        for frames in (count, 3 * count):
+            out = cwd / f"cachegrind.{tree.label}.{part}.{frames}"
+            prefix = ["valgrind", "--tool=cachegrind", "--cache-sim=no",
+                      f"--cachegrind-out-file={out}"]  # fmt: skip
+            run_probe(tree, "work", {**options, "part": part, "count": frames}, env, cwd, prefix)
+            summary = re.search(r"^summary: (\d+)", out.read_text(), re.M)
+            if summary is None:
+                raise RuntimeError(f"cachegrind wrote no summary to {out}")
+            totals.append(int(summary.group(1)))
+        figures[names[part]] = [(totals[1] - totals[0]) / (2 * count), "instructions"]
+    return figures
 
 
 def verdict(before: Sequence[float], after: Sequence[float]) -> str:
@@ -135,6 +171,18 @@ def verdict(before: Sequence[float], after: Sequence[float]) -> str:
     if median_after > max(before) and difference > spread:
         return "slower"
     if median_after < min(before) and -difference > spread:
+        return "faster"
+    return "within spread"
+
+
+def instruction_verdict(before: Sequence[float], after: Sequence[float]) -> str:
+    """Counts repeat: "slower" / "faster" beyond INSTRUCTION_TOLERANCE, else "within spread"."""
+    if not before or not after:
+        return "n/a"
+    ratio = statistics.median(after) / statistics.median(before)
+    if ratio > 1 + INSTRUCTION_TOLERANCE:
+        return "slower"
+    if ratio < 1 - INSTRUCTION_TOLERANCE:
         return "faster"
     return "within spread"
 
@@ -170,7 +218,8 @@ class Comparison:
                 "after_spread": [min(after, default=float("nan")),
                                  max(after, default=float("nan"))],
                 "ratio": median_after / median_before if median_before else float("nan"),
-                "verdict": verdict(before, after),
+                "verdict": (instruction_verdict(before, after)
+                            if self.units[key] == "instructions" else verdict(before, after)),
             })  # fmt: skip
         return rows
 
@@ -226,11 +275,12 @@ def compare(
             report(tree.describe())
         report(f"fleet server and frames: {THIS_CHECKOUT} @ {git_commit(THIS_CHECKOUT) or '?'}")
         probe_options = dict(options)
-        if "ingest" in names:
+        if "ingest" in names or "instructions" in names:
             from .probe import make_frames
 
             frames_file = work / "frames.pickle"
-            frames_file.write_bytes(pickle.dumps(make_frames(int(options["frames"]))))
+            count = max(int(options["frames"]), 3 * max(INSTRUCTION_FRAMES.values()))
+            frames_file.write_bytes(pickle.dumps(make_frames(count)))
             probe_options["frames_file"] = str(frames_file)
         comparison = Comparison(trees[0], trees[1])
         envs = {}
@@ -239,10 +289,18 @@ def compare(
             envs[tree.label] = _env(tree.staging, server, work / "pycache")
         for round_ in range(1, rounds + 1):
             for name in names:
+                if name == "instructions" and round_ > 1:
+                    continue  # the counts repeat: once a tree
                 for tree in trees:
                     started = time.monotonic()
-                    result = run_probe(tree, name, probe_options, envs[tree.label], work)
-                    comparison.add(tree.label, result["figures"])
+                    if name == "instructions":
+                        env = {**envs[tree.label], "PYTHONHASHSEED": "0"}
+                        figures = instructions(tree, probe_options, env, work)
+                    else:
+                        figures = run_probe(tree, name, probe_options, envs[tree.label], work)[
+                            "figures"
+                        ]
+                    comparison.add(tree.label, figures)
                     report(f"round {round_}/{rounds} {name} {tree.label}: "
                            f"{time.monotonic() - started:.1f} s")  # fmt: skip
     return comparison
@@ -291,8 +349,9 @@ def main(argv: list[str]) -> int:
         args = parser.parse_args(rest)
         return _lines(args.before, args.after)
     every = ", ".join(PROBE_NAMES)
-    parser.add_argument("names", nargs="*", choices=[*PROBE_NAMES, []], metavar="NAME",
-                        help=f"probes to run (default: all of {every})")  # fmt: skip
+    parser.add_argument("names", nargs="*", choices=[*PROBE_NAMES, *EXTRA_NAMES, []],
+                        metavar="NAME", help=f"probes to run (default: all of {every}; "
+                        "instructions: ingest under cachegrind, once a tree)")  # fmt: skip
     parser.add_argument("--rounds", type=int, default=None,
                         help="runs per tree and probe (default 5, --quick 3)")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="fewer samples, shorter windows")

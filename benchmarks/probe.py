@@ -479,10 +479,26 @@ def fleet_probe(options: dict[str, Any]) -> Figures:
     return asyncio.run(_fleet(count, seconds, warmups, server_path, expected))
 
 
+def work(options: dict[str, Any]) -> Figures:
+    """Ingest's work, untimed, for an instruction count: ``part`` decode or path, ``count``."""
+    frames: list[bytes] = pickle.loads(Path(options["frames_file"]).read_bytes())
+    frames = frames[: int(options["count"])]
+    if options["part"] == "decode":
+        _decode(frames, 1)
+    else:
+
+        def driver(port: int) -> Any:
+            return _driver_host(port, frames, streams=3, waiters=1)
+
+        asyncio.run(_ping_pong(frames, 1, driver))
+    return {}
+
+
 PROBES: dict[str, Callable[[dict[str, Any]], Figures]] = {
     "ingest": ingest,
     "fleet": fleet_probe,
     "latency": latency,
+    "work": work,
 }
 
 

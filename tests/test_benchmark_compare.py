@@ -14,6 +14,7 @@ from benchmarks.compare import (
     _env,
     compare,
     count_lines,
+    instruction_verdict,
     main,
     render_comparison,
     run_probe,
@@ -45,6 +46,29 @@ def test_verdict_slower_only_above_the_before_max_by_more_than_the_spread(
     before: list[float], after: list[float], expected: str
 ) -> None:
     assert verdict(before, after) == expected
+
+
+@pytest.mark.parametrize(
+    ("before", "after", "expected"),
+    [
+        ([18552.0], [18572.0], "within spread"),
+        ([18552.0], [18800.0], "slower"),
+        ([18552.0], [18300.0], "faster"),
+        ([], [18300.0], "n/a"),
+    ],
+)
+def test_instruction_counts_repeat_so_one_per_side_has_a_verdict(
+    before: list[float], after: list[float], expected: str
+) -> None:
+    assert instruction_verdict(before, after) == expected
+
+
+def test_instruction_figures_take_the_instruction_verdict() -> None:
+    comparison = Comparison(Tree("before", Path("/b")), Tree("after", Path("/a")))
+    comparison.add("before", {"x": [100.0, "instructions"], "y": [100.0, "µs"]})
+    comparison.add("after", {"x": [120.0, "instructions"], "y": [120.0, "µs"]})
+    verdicts = {row["figure"]: row["verdict"] for row in comparison.rows()}
+    assert verdicts == {"x": "slower", "y": "n/a"}
 
 
 def test_the_table_shows_medians_spreads_ratio_and_verdict_per_figure() -> None:
