@@ -1,7 +1,8 @@
 """Before and after, interleaved in one run: ``python -m benchmarks compare`` and ``lines``.
 
 ``compare --before DIR [--after DIR] [--rounds N] [--quick] [NAME …]`` runs each chosen
-probe (benchmarks/probe.py: ingest, fleet, latency) alternately on the two trees, B, A,
+probe (benchmarks/probe.py: ingest, fleet, latency; instructions only when named, once a
+tree, under cachegrind) alternately on the two trees, B, A,
 B, A, …, each run in a fresh process whose ``galileo_async`` is that tree's and whose
 benchmark code is this checkout's, and prints per figure both medians, each side's
 run-to-run spread (min–max over the rounds), the ratio after / before and a verdict.

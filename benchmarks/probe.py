@@ -1,8 +1,9 @@
 """One measurement for ``python -m benchmarks compare``, run in a fresh process per tree.
 
-``python -m benchmarks.probe NAME OPTIONS_JSON`` measures NAME (ingest, fleet or latency)
-with whatever ``galileo_async`` is first on ``sys.path`` and prints, as its last line, a
-JSON object: the package's file, and every figure as ``[value, unit]`` (lower is better).
+``python -m benchmarks.probe NAME OPTIONS_JSON`` measures NAME (ingest, fleet or latency;
+work runs ingest untimed for cachegrind) with whatever ``galileo_async`` is first on
+``sys.path`` and prints, as its last line, a JSON object: the package's file, and every
+figure as ``[value, unit]`` (lower is better).
 
 The probes use only the public API (``connect()``, ``Robot``, ``galileo_async.protocol``,
 the simulator's wire output) so that one benchmark code runs unchanged against the trees
