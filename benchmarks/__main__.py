@@ -3,6 +3,11 @@
 ``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
 
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
+
+``python -m benchmarks compare --before DIR [--after DIR] [--rounds N] [--quick] [NAME …]``:
+before and after a change, interleaved in one run (compare.py).
+
+``python -m benchmarks lines --before DIR [--after DIR]``: source lines and modules of both trees.
 """
 
 from __future__ import annotations
@@ -24,6 +29,11 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 def main(argv: list[str] | None = None) -> int:
     """Run the selected benchmarks, print the table, write JSON; 1 if a target failed."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] in (["compare"], ["lines"]):
+        from .compare import main as compare_main
+
+        return compare_main(argv)
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     parser.add_argument(
         "names",

@@ -73,10 +73,10 @@ SERVER_WARMUP = 3.0
 class _Server:
     """The fleet server process and its control pipe."""
 
-    def __init__(self, count: int) -> None:
+    def __init__(self, count: int, env: dict[str, str] | None = None) -> None:
         self.process = subprocess.Popen(
             [sys.executable, "-m", "benchmarks.fleet_server", str(count)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
         )  # fmt: skip
         assert self.process.stdout is not None
         self.info: dict[str, Any] = json.loads(self.process.stdout.readline())
@@ -184,7 +184,9 @@ async def _window(seconds: float, server: _Server) -> tuple[float, float, float]
     return cpu, wall, server_after["cpu"] - server_before["cpu"]
 
 
-async def _bare(server: _Server, seconds: float, *, kind: str = "protocol") -> _Phase:
+async def _bare(
+    server: _Server, seconds: float, *, kind: str = "protocol", warmup: float = WARMUP
+) -> _Phase:
     """Bare counters: ``kind`` "protocol", "buffered" or "tasks" (a woken task each)."""
     loop = asyncio.get_running_loop()
     factories: dict[str, Callable[[], _Counter | _BufferedCounter]] = {
@@ -207,7 +209,7 @@ async def _bare(server: _Server, seconds: float, *, kind: str = "protocol") -> _
         if isinstance(counter, _WakingCounter)
     ]
     try:
-        await asyncio.sleep(WARMUP)
+        await asyncio.sleep(warmup)
         before = sum(c.bytes for c in counters)
         phase = _Phase()
         phase.cpu, phase.wall, phase.server_cpu = await _window(seconds, server)

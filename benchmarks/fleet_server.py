@@ -12,14 +12,19 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import sys
 import time
 
+import galileo_async
 from galileo_async.protocol import commands as cmd
 from galileo_async.sim import SimConfig
 from galileo_async.sim.device import DeviceConnection, SimDevice, Ticker
 
 from .common import raise_fd_limit
+
+#: The package this server runs (benchmarks/compare.py checks which tree it came from).
+PACKAGE = os.path.realpath(galileo_async.__file__)
 
 
 async def serve(count: int, patrol: bool) -> None:
@@ -42,7 +47,8 @@ async def serve(count: int, patrol: bool) -> None:
     for device in devices:
         device.start()
     ports = [server.sockets[0].getsockname()[1] for server in servers]
-    info = {"ports": ports, "origin": origin, "period": 1.0 / 30, "clock": "monotonic"}
+    info = {"ports": ports, "origin": origin, "period": 1.0 / 30, "clock": "monotonic",
+            "package": PACKAGE}  # fmt: skip
     print(json.dumps(info), flush=True)
     reader = asyncio.StreamReader()
     await loop.connect_read_pipe(lambda: asyncio.StreamReaderProtocol(reader), sys.stdin)

@@ -119,7 +119,7 @@ class Executor:
             return
         await self.robot.goto_point(position.x, position.y)
         if position.theta is not None:
-            # By velocity, not 'a': most firmware ignores the rotate command (docs/protocol.md §2.g).
+            # By velocity, not 'a': firmware ignores the rotate command (docs/protocol.md §2.g).
             await self.robot.turn_to(math.degrees(position.theta), timeout=NODE_TURN_TIMEOUT)
 
     def fail(self, error_type: str, description: str, refs: list[ErrorReference]) -> None:
