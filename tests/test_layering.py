@@ -291,7 +291,7 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
     sample = (
         "from ..state import StatusStore\n"
         "from .. import robot\n"
-        "from .base import BaseLink\n"
+        "from .link import Link\n"
         "import asyncio.streams\n"
         "import importlib\n"
         "importlib.import_module('galileo_async.cli')\n"
@@ -303,7 +303,7 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
         "galileo_async.state.StatusStore",
     }
     assert within(names, "galileo_async.robot") == {"galileo_async.robot"}
-    assert "galileo_async.transports.base" in names
+    assert "galileo_async.transports.link" in names
     assert "galileo_async.cli" in names
     assert within(names, *TRANSPORT_MODULES) == {"asyncio.streams"}
     eager = full_imports(sample, "galileo_async.transports.stream", eager_only=True)
@@ -313,10 +313,10 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
     sample_uses = "t: asyncio.Transport\nasyncio.get_running_loop()\n"
     assert asyncio_names(sample_uses) & TRANSPORT_ASYNCIO_NAMES == {"Transport"}
     package = full_imports(
-        "from .stream import StreamLink\n", "galileo_async.transports", is_package=True
+        "from .stream import StreamChannel\n", "galileo_async.transports", is_package=True
     )
     assert "galileo_async.transports.stream" in package
-    assert part_of("galileo_async.transports.stream.StreamLink") == "transports"
+    assert part_of("galileo_async.transports.stream.StreamChannel") == "transports"
     assert part_of("galileo_async.events.GoalReached") == "transitions"
     assert part_of("galileo_async") is None
 

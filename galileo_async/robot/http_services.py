@@ -13,7 +13,7 @@ from typing import Any, Protocol
 from .._checks import check_number, check_timeout
 from ..errors import GalileoTimeout, GoalCancelled, InvalidArgument, NotSupported, TaskFailed
 from ..state.store import StatusStore
-from ..transports import BaseLink
+from ..transports import AnyLink
 from .goal import GoalResult
 from .operations import Operations
 from .runtime import finish_shielded
@@ -65,7 +65,7 @@ class RobotInfo:
 class HttpServices:
     """Robot methods over the vendor's REST API; NotSupported on other links."""
 
-    _link: BaseLink
+    _link: AnyLink
     _store: StatusStore
     _ops: Operations
 
@@ -74,7 +74,7 @@ class HttpServices:
         self._ops.ensure_open()
         if not self.has_http_api:
             raise NotSupported(f"{what} needs the robot's HTTP API: connect with http://host:3546")
-        result: _Api = getattr(self._link, "api")  # noqa: B009 (BaseLink has no api)
+        result: _Api = getattr(self._link, "api")  # noqa: B009 (only http:// links have one)
         return result
 
     @property

@@ -24,7 +24,7 @@ from ..errors import (
     WrongEventLoop,
 )
 from ..events import AbandonedGoalCancelled
-from ..models import GalileoStatus
+from ..models import GalileoStatus, LinkState
 from ..protocol import Cancel, Command, Goto
 from .runtime import Deadline
 from .supersede import Supersession
@@ -32,7 +32,7 @@ from .supersede import Supersession
 if TYPE_CHECKING:
     from ..state.store import StatusStore
     from ..state.streams import Watch
-    from ..transports import BaseLink
+    from ..transports import AnyLink
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
@@ -151,7 +151,7 @@ class Confirm:
 class Operations(Supersession):
     """Send commands on behalf of one Robot, after checks, and follow their effect."""
 
-    def __init__(self, link: BaseLink, store: StatusStore) -> None:
+    def __init__(self, link: AnyLink, store: StatusStore) -> None:
         super().__init__()
         self.link = link
         self.store = store
@@ -272,7 +272,10 @@ class Operations(Supersession):
 
     def check_link(self, what: str) -> None:
         """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
-        error = self.store.link_error
+        state = self.link.state
+        if state is not LinkState.STALE and state is not LinkState.LOST:
+            return
+        error = self.link.error
         if error is None:
             return
         message = f"{what}: nothing was sent: {error}"

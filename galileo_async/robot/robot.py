@@ -27,7 +27,7 @@ from ..protocol import (
 )
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import BaseLink, LinkStats
+from ..transports import AnyLink, LinkStats
 from .drive import (
     DEFAULT_DRIVE_RATE,
     DEFAULT_MAX_ANGULAR_SPEED,
@@ -97,7 +97,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
 
     def __init__(
         self,
-        link: BaseLink,
+        link: AnyLink,
         store: StatusStore,
         *,
         map_targets: int | None = None,
@@ -206,9 +206,9 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
-        if isinstance(command, Velocity) and not self._link.carries_velocity:
+        if isinstance(command, Velocity) and not self._link.capabilities.velocity:
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
-        if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
+        if isinstance(command, PoseGoal) and not self._link.capabilities.pose_goals:
             raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
         await self._written(command, f"send({command!r})", timeout)
 
@@ -330,7 +330,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
         """
         command = AddTarget(x, y)  # validate before anything is sent
         self._refuse_while_driving("goto_point")
-        if self._link.carries_pose_goals:  # http://: one nav task, followed as target -2
+        if self._link.capabilities.pose_goals:  # http://: one nav task, followed as target -2
             result = await self._goto(PoseGoal(x=x, y=y), timeout, None, progress_timeout,
                                       cancel_on_exit)  # fmt: skip
             return landed_at(result, x, y, self.arrive_tolerance)

@@ -11,7 +11,7 @@ from urllib.parse import urlsplit
 from .._checks import naming
 from ..errors import GalileoConnectionError, InvalidArgument
 from ..options import LINK_KINDS, check_options
-from .base import BaseLink
+from .base import AnyLink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -20,10 +20,11 @@ from .connectors import (
     serial_connector,
     socket_connector,
 )
+from .link import Link
 from .options import PORTABLE_OPTIONS
 from .stats import StatusSink
-from .stream import StreamLink
-from .udp import UdpLink, parse_udp_url
+from .stream import StreamChannel
+from .udp import UdpChannel, parse_udp_url
 
 if TYPE_CHECKING:
     from ..sim import Simulator
@@ -125,11 +126,11 @@ def check_link_options(
         check_serial_url(url)
 
 
-def open_link(url: str, store: StatusSink, **options: Any) -> BaseLink:
+def open_link(url: str, store: StatusSink, **options: Any) -> AnyLink:
     """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://``, ``ros://``
     or ``http[s]://``."""
     if link_kind(url) == "http":  # its own checks: a password in the URL is never shown
-        link: BaseLink = _http_module(url).open_http_link(url, store, **options)
+        link: AnyLink = _http_module(url).open_http_link(url, store, **options)
         return link
     with naming(url, repr(url)):
         check_link_options(url, options)
@@ -171,29 +172,29 @@ def byte_connector(
     return serial_connector(url, baudrate=baudrate, **(serial_options or {})), None
 
 
-def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
+def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
     kind = link_kind(url)
     if kind == "ros":
         return _ros_link(url, store, options)
     if kind == "udp":
         host, port = parse_udp_url(url)
         link_options = {k: v for k, v in options.items() if k not in PORTABLE_OPTIONS}
-        return UdpLink(store, host, port, name=url, **link_options)
+        return Link(UdpChannel(host, port, name=url), store, **link_options)
     connector, simulator = byte_connector(
         url,
         baudrate=options.pop("baudrate", DEFAULT_BAUDRATE),
         serial_options=options.pop("serial_options", None),
         connect_timeout=options.pop("connect_timeout", DEFAULT_CONNECT_TIMEOUT),
     )
-    link = StreamLink(store, connector, name=url, **options)
+    channel = StreamChannel(connector, layout=options.pop("layout", None), name=url)
     if simulator is not None:
-        link.simulator = simulator
-        link.add_closer(simulator.close)
+        channel.simulator = simulator
+        channel.add_closer(simulator.close)
     elif kind == "sim":
         from ..sim import Simulator
 
-        link.simulator = Simulator.named(url)
-    return link
+        channel.simulator = Simulator.named(url)
+    return Link(channel, store, **options)
 
 
 def _ros_module(url: str) -> ModuleType:
@@ -219,6 +220,6 @@ def _http_module(url: str) -> ModuleType:
     return http
 
 
-def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> BaseLink:
-    link: BaseLink = _ros_module(url).open_ros_link(url, store, **options)
+def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
+    link: AnyLink = _ros_module(url).open_ros_link(url, store, **options)
     return link
