@@ -23,10 +23,11 @@ from galileo_async.errors import (
     InvalidArgument,
     LinkStale,
 )
+from galileo_async.links import open_link
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
-from galileo_async.transports import Link, LinkState, LinkStats, StreamChannel, open_link
+from galileo_async.transports import Link, LinkState, LinkStats, StreamChannel
 from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 from galileo_async.transports.stream import READ_SIZE, _read_buffer
 

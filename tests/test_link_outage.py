@@ -14,8 +14,9 @@ from typing import Any
 from fake_device import FakeDevice
 
 from galileo_async import events as ev
+from galileo_async.links import open_link
 from galileo_async.state import StatusStore
-from galileo_async.transports import Link, LinkState, open_link
+from galileo_async.transports import Link, LinkState
 
 STEP = 2.0
 STALE = 0.05

@@ -14,9 +14,10 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, GalileoConnectionError
+from galileo_async.links import open_link
 from galileo_async.protocol import CommandDecoder, Goto, StopPatrol, encode
 from galileo_async.state import StatusStore
-from galileo_async.transports import StreamChannel, open_link
+from galileo_async.transports import StreamChannel
 from galileo_async.transports.connectors import serial_backend, translate_errors
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="pty is Linux-only")

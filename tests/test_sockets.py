@@ -12,9 +12,10 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import GalileoConnectionError
+from galileo_async.links import open_link
 from galileo_async.protocol import CommandDecoder, Goto
 from galileo_async.state import StatusStore
-from galileo_async.transports import Link, StreamChannel, open_link
+from galileo_async.transports import Link, StreamChannel
 from galileo_async.transports.connectors import socket_connector
 
 STEP = 2.0  # upper bound for anything that should happen promptly

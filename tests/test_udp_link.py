@@ -21,9 +21,9 @@ from galileo_async import (
     StatusLayout,
 )
 from galileo_async.events import LinkRestored, LinkStaleEvent
+from galileo_async.links import open_link
 from galileo_async.protocol import HEADER, Forward, RawCommand, Stop, encode, encode_status
 from galileo_async.sim import Simulator
-from galileo_async.transports import open_link
 from galileo_async.transports.udp import REGISTRATION, parse_udp_url
 
 pytestmark = pytest.mark.timeout(60)

@@ -12,9 +12,10 @@ import pytest
 from fake_device import FakeDevice, MemoryConnector, status_frame
 
 from galileo_async import events as ev
+from galileo_async.links import open_link
 from galileo_async.state import StatusStore
 from galileo_async.testing import VirtualClock, simulated_robot
-from galileo_async.transports import Link, LinkState, StreamChannel, open_link
+from galileo_async.transports import Link, LinkState, StreamChannel
 
 STEP = 2.0  # upper bound for anything that should happen promptly
 #: The defaults: stale_reconnect (5) x stale_timeout (1 s).

@@ -2,8 +2,8 @@
 
 ``Link`` owns what every link shares (the queue, the one writer, reconnect, the stale timer,
 the LinkState); a ``Channel`` connects one kind: ``StreamChannel`` (serial, ``socket://``,
-``sim://``) and ``UdpChannel`` (``udp://``). ``urls`` is the one URL switch, also used by
-the CLI.
+``sim://``) and ``UdpChannel`` (``udp://``). Which URL opens which channel is
+``galileo_async.links``, the scheme table above every link kind.
 """
 
 from __future__ import annotations
@@ -31,12 +31,12 @@ from .options import (
     DEFAULT_STALE_RECONNECT,
     DEFAULT_STALE_TIMEOUT,
     LINK_OPTIONS,
+    PORTABLE_OPTIONS,
     STREAM_OPTIONS,
 )
 from .stats import LinkState, LinkStats, StatusSink, loop_clock
 from .stream import StreamChannel
 from .udp import UdpChannel
-from .urls import URL_SCHEMES, byte_connector, check_link_options, link_kind, open_link, url_forms
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -50,8 +50,8 @@ __all__ = [
     "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
     "LINK_OPTIONS",
+    "PORTABLE_OPTIONS",
     "STREAM_OPTIONS",
-    "URL_SCHEMES",
     "AnyLink",
     "BaseLink",
     "Capabilities",
@@ -65,14 +65,9 @@ __all__ = [
     "StatusSink",
     "StreamChannel",
     "UdpChannel",
-    "byte_connector",
-    "check_link_options",
-    "link_kind",
     "loop_clock",
-    "open_link",
     "parse_socket_url",
     "serial_connector",
     "socket_connector",
     "translate_errors",
-    "url_forms",
 ]

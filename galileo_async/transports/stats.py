@@ -39,8 +39,9 @@ class LinkStats:
     bytes_received: int
     reconnects: int
     commands_sent: int
-    #: The transport is open (a reopened port with no status yet included).
-    transport_open: bool
+    #: The transport is open (a reopened port with no status yet included); read
+    #: ``connected`` (it is shown as that).
+    transport_open: bool = field(repr=False)
     state: LinkState
     last_frame_at: float | None = field(repr=False)
     #: The clock of last_frame_at: the link's event loop time once it opened.
