@@ -349,7 +349,16 @@ def check_link_options(
     Opens and builds nothing. ``owners``: whose options (galileo_async.options) are taken;
     ``also``: further option names the caller takes and checks itself.
     """
-    entry = scheme_of(url)
+    _check(scheme_of(url), url, options, also, owners)
+
+
+def _check(
+    entry: Scheme,
+    url: str,
+    options: Mapping[str, Any],
+    also: Collection[str],
+    owners: Collection[str],
+) -> None:
     if entry.check is not None:
         entry.check(url, options, also, owners)
         return
@@ -368,7 +377,7 @@ def open_link(url: str, store: StatusSink, **options: Any) -> AnyLink:
     if entry.link is not None:  # its own checks: a password in the URL is never shown
         return entry.link(url, store, options)
     with naming(url, repr(url)):
-        check_link_options(url, options)
+        _check(entry, url, options, (), ("link",))
         if entry.channel is None:
             raise InvalidArgument(f"{url!r}: the {entry.kind} entry builds no channel")
         link_options = {name: options.pop(name) for name in LINK_OPTIONS if name in options}
