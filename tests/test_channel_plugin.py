@@ -124,6 +124,13 @@ def test_a_fleet_file_takes_the_plugins_scheme_and_options(
     lines = [json.loads(line) for line in done.stdout.splitlines()]
     assert {line["name"] for line in lines} == {"alpha", "beta"}
     assert all(line["state"] == "up" and line["status"] is not None for line in lines), lines
+    # One robot of the file by name: its port and options (demo_speed) from the file.
+    done = run(
+        plugin_path, "-m", "galileo_async", "--fleet", str(fleet), "-r", "alpha", "status",
+        "--json",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.splitlines()[-1])["port"] == "demo://alpha"
     fleet.write_text('[robots.alpha]\nport = "demo://alpha"\ndemo_speed = "fast"\n')
     done = run(
         plugin_path, "-m", "galileo_async", "--fleet", str(fleet), "fleet", "status", "--json"
