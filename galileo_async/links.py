@@ -70,6 +70,7 @@ ENTRY_POINT_GROUP = "galileo_async.channels"
 ChannelFactory = Callable[[str, dict[str, Any]], Channel]
 #: (url, store, options) → a link of a kind that is not a channel yet (http://, ros://).
 LinkFactory = Callable[[str, StatusSink, dict[str, Any]], AnyLink]
+_Names = Collection[str]
 #: (url, options, also, owners) → None or InvalidArgument, for kinds that check their own.
 OptionsCheck = Callable[[str, Mapping[str, Any], Collection[str], Collection[str]], None]
 #: (url, baudrate, serial_options, connect_timeout) → a byte connector and the simulator
@@ -77,10 +78,6 @@ OptionsCheck = Callable[[str, Mapping[str, Any], Collection[str], Collection[str
 ConnectorFactory = Callable[
     [str, int, Mapping[str, Any], float], "tuple[Connector, Simulator | None]"
 ]
-
-
-def _any_url(url: str) -> None:
-    """Every URL of the scheme is taken as it is."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,8 +92,9 @@ class Scheme:
     address: str
     #: Builds the channel (kinds under the one Link).
     channel: ChannelFactory | None = None
-    #: Raises InvalidArgument for a URL of the scheme it cannot open (opens nothing).
-    check_url: Callable[[str], object] = _any_url
+    #: Raises InvalidArgument for a URL of the scheme it cannot open (opens nothing);
+    #: None: every URL of the scheme is taken as it is.
+    check_url: Callable[[str], object] | None = None
     #: The kind's own options (each with ``name`` set); connect(), the CLI and fleet files
     #: take them for URLs of this kind only.
     options: tuple[Option, ...] = ()
@@ -353,11 +351,7 @@ def check_link_options(
 
 
 def _check(
-    entry: Scheme,
-    url: str,
-    options: Mapping[str, Any],
-    also: Collection[str],
-    owners: Collection[str],
+    entry: Scheme, url: str, options: Mapping[str, Any], also: _Names, owners: _Names
 ) -> None:
     if entry.check is not None:
         entry.check(url, options, also, owners)
@@ -368,7 +362,8 @@ def _check(
         option = own.get(name)
         if option is not None and name not in also:
             option.check(value, entry.kind)
-    entry.check_url(url)
+    if entry.check_url is not None:
+        entry.check_url(url)
 
 
 def open_link(url: str, store: StatusSink, **options: Any) -> AnyLink:
