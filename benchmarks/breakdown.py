@@ -1,7 +1,7 @@
 """Breakdown: where a fleet's per-frame cost goes, stage by stage, in one process.
 
-N in-process links (``StreamLink`` over a null transport, as in ingest) are fed frames
-round-robin the way a socket transport feeds them: into the link's read buffer, then
+N in-process links (a ``Link`` over a ``StreamChannel`` on a null transport, as in ingest)
+are fed frames round-robin the way a socket transport feeds them: into the link's read buffer, then
 ``buffer_updated``; 50 links per event loop turn. Each stage adds one part of the path:
 
 * **read**: the protocol's own work (the decoder returns nothing);
@@ -74,18 +74,18 @@ def _knock_out(stage: str) -> None:
 async def _feed(robots: int, frames: list[bytes], consumers: str) -> dict[str, float]:
     """CPU µs per frame for ``robots`` links fed ``frames`` each, and what got where."""
     from galileo_async.state import StatusStore
-    from galileo_async.transports import StreamLink
+    from galileo_async.transports import Link, StreamChannel
 
     from .ingest import null_connector
 
     protocols: list[Any] = []
     connector = null_connector(protocols)
 
-    links: list[StreamLink] = []
+    links: list[Link] = []
     stores: list[StatusStore] = []
     for _ in range(robots):
         store = StatusStore()
-        link = StreamLink(store, connector, stale_timeout=None, reconnect=False)
+        link = Link(StreamChannel(connector), store, stale_timeout=None, reconnect=False)
         await link.open()
         links.append(link)
         stores.append(store)

@@ -20,7 +20,7 @@ from galileo_async.protocol import HEADER, LAYOUTS, StatusDecoder, encode_status
 from galileo_async.protocol import commands as cmd
 from galileo_async.sim import RobotModel, SimConfig
 from galileo_async.state import StatusStore
-from galileo_async.transports import Connector, StreamLink
+from galileo_async.transports import Connector, Link, StreamChannel
 
 from .common import Row
 
@@ -140,7 +140,9 @@ async def _full_path(
     """(s in data_received per frame, s per frame including the consumers' wake-ups)."""
     protocols: list[asyncio.Protocol] = []
     store = StatusStore()
-    link = StreamLink(store, null_connector(protocols), stale_timeout=None, reconnect=False)
+    link = Link(
+        StreamChannel(null_connector(protocols)), store, stale_timeout=None, reconnect=False
+    )
     await link.open()
     received = [0] * (streams + watches)
 

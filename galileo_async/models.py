@@ -215,7 +215,7 @@ class StatusLayout(str, enum.Enum):
 class LinkState(enum.Enum):
     """Where a link is; one outage goes UP → STALE → LOST → UP, each step reported once.
 
-    The link keeps it (transports.BaseLink.state); read it as ``Robot.link_state``.
+    The link keeps it (transports.Link.state); read it as ``Robot.link_state``.
     """
 
     #: Opened the first time, or opening; no valid frame yet.

@@ -13,7 +13,7 @@ from fake_device import FakeDevice
 from hypothesis import HealthCheck, settings
 
 from galileo_async.testing import LeakCheck
-from galileo_async.transports import BaseLink
+from galileo_async.transports import Link
 
 settings.register_profile(
     "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -59,9 +59,9 @@ async def device() -> AsyncIterator[FakeDevice]:
 
 
 @pytest.fixture
-async def links() -> AsyncIterator[list[BaseLink]]:
+async def links() -> AsyncIterator[list[Link]]:
     """Links a test opened; all closed at teardown, whatever the test did."""
-    opened: list[BaseLink] = []
+    opened: list[Link] = []
     yield opened
     for link in opened:
         await asyncio.wait_for(link.close(), LINK_CLOSE_TIMEOUT)

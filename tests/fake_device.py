@@ -179,7 +179,7 @@ class RecordingTransport(asyncio.Transport):
 
 
 class MemoryConnector:
-    """A Connector for StreamLink: each connect makes a RecordingTransport, or fails."""
+    """A Connector for StreamChannel: each connect makes a RecordingTransport, or fails."""
 
     def __init__(self) -> None:
         self.transports: list[RecordingTransport] = []

@@ -436,7 +436,7 @@ def test_record_reports_chunks_dropped_when_the_writer_falls_behind(
 
 
 def test_record_refuses_a_ros_url_before_opening_anything(tmp_path: Path) -> None:
-    # The one URL switch of the library (galileo_async.transports.urls) serves the CLI too.
+    # The one scheme table of the library (galileo_async.links) serves the CLI too.
     capture = tmp_path / "capture.bin"
     result = invoke("record", str(capture), port="ros://127.0.0.1:9")
     assert result.exit_code == ExitCode.USAGE, result.output

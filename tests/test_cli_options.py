@@ -11,8 +11,8 @@ import typer
 from typer.testing import CliRunner
 
 from galileo_async.cli import ExitCode, app
-from galileo_async.transports import URL_SCHEMES, link_kind
-from galileo_async.transports.urls import LINK_SCHEMES
+from galileo_async.links import URL_SCHEMES, link_kind
+from galileo_async.options import LINK_KINDS
 
 #: The click command of the ``galileo`` application.
 ROOT: Any = typer.main.get_command(app)
@@ -43,7 +43,7 @@ def url_options() -> list[tuple[tuple[str, ...], Any]]:
 
 
 def test_the_url_schemes_are_every_link_kind_with_a_scheme() -> None:
-    assert {kind for kind, _address in URL_SCHEMES.values()} == set(LINK_SCHEMES)
+    assert {kind for kind, _address in URL_SCHEMES.values()} == set(LINK_KINDS) - {"serial"}
     for scheme, (kind, _address) in URL_SCHEMES.items():
         assert link_kind(f"{scheme}://robot") == kind
     assert {"udp", "http", "https"} <= set(URL_SCHEMES)

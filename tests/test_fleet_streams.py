@@ -12,6 +12,7 @@ from fake_device import make_status
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, LinkStale
 from galileo_async.fleet.streams import FleetHub, FleetStatusStream
+from galileo_async.models import LinkState
 from galileo_async.state import StatusStore
 
 WAIT = 5.0
@@ -140,7 +141,7 @@ async def test_events_are_named_and_derived_only_while_read() -> None:
     events = hub.events(maxlen=8)
     assert stores["a"].on_event is not None
     stores["a"].update(make_status(time_stamp=2, nav_status=1))
-    stores["b"].link_stale(LinkStale("silent", silent_for=1.0))
+    stores["b"].link_changed(LinkState.STALE, LinkStale("silent", silent_for=1.0))
     with anyio.fail_after(WAIT):
         name, event = await anext(events)
         assert name == "a"
@@ -158,7 +159,7 @@ async def test_a_full_event_queue_drops_the_oldest() -> None:
     hub, stores = fleet_of("a")
     events = hub.events(maxlen=2)
     for index in range(5):
-        stores["a"].connection_lost(ConnectionLost(str(index)))
-        stores["a"].connection_restored()
+        stores["a"].link_changed(LinkState.LOST, ConnectionLost(str(index)))
+        stores["a"].link_changed(LinkState.UP, None)
     assert events.dropped == 8
     hub.close()

@@ -23,7 +23,7 @@ from galileo_async import TargetStatus
 from galileo_async.protocol import Cancel, Command, Goto, Stop
 from galileo_async.state import StatusStore
 from galileo_async.testing import simulated_robot
-from galileo_async.transports import StreamLink
+from galileo_async.transports import Link, StreamChannel
 
 #: Goal 3 is far away (a long trip to interrupt); goal 0 is near.
 TARGETS: tuple[tuple[float, float], ...] = ((1.5, 0.0), (0.0, -2.0), (-2.0, 0.0), (30.0, 0.0))
@@ -180,9 +180,9 @@ async def test_goal_left_by_a_cancel_scope_then_a_new_goal(
 # --- the writer: enqueue is FIFO and synchronous; a later goal drops a queued exit cancel --
 
 
-async def in_memory_link() -> tuple[MemoryConnector, StreamLink]:
+async def in_memory_link() -> tuple[MemoryConnector, Link]:
     connector = MemoryConnector()
-    link = StreamLink(StatusStore(), connector, min_command_interval=0.01)
+    link = Link(StreamChannel(connector), StatusStore(), min_command_interval=0.01)
     await link.open()
     return connector, link
 

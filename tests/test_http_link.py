@@ -25,10 +25,10 @@ from galileo_async import (
 )
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored, LinkStaleEvent
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
+from galileo_async.links import link_kind
 from galileo_async.protocol import ApiCall, Stop, Velocity
 from galileo_async.robot import HttpPart
 from galileo_async.sim import Simulator
-from galileo_async.transports import link_kind
 
 pytestmark = pytest.mark.timeout(60)
 

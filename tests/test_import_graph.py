@@ -148,11 +148,11 @@ def test_the_package_has_no_import_circle() -> None:
 
 def test_the_graph_covers_the_package() -> None:
     assert {
-        "galileo_async.state.store", "galileo_async.state.streams", "galileo_async.transports.urls"
+        "galileo_async.state.store", "galileo_async.state.streams", "galileo_async.links"
     } <= set(GRAPH)  # fmt: skip
     assert "galileo_async.state.streams" in GRAPH["galileo_async.state.store"]
-    # Imports inside functions count: the URL switch loads the simulator for sim:// only.
-    assert {"galileo_async.sim", "galileo_async.ros"} <= GRAPH["galileo_async.transports.urls"]
+    # Imports inside functions count: the scheme table loads the simulator for sim:// only.
+    assert {"galileo_async.sim", "galileo_async.ros"} <= GRAPH["galileo_async.links"]
 
 
 def test_no_own_module_is_loaded_by_name() -> None:

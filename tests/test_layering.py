@@ -119,6 +119,7 @@ PARTS = {
     "galileo_async.transports": "transports",
     "galileo_async.ros": "ros",
     "galileo_async.http": "http",
+    "galileo_async.links": "links",
     "galileo_async.state": "state",
     "galileo_async.robot": "robot",
     "galileo_async.fleet": "fleet",
@@ -139,16 +140,19 @@ MAY_IMPORT = {
     "transports": {"base", "protocol", "options"},
     "ros": {"base", "protocol", "transports", "options"},
     "http": {"base", "protocol", "transports", "options"},
+    # The scheme table: above every link kind, below robot (sim, http and ros lazily).
+    "links": {"base", "protocol", "transports", "options"},
     "state": {"base", "transitions"},
-    "robot": {"base", "protocol", "transitions", "state", "transports", "options"},
-    "fleet": {"base", "transitions", "state", "robot", "options"},
+    "robot": {"base", "protocol", "transitions", "state", "transports", "links", "options"},
+    "fleet": {"base", "transitions", "state", "robot", "links", "options"},
     "vda5050": {"base", "transitions", "robot"},
     # Tests of applications: a Robot on the simulator, from both sides.
     "testing": {"base", "protocol", "options", "sim", "robot", "fleet"},
 }
-#: The only imports upwards or sideways: the URL switch loads the simulator for sim:// and
-#: the ROS link for ros:// inside the functions that need them (or for type checking).
-LAZY_ONLY = {"galileo_async.transports.urls": {"sim", "ros", "http"}}
+#: The only imports beyond MAY_IMPORT: the scheme table loads the simulator for sim://, and
+#: the optional http and ros links for their URLs, inside the functions that need them (or
+#: for type checking).
+LAZY_ONLY = {"galileo_async.links": {"sim", "ros", "http"}}
 #: Modules that open or speak to a transport: state must do no I/O and know no transport.
 TRANSPORT_MODULES = (
     "socket",
@@ -291,7 +295,7 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
     sample = (
         "from ..state import StatusStore\n"
         "from .. import robot\n"
-        "from .base import BaseLink\n"
+        "from .link import Link\n"
         "import asyncio.streams\n"
         "import importlib\n"
         "importlib.import_module('galileo_async.cli')\n"
@@ -303,7 +307,7 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
         "galileo_async.state.StatusStore",
     }
     assert within(names, "galileo_async.robot") == {"galileo_async.robot"}
-    assert "galileo_async.transports.base" in names
+    assert "galileo_async.transports.link" in names
     assert "galileo_async.cli" in names
     assert within(names, *TRANSPORT_MODULES) == {"asyncio.streams"}
     eager = full_imports(sample, "galileo_async.transports.stream", eager_only=True)
@@ -313,10 +317,10 @@ def test_import_resolution_makes_relative_imports_absolute() -> None:
     sample_uses = "t: asyncio.Transport\nasyncio.get_running_loop()\n"
     assert asyncio_names(sample_uses) & TRANSPORT_ASYNCIO_NAMES == {"Transport"}
     package = full_imports(
-        "from .stream import StreamLink\n", "galileo_async.transports", is_package=True
+        "from .stream import StreamChannel\n", "galileo_async.transports", is_package=True
     )
     assert "galileo_async.transports.stream" in package
-    assert part_of("galileo_async.transports.stream.StreamLink") == "transports"
+    assert part_of("galileo_async.transports.stream.StreamChannel") == "transports"
     assert part_of("galileo_async.events.GoalReached") == "transitions"
     assert part_of("galileo_async") is None
 
@@ -346,11 +350,18 @@ def test_each_module_imports_only_its_part_and_those_below(path: Path) -> None:
     assert not wrong, f"{module} ({part}) imports {wrong}"
 
 
-def test_the_url_switch_loads_sim_and_ros_lazily_only() -> None:
-    path = PACKAGE_DIR / "transports" / "urls.py"
+def test_the_scheme_table_loads_sim_http_and_ros_lazily_only() -> None:
+    path = PACKAGE_DIR / "links.py"
     eager = imports_of(path, eager_only=True)
-    assert {part_of(n) for n in imports_of(path)} >= {"sim", "ros"}
-    assert not {part_of(n) for n in eager} & {"sim", "ros"}
+    assert {part_of(n) for n in imports_of(path)} >= {"sim", "ros", "http"}
+    assert not {part_of(n) for n in eager} & {"sim", "ros", "http"}
+
+
+@pytest.mark.parametrize("part", ["transports", "http", "ros"])
+def test_no_link_kind_imports_up_to_the_scheme_table_or_the_simulator(part: str) -> None:
+    for path in sorted((PACKAGE_DIR / part).rglob("*.py")):
+        found = within(imports_of(path), *package_modules("links", "sim"))
+        assert not found, f"{module_name(path)} imports {found}"
 
 
 def test_vda5050_uses_the_public_robot_api_only() -> None:
@@ -400,7 +411,7 @@ def test_transport_checks_cover_the_transport_packages() -> None:
     names = {p.relative_to(PACKAGE_DIR).as_posix() for p in LINK_SOURCES}
     assert names >= {
         "transports/__init__.py", "transports/base.py", "transports/stream.py",
-        "transports/connectors.py", "transports/urls.py", "ros/link.py",
+        "transports/connectors.py", "transports/link.py", "ros/link.py",
     }  # fmt: skip
 
 

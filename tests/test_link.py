@@ -1,4 +1,4 @@
-"""StreamLink over a TCP loopback fake robot and an in-memory transport."""
+"""Link over a StreamChannel over a TCP loopback fake robot and an in-memory transport."""
 
 from __future__ import annotations
 
@@ -23,10 +23,11 @@ from galileo_async.errors import (
     InvalidArgument,
     LinkStale,
 )
+from galileo_async.links import open_link
 from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import CommandDecoder, DecoderStats, Goto, Pause, Stop, encode
 from galileo_async.state import StatusStore
-from galileo_async.transports import BaseLink, LinkState, LinkStats, StreamLink, open_link
+from galileo_async.transports import Link, LinkState, LinkStats, StreamChannel
 from galileo_async.transports.connectors import KEEPALIVE_COUNT, KEEPALIVE_IDLE, KEEPALIVE_INTERVAL
 from galileo_async.transports.stream import READ_SIZE, _read_buffer
 
@@ -35,8 +36,8 @@ FAST = {"reconnect_initial": 0.01, "reconnect_max": 0.05, "stale_timeout": 5.0}
 
 
 async def connect(
-    device: FakeDevice, links: list[BaseLink], **options: Any
-) -> tuple[BaseLink, StatusStore]:
+    device: FakeDevice, links: list[Link], **options: Any
+) -> tuple[Link, StatusStore]:
     store = StatusStore()
     link = open_link(device.url, store, **{**FAST, **options})
     links.append(link)
@@ -45,17 +46,17 @@ async def connect(
     return link, store
 
 
-async def in_memory(links: list[BaseLink], **options: Any) -> tuple[MemoryConnector, StreamLink]:
+async def in_memory(links: list[Link], **options: Any) -> tuple[MemoryConnector, Link]:
     connector = MemoryConnector()
-    link = StreamLink(StatusStore(), connector, **options)
+    link = Link(StreamChannel(connector), StatusStore(), **options)
     links.append(link)
     await link.open()
     return connector, link
 
 
-async def test_status_flows_and_is_counted(device: FakeDevice, links: list[BaseLink]) -> None:
+async def test_status_flows_and_is_counted(device: FakeDevice, links: list[Link]) -> None:
     link, store = await connect(device, links)
-    assert isinstance(link, StreamLink)
+    assert isinstance(link.channel, StreamChannel)
     assert link.connected
     assert link.stats.connected
     assert link.stats.last_frame_age is None
@@ -80,15 +81,15 @@ async def test_status_flows_and_is_counted(device: FakeDevice, links: list[BaseL
 
 def test_link_stats_hold_the_decoders_counters_not_inherit_them() -> None:
     link = open_link("socket://127.0.0.1:9", StatusStore())
-    assert isinstance(link, StreamLink)
+    assert isinstance(link.channel, StreamChannel)
     assert not issubclass(LinkStats, DecoderStats)
-    assert link.decoder.stats is link.stats.decoder  # the decoder counts straight into it
+    assert link.channel.decoder.stats is link.stats.decoder  # the decoder counts straight into it
     link.stats.decoder.frames = 2
     assert link.stats.frames == 2
 
 
 async def test_pacing_one_command_per_write_fifo_on_the_wire(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, _ = await connect(device, links)
     commands = [Goto(i) for i in range(12)]
@@ -102,7 +103,7 @@ async def test_pacing_one_command_per_write_fifo_on_the_wire(
     # times over loopback carry the receiver's scheduling, which a loaded machine delays.
 
 
-async def test_pacing_measured_at_the_transport(links: list[BaseLink]) -> None:
+async def test_pacing_measured_at_the_transport(links: list[Link]) -> None:
     connector, link = await in_memory(links, min_command_interval=0.010)
     commands = [Goto(1), Pause(), Stop(50), Goto(2), Goto(3)]
     await asyncio.wait_for(asyncio.gather(*(link.send(c) for c in commands)), STEP)
@@ -116,7 +117,7 @@ async def test_pacing_measured_at_the_transport(links: list[BaseLink]) -> None:
 
 
 async def test_send_returns_once_written_and_cancelled_sends_are_skipped(
-    links: list[BaseLink],
+    links: list[Link],
 ) -> None:
     connector, link = await in_memory(links, min_command_interval=0.02)
     await link.send(Goto(1))
@@ -131,7 +132,7 @@ async def test_send_returns_once_written_and_cancelled_sends_are_skipped(
 
 
 async def test_a_failing_write_fails_its_send_only(
-    caplog: pytest.LogCaptureFixture, links: list[BaseLink]
+    caplog: pytest.LogCaptureFixture, links: list[Link]
 ) -> None:
     connector, link = await in_memory(links)
     connector.transport.write_error = RuntimeError("driver bug")
@@ -142,9 +143,7 @@ async def test_a_failing_write_fails_its_send_only(
     assert link.stats.commands_sent == 1
 
 
-async def test_peer_close_fails_every_waiter_at_once(
-    device: FakeDevice, links: list[BaseLink]
-) -> None:
+async def test_peer_close_fails_every_waiter_at_once(device: FakeDevice, links: list[Link]) -> None:
     link, store = await connect(device, links, reconnect=False)
     events = store.events()
     device.push()
@@ -168,7 +167,7 @@ async def test_peer_close_fails_every_waiter_at_once(
         await asyncio.wait_for(anext(store.statuses()), STEP)
 
 
-async def test_eof_counts_as_a_drop(device: FakeDevice, links: list[BaseLink]) -> None:
+async def test_eof_counts_as_a_drop(device: FakeDevice, links: list[Link]) -> None:
     _link, store = await connect(device, links, reconnect=False)
     waiter = asyncio.create_task(store.wait_until(lambda s: False, timeout=60))
     await asyncio.sleep(0)
@@ -179,7 +178,7 @@ async def test_eof_counts_as_a_drop(device: FakeDevice, links: list[BaseLink]) -
         await asyncio.wait_for(waiter, STEP)
 
 
-async def test_pending_sends_fail_on_loss(links: list[BaseLink]) -> None:
+async def test_pending_sends_fail_on_loss(links: list[Link]) -> None:
     connector, link = await in_memory(links, reconnect=False, min_command_interval=0.05)
     await link.send(Goto(1))
     pending = [asyncio.create_task(link.send(Goto(i))) for i in (2, 3)]
@@ -191,7 +190,7 @@ async def test_pending_sends_fail_on_loss(links: list[BaseLink]) -> None:
     assert len(connector.transport.writes) == 1
 
 
-async def test_reads_from_a_replaced_connection_are_ignored(links: list[BaseLink]) -> None:
+async def test_reads_from_a_replaced_connection_are_ignored(links: list[Link]) -> None:
     connector, link = await in_memory(links, reconnect_initial=0.01)
     store = link.store
     assert isinstance(store, StatusStore)
@@ -211,9 +210,7 @@ async def test_reads_from_a_replaced_connection_are_ignored(links: list[BaseLink
     assert store.status.time_stamp == 2
 
 
-async def test_reconnects_after_the_server_restarts(
-    device: FakeDevice, links: list[BaseLink]
-) -> None:
+async def test_reconnects_after_the_server_restarts(device: FakeDevice, links: list[Link]) -> None:
     link, store = await connect(device, links)
     events = store.events()
     device.push()
@@ -239,7 +236,7 @@ async def test_reconnects_after_the_server_restarts(
     await device.wait_for(lambda: Goto(7) in device.commands)
 
 
-async def test_reconnect_backs_off_exponentially_up_to_the_cap(links: list[BaseLink]) -> None:
+async def test_reconnect_backs_off_exponentially_up_to_the_cap(links: list[Link]) -> None:
     connector, link = await in_memory(links, reconnect_initial=0.01, reconnect_max=0.04)
     store = link.store
     events = store.events()
@@ -257,7 +254,7 @@ async def test_reconnect_backs_off_exponentially_up_to_the_cap(links: list[BaseL
     assert max(gaps[2:]) < 0.04 + 0.5  # capped: doubling would reach 0.32 s
 
 
-async def test_reconnect_can_be_switched_off(links: list[BaseLink]) -> None:
+async def test_reconnect_can_be_switched_off(links: list[Link]) -> None:
     connector, link = await in_memory(links, reconnect=False)
     events = link.store.events()
     connector.transport.lose(None)
@@ -271,7 +268,7 @@ async def test_reconnect_can_be_switched_off(links: list[BaseLink]) -> None:
 
 
 async def test_stale_watchdog_fails_waiters_and_recovers(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, store = await connect(device, links, stale_timeout=0.1)
     events = store.events()
@@ -295,13 +292,13 @@ async def test_stale_watchdog_fails_waiters_and_recovers(
     await store.wait_until(lambda s: s.time_stamp == device.time_stamp, timeout=STEP)
 
 
-async def test_stale_when_the_robot_never_sends(device: FakeDevice, links: list[BaseLink]) -> None:
+async def test_stale_when_the_robot_never_sends(device: FakeDevice, links: list[Link]) -> None:
     _link, store = await connect(device, links, stale_timeout=0.05)
     with pytest.raises(LinkStale):
         await store.wait_until(lambda s: True, timeout=STEP)
 
 
-async def test_slow_subscriber_does_not_hold_back_others(links: list[BaseLink]) -> None:
+async def test_slow_subscriber_does_not_hold_back_others(links: list[Link]) -> None:
     connector, link = await in_memory(links, stale_timeout=None)
     store = link.store
     never_read = store.statuses()
@@ -317,9 +314,7 @@ async def test_slow_subscriber_does_not_hold_back_others(links: list[BaseLink]) 
     assert len(never_read_events.buffer) == 4
 
 
-async def test_close_is_idempotent_bounded_and_clean(
-    device: FakeDevice, links: list[BaseLink]
-) -> None:
+async def test_close_is_idempotent_bounded_and_clean(device: FakeDevice, links: list[Link]) -> None:
     link, store = await connect(device, links)
     stream = store.statuses()
     send = asyncio.create_task(link.send(Goto(1)))
@@ -335,7 +330,7 @@ async def test_close_is_idempotent_bounded_and_clean(
     await device.wait_for(lambda: not device.clients)
 
 
-async def test_open_is_idempotent_and_refused_after_close(links: list[BaseLink]) -> None:
+async def test_open_is_idempotent_and_refused_after_close(links: list[Link]) -> None:
     connector, link = await in_memory(links)
     await link.open()
     assert len(connector.attempts) == 1
@@ -344,7 +339,7 @@ async def test_open_is_idempotent_and_refused_after_close(links: list[BaseLink])
         await link.open()
 
 
-async def test_close_while_reconnecting(device: FakeDevice, links: list[BaseLink]) -> None:
+async def test_close_while_reconnecting(device: FakeDevice, links: list[Link]) -> None:
     link, store = await connect(device, links, reconnect_initial=0.001, reconnect_max=0.002)
     events = store.events()
     await device.stop()
@@ -370,7 +365,7 @@ async def test_open_failure_is_translated() -> None:
 
 
 async def test_raw_frames_are_logged_at_debug_only(
-    device: FakeDevice, links: list[BaseLink], caplog: pytest.LogCaptureFixture
+    device: FakeDevice, links: list[Link], caplog: pytest.LogCaptureFixture
 ) -> None:
     link, store = await connect(device, links)
     with caplog.at_level(logging.INFO, logger="galileo_async"):
@@ -388,8 +383,8 @@ async def test_raw_frames_are_logged_at_debug_only(
 
 def test_open_link_url_forms(monkeypatch: pytest.MonkeyPatch) -> None:
     store = StatusStore()
-    assert isinstance(open_link("socket://[::1]:4000", store), StreamLink)
-    assert isinstance(open_link("/dev/ttyUSB0", store, baudrate=57600), StreamLink)
+    assert isinstance(open_link("socket://[::1]:4000", store).channel, StreamChannel)
+    assert isinstance(open_link("/dev/ttyUSB0", store, baudrate=57600).channel, StreamChannel)
     for bad in ("socket://host", "socket://:12", "socket://h:99999"):
         with pytest.raises(InvalidArgument):
             open_link(bad, store)
@@ -407,13 +402,13 @@ async def test_a_link_keeps_its_loops_clock() -> None:
     from galileo_async.testing import VirtualClock
 
     connector = MemoryConnector()
-    link = StreamLink(StatusStore(), connector)
+    link = Link(StreamChannel(connector), StatusStore())
     await link.open()
     assert link.stats.clock is time.monotonic
     await link.close()
     clock = VirtualClock.install()
     try:
-        virtual = StreamLink(StatusStore(), MemoryConnector())
+        virtual = Link(StreamChannel(MemoryConnector()), StatusStore())
         await virtual.open()
         loop = asyncio.get_running_loop()
         assert virtual.stats.clock() == loop.time()
@@ -451,8 +446,8 @@ async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> No
     module.Simulator = FakeSimulator  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "galileo_async.sim", module)
     link = open_link("sim://?speed=20", StatusStore(), baudrate=115200)
-    assert isinstance(link, StreamLink)
-    assert link.simulator is made[0]
+    assert isinstance(link.channel, StreamChannel)
+    assert link.channel.simulator is made[0]
     assert made[0].url == "sim://?speed=20"
     await link.open()
     connector.feed(status_frame(1))
@@ -465,7 +460,7 @@ async def test_sim_url_owns_the_simulator(monkeypatch: pytest.MonkeyPatch) -> No
 
 
 async def test_silent_tcp_peer_is_given_up_and_reconnected(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, store = await connect(device, links, stale_timeout=0.05, stale_reconnect=3)
     events = store.events()
@@ -489,12 +484,10 @@ async def test_silent_tcp_peer_is_given_up_and_reconnected(
     await device.wait_for(lambda: Goto(5) in device.commands)
 
 
-async def test_socket_links_turn_tcp_keepalive_on(
-    device: FakeDevice, links: list[BaseLink]
-) -> None:
+async def test_socket_links_turn_tcp_keepalive_on(device: FakeDevice, links: list[Link]) -> None:
     link, _ = await connect(device, links)
-    assert isinstance(link, StreamLink)
-    transport = link._current_transport()
+    assert isinstance(link.channel, StreamChannel)
+    transport = link.channel.transport
     assert transport is not None
     sock = transport.get_extra_info("socket")
     assert sock.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) != 0
@@ -505,12 +498,12 @@ async def test_socket_links_turn_tcp_keepalive_on(
 
 
 async def test_socket_links_read_into_their_loops_read_buffer(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, store = await connect(device, links)
-    assert isinstance(link, StreamLink)
-    assert isinstance(link._protocol, asyncio.BufferedProtocol)
-    assert link._protocol.get_buffer(-1) is _read_buffer(asyncio.get_running_loop())[1]
+    assert isinstance(link.channel, StreamChannel)
+    assert isinstance(link.channel._protocol, asyncio.BufferedProtocol)
+    assert link.channel._protocol.get_buffer(-1) is _read_buffer(asyncio.get_running_loop())[1]
     # A burst over three read buffers, split mid-frame, then a single frame.
     burst = b"".join(status_frame(stamp) for stamp in range(1, 201))
     assert len(burst) > 2 * READ_SIZE
@@ -527,11 +520,11 @@ async def test_socket_links_read_into_their_loops_read_buffer(
 
 
 async def test_links_of_one_loop_share_a_read_buffer_and_keep_their_own_partial_frames(
-    links: list[BaseLink],
+    links: list[Link],
 ) -> None:
     _, link_a = await in_memory(links)
     _, link_b = await in_memory(links)
-    protocol_a, protocol_b = link_a._protocol, link_b._protocol
+    protocol_a, protocol_b = link_a.channel._protocol, link_b.channel._protocol
     assert protocol_a is not None
     assert protocol_b is not None
     assert protocol_a.get_buffer(-1) is protocol_b.get_buffer(-1)
@@ -572,7 +565,7 @@ def test_event_loops_in_other_threads_get_read_buffers_of_their_own() -> None:
     assert len(other) == len(first) == READ_SIZE
 
 
-async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseLink]) -> None:
+async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[Link]) -> None:
     # Stale between frames (0.05 s > 0.02 s), but never silent for 10 x 0.02 s.
     connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=10)
     events = link.store.events()
@@ -589,7 +582,7 @@ async def test_frames_now_and_then_keep_a_stale_link_connected(links: list[BaseL
     assert seen == [ev.LinkStaleEvent, ev.LinkRestored, ev.LinkStaleEvent, ev.LinkRestored]
 
 
-async def test_stale_reconnect_none_stays_stale(links: list[BaseLink]) -> None:
+async def test_stale_reconnect_none_stays_stale(links: list[Link]) -> None:
     connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=None)
     events = link.store.events()
     assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStaleEvent)
@@ -600,7 +593,7 @@ async def test_stale_reconnect_none_stays_stale(links: list[BaseLink]) -> None:
     assert not connector.transport.is_closing()
 
 
-async def test_silent_peer_without_reconnect_closes_the_store(links: list[BaseLink]) -> None:
+async def test_silent_peer_without_reconnect_closes_the_store(links: list[Link]) -> None:
     connector, link = await in_memory(links, stale_timeout=0.02, stale_reconnect=2, reconnect=False)
     events = link.store.events()
     assert isinstance(await asyncio.wait_for(anext(events), STEP), ev.LinkStaleEvent)
@@ -628,7 +621,7 @@ async def test_silent_peer_without_reconnect_closes_the_store(links: list[BaseLi
 def test_bad_health_and_queue_options_are_refused(options: dict[str, Any]) -> None:
     name = next(iter(options))
     with pytest.raises(InvalidArgument, match=name):
-        StreamLink(StatusStore(), MemoryConnector(), **options)
+        Link(StreamChannel(MemoryConnector()), StatusStore(), **options)
 
 
 # --- flow control and the bounded queue ----------------------------------------------------
@@ -688,15 +681,15 @@ class BufferingConnector(MemoryConnector):
         return transport
 
 
-async def buffering(links: list[BaseLink], **options: Any) -> tuple[BufferingTransport, StreamLink]:
+async def buffering(links: list[Link], **options: Any) -> tuple[BufferingTransport, Link]:
     connector = BufferingConnector()
-    link = StreamLink(StatusStore(), connector, stale_timeout=None, **options)
+    link = Link(StreamChannel(connector), StatusStore(), stale_timeout=None, **options)
     links.append(link)
     await link.open()
     return connector.buffering, link
 
 
-async def test_each_write_waits_for_an_empty_transport_buffer(links: list[BaseLink]) -> None:
+async def test_each_write_waits_for_an_empty_transport_buffer(links: list[Link]) -> None:
     transport, link = await buffering(links, min_command_interval=0)
     transport.hold = 0.02
     commands = [Goto(i) for i in range(4)]
@@ -708,7 +701,7 @@ async def test_each_write_waits_for_an_empty_transport_buffer(links: list[BaseLi
 
 
 async def test_a_stalled_transport_delays_the_write_until_it_drains(
-    links: list[BaseLink],
+    links: list[Link],
 ) -> None:
     transport, link = await buffering(links)
     transport.buffered = 10
@@ -724,7 +717,7 @@ async def test_a_stalled_transport_delays_the_write_until_it_drains(
     assert [data for _, data in transport.writes] == [encode(Goto(1))]
 
 
-async def test_a_stuck_transport_fails_the_queued_sends(links: list[BaseLink]) -> None:
+async def test_a_stuck_transport_fails_the_queued_sends(links: list[Link]) -> None:
     transport, link = await buffering(links, drain_timeout=0.05)
     transport.buffered = 10
     started = time.monotonic()
@@ -742,18 +735,18 @@ async def test_a_stuck_transport_fails_the_queued_sends(links: list[BaseLink]) -
     assert [data for _, data in transport.writes] == [encode(Goto(3))]
 
 
-async def test_a_full_queue_makes_send_wait_in_order(links: list[BaseLink]) -> None:
+async def test_a_full_queue_makes_send_wait_in_order(links: list[Link]) -> None:
     transport, link = await buffering(links, max_queued_commands=2, drain_timeout=60)
     transport.buffered = 1  # nothing gets written for now
     sends = [asyncio.create_task(link.send(Goto(i))) for i in range(5)]
     for _ in range(3):
         await asyncio.sleep(0)
-    assert [command for command, _ in link._queue] == [Goto(0), Goto(1)]
+    assert [entry.command for entry in link.queue.entries] == [Goto(0), Goto(1)]
     sends[2].cancel()  # a sender waiting for room gives up
     sends[0].cancel()  # a queued sender gives up: its place goes to the next in line
     for _ in range(3):
         await asyncio.sleep(0)
-    assert [command for command, _ in link._queue] == [Goto(1), Goto(3)]
+    assert [entry.command for entry in link.queue.entries] == [Goto(1), Goto(3)]
     transport.drain()
     await asyncio.wait_for(asyncio.gather(*sends[3:], sends[1]), STEP)
     assert [data for _, data in transport.writes] == [encode(Goto(i)) for i in (1, 3, 4)]
@@ -761,7 +754,7 @@ async def test_a_full_queue_makes_send_wait_in_order(links: list[BaseLink]) -> N
     assert sends[2].cancelled()
 
 
-async def test_senders_waiting_for_room_fail_when_the_link_drops(links: list[BaseLink]) -> None:
+async def test_senders_waiting_for_room_fail_when_the_link_drops(links: list[Link]) -> None:
     transport, link = await buffering(links, max_queued_commands=1, reconnect=False)
     transport.buffered = 1
     sends = [asyncio.create_task(link.send(Goto(i))) for i in range(3)]
@@ -774,7 +767,7 @@ async def test_senders_waiting_for_room_fail_when_the_link_drops(links: list[Bas
     assert transport.writes == []
 
 
-async def test_close_fails_senders_waiting_for_room(links: list[BaseLink]) -> None:
+async def test_close_fails_senders_waiting_for_room(links: list[Link]) -> None:
     transport, link = await buffering(links, max_queued_commands=1)
     transport.buffered = 1
     sends = [asyncio.create_task(link.send(Goto(i))) for i in range(3)]
@@ -809,30 +802,21 @@ class RecordingSink:
     def update(self, status: GalileoStatus) -> None:
         self.record(f"update {status.time_stamp}")
 
-    def connection_lost(self, exc: GalileoConnectionError) -> None:
-        self.record("connection_lost")
-
-    def connection_restored(self) -> None:
-        self.record("connection_restored")
-
-    def link_stale(self, exc: LinkStale) -> None:
-        self.record("link_stale")
-
-    def link_fresh(self) -> None:
-        self.record("link_fresh")
+    def link_changed(self, state: LinkState, error: GalileoConnectionError | None) -> None:
+        self.record(f"{state.name} {type(error).__name__}")
 
     def close(self) -> None:
         self.record("close")
 
 
-async def test_a_link_feeds_any_status_sink(links: list[BaseLink]) -> None:
+async def test_a_link_feeds_any_status_sink(links: list[Link]) -> None:
     sink, connector = RecordingSink(), MemoryConnector()
     options = {"stale_timeout": 0.05, "stale_reconnect": None, "reconnect_initial": 0.01}
-    link = StreamLink(sink, connector, **options)
+    link = Link(StreamChannel(connector), sink, **options)
     links.append(link)
     await link.open()
     connector.feed(status_frame(1))
-    await sink.wait_for("link_stale")
+    await sink.wait_for("STALE LinkStale")
     connector.feed(status_frame(2))
     connector.transport.lose(None)
     await connector.wait_connects(2)
@@ -840,11 +824,11 @@ async def test_a_link_feeds_any_status_sink(links: list[BaseLink]) -> None:
     await link.close()
     assert sink.calls[:8] == [
         "update 1",
-        "link_stale",
-        "link_fresh",
+        "STALE LinkStale",
+        "UP NoneType",
         "update 2",
-        "connection_lost",
-        "connection_restored",  # the first frame after the reopen, not the reopen
+        "LOST ConnectionLost",
+        "UP NoneType",  # the first frame after the reopen, not the reopen
         "update 3",
         "close",
     ]

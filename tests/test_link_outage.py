@@ -14,8 +14,9 @@ from typing import Any
 from fake_device import FakeDevice
 
 from galileo_async import events as ev
+from galileo_async.links import open_link
 from galileo_async.state import StatusStore
-from galileo_async.transports import BaseLink, LinkState, open_link
+from galileo_async.transports import Link, LinkState
 
 STEP = 2.0
 STALE = 0.05
@@ -31,7 +32,7 @@ FAST: dict[str, Any] = {
 DELAYS = [0.02, 0.04, 0.08, 0.16, 0.16, 0.16]
 
 
-async def open_silent(device: FakeDevice, links: list[BaseLink]) -> tuple[BaseLink, StatusStore]:
+async def open_silent(device: FakeDevice, links: list[Link]) -> tuple[Link, StatusStore]:
     store = StatusStore()
     link = open_link(device.url, store, **FAST)
     links.append(link)
@@ -66,7 +67,7 @@ class Seen:
 
 
 async def test_a_dead_node_is_one_outage_until_frames_return(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, store = await open_silent(device, links)
     seen = Seen(store)
@@ -99,7 +100,7 @@ async def test_a_dead_node_is_one_outage_until_frames_return(
 
 
 async def test_a_drop_then_silent_reopens_is_one_lost_and_no_stale(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link, store = await open_silent(device, links)
     seen = Seen(store)
@@ -123,7 +124,7 @@ async def test_a_drop_then_silent_reopens_is_one_lost_and_no_stale(
 
 
 async def test_a_stale_link_whose_frames_return_is_restored_once(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     store = StatusStore()
     link = open_link(device.url, store, **{**FAST, "stale_reconnect": None})

@@ -14,9 +14,10 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, GalileoConnectionError
+from galileo_async.links import open_link
 from galileo_async.protocol import CommandDecoder, Goto, StopPatrol, encode
 from galileo_async.state import StatusStore
-from galileo_async.transports import StreamLink, open_link
+from galileo_async.transports import StreamChannel
 from galileo_async.transports.connectors import serial_backend, translate_errors
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="pty is Linux-only")
@@ -79,7 +80,7 @@ async def test_status_and_commands_over_a_pty(pty: PtyDevice, backend: str) -> N
     assert serial_backend().__name__ == backend
     store = StatusStore()
     link = open_link(pty.path, store, baudrate=115200, stale_timeout=5.0)
-    assert isinstance(link, StreamLink)
+    assert isinstance(link.channel, StreamChannel)
     await link.open()
     try:
         pty.write(status_frame(1, nav_status=1) + status_frame(2, nav_status=1)[:40])

@@ -34,9 +34,10 @@ from galileo_async import LinkState, Robot, connect_fleet
 from galileo_async.cli.fleet_view import fleet_rows
 from galileo_async.cli.render import dashboard, link_dict
 from galileo_async.errors import ConnectionLost, GalileoTimeout, InvalidArgument
+from galileo_async.links import open_link
 from galileo_async.sim import Simulator
 from galileo_async.state import StatusStore
-from galileo_async.transports import BaseLink, LinkStateStream, open_link
+from galileo_async.transports import Link, LinkStateStream
 
 STEP = 5.0
 #: Stale after 0.4 s of silence (a loaded machine may delay a frame 0.2 s), given up after
@@ -54,7 +55,7 @@ async def next_state(states: LinkStateStream) -> LinkState:
 
 
 async def test_a_link_walks_connecting_up_stale_up_lost_up_closed(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     link = open_link(
         device.url, StatusStore(), stale_timeout=0.5, stale_reconnect=10.0,

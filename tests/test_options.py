@@ -16,7 +16,7 @@ import pytest
 from ros_support import RobotNode, RosMaster
 
 import galileo_async as galileo
-from galileo_async import transports
+from galileo_async import links
 from galileo_async.fleet.file import FleetFileError, parse_fleet
 from galileo_async.options import LINK_KINDS, OPTIONS, Option, names_for, option_table
 from galileo_async.sim import Simulator
@@ -68,7 +68,7 @@ def toml_value(value: Any) -> str:
 
 def test_every_link_kind_has_a_url_here() -> None:
     assert set(URLS) == set(LINK_KINDS)
-    assert {transports.link_kind(url) for url in URLS.values()} == set(LINK_KINDS)
+    assert {links.link_kind(url) for url in URLS.values()} == set(LINK_KINDS)
 
 
 def test_the_description_gives_every_option_a_type_default_and_doc() -> None:

@@ -275,7 +275,7 @@ async def test_flood_of_garbage_then_frames_is_bounded_and_decoded() -> None:
         def data_received(self, data: bytes) -> None:
             nonlocal largest
             self.inner.data_received(data)
-            largest = max(largest, link.decoder.buffered)
+            largest = max(largest, link.channel.decoder.buffered)
 
         def connection_lost(self, exc: Exception | None) -> None:
             self.inner.connection_lost(exc)
@@ -290,10 +290,10 @@ async def test_flood_of_garbage_then_frames_is_bounded_and_decoded() -> None:
         return transport, inner
 
     from galileo_async.state import StatusStore
-    from galileo_async.transports import StreamLink
+    from galileo_async.transports import Link, StreamChannel
 
     store = StatusStore()
-    link = StreamLink(store, watching, stale_timeout=None)
+    link = Link(StreamChannel(watching), store, stale_timeout=None)
     robot = galileo.Robot(link, store)
     seen: Counter[str] = Counter()
 

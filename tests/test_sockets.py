@@ -12,9 +12,10 @@ from fake_device import status_frame
 
 from galileo_async import events as ev
 from galileo_async.errors import GalileoConnectionError
+from galileo_async.links import open_link
 from galileo_async.protocol import CommandDecoder, Goto
 from galileo_async.state import StatusStore
-from galileo_async.transports import BaseLink, StreamLink, open_link
+from galileo_async.transports import Link, StreamChannel
 from galileo_async.transports.connectors import socket_connector
 
 STEP = 2.0  # upper bound for anything that should happen promptly
@@ -58,24 +59,22 @@ async def peer() -> AsyncIterator[tuple[Peer, str]]:
     await server.wait_closed()
 
 
-async def socket_link(
-    links: list[BaseLink], url: str, **options: object
-) -> tuple[StreamLink, StatusStore]:
+async def socket_link(links: list[Link], url: str, **options: object) -> tuple[Link, StatusStore]:
     store = StatusStore()
     link = open_link(url, store, reconnect=False, stale_timeout=None, **options)
-    assert isinstance(link, StreamLink)
+    assert isinstance(link.channel, StreamChannel)
     links.append(link)
     await link.open()
     return link, store
 
 
 async def test_a_socket_link_runs_on_asyncios_transport_with_nodelay(
-    peer: tuple[Peer, str], links: list[BaseLink]
+    peer: tuple[Peer, str], links: list[Link]
 ) -> None:
     side, url = peer
     link, store = await socket_link(links, url)
     _, writer = await side.ready()
-    transport = link._current_transport()
+    transport = link.channel.transport
     assert isinstance(transport, asyncio.Transport)
     sock = transport.get_extra_info("socket")
     assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY)
@@ -84,7 +83,7 @@ async def test_a_socket_link_runs_on_asyncios_transport_with_nodelay(
 
 
 async def test_the_peer_closing_is_a_lost_connection(
-    peer: tuple[Peer, str], links: list[BaseLink]
+    peer: tuple[Peer, str], links: list[Link]
 ) -> None:
     side, url = peer
     link, store = await socket_link(links, url)
@@ -101,7 +100,7 @@ async def test_the_peer_closing_is_a_lost_connection(
 
 
 async def test_a_reset_is_a_lost_connection_with_its_error(
-    peer: tuple[Peer, str], links: list[BaseLink]
+    peer: tuple[Peer, str], links: list[Link]
 ) -> None:
     side, url = peer
     link, store = await socket_link(links, url)
@@ -117,13 +116,13 @@ async def test_a_reset_is_a_lost_connection_with_its_error(
 
 
 async def test_a_peer_that_does_not_read_holds_sends_back_and_the_buffer_stays_bounded(
-    peer: tuple[Peer, str], links: list[BaseLink]
+    peer: tuple[Peer, str], links: list[Link]
 ) -> None:
     side, url = peer
     link, _ = await socket_link(links, url, drain_timeout=0.05, min_command_interval=0)
     reader, writer = await side.ready()
     writer.transport.pause_reading()  # the peer reads nothing until told to
-    transport = link._current_transport()
+    transport = link.channel.transport
     assert transport is not None
     transport.get_extra_info("socket").setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SMALL_BUFFER)
     transport.write(b"\0" * BIG)  # the peer reads nothing yet: the socket stops taking bytes
@@ -146,7 +145,7 @@ async def test_a_peer_that_does_not_read_holds_sends_back_and_the_buffer_stays_b
     assert CommandDecoder().feed(data) == [Goto(7)]
 
 
-async def test_a_refused_connection_is_a_connection_error(links: list[BaseLink]) -> None:
+async def test_a_refused_connection_is_a_connection_error(links: list[Link]) -> None:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]  # nothing listens there once the probe closes

@@ -10,7 +10,7 @@ import pytest
 
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, GalileoTimeout, LinkStale
-from galileo_async.models import GalileoStatus
+from galileo_async.models import GalileoStatus, LinkState
 from galileo_async.protocol import V2_DEFAULTS
 from galileo_async.state import StatusStore
 
@@ -103,10 +103,10 @@ async def test_link_error_fails_waiters_at_once(kind: str) -> None:
         error: ConnectionLost | LinkStale
         if kind == "lost":
             error = ConnectionLost("unplugged")
-            store.connection_lost(error)
+            store.link_changed(LinkState.LOST, error)
         else:
             error = LinkStale("silent", silent_for=1.2)
-            store.link_stale(error)
+            store.link_changed(LinkState.STALE, error)
         for task in (waiter, reader):
             with pytest.raises(type(error)):
                 await asyncio.wait_for(task, STEP)
@@ -115,10 +115,10 @@ async def test_link_error_fails_waiters_at_once(kind: str) -> None:
 
 async def test_wait_until_fails_fast_while_the_link_is_down_then_recovers() -> None:
     store = StatusStore()
-    store.connection_lost(ConnectionLost("down"))
+    store.link_changed(LinkState.LOST, ConnectionLost("down"))
     with pytest.raises(ConnectionLost):
         await store.wait_until(lambda s: True, timeout=STEP)
-    store.connection_restored()
+    store.link_changed(LinkState.UP, None)
     assert store.link_error is None
     store.update(st(1))
     assert (await store.wait_until(lambda s: True, timeout=STEP)).time_stamp == 1
@@ -126,10 +126,10 @@ async def test_wait_until_fails_fast_while_the_link_is_down_then_recovers() -> N
 
 async def test_stale_then_fresh() -> None:
     store = StatusStore()
-    store.link_stale(LinkStale("silent", silent_for=1.0))
+    store.link_changed(LinkState.STALE, LinkStale("silent", silent_for=1.0))
     with pytest.raises(LinkStale):
         await store.wait_until(lambda s: True)
-    store.link_fresh()
+    store.link_changed(LinkState.UP, None)
     store.update(st(1))
     assert (await store.wait_until(lambda s: True)).time_stamp == 1
 
@@ -161,18 +161,18 @@ async def test_watch_delivers_buffered_statuses_before_the_error_then_continues(
     store = StatusStore()
     with store.watch() as watch:
         store.update(st(1))
-        store.connection_lost(ConnectionLost("unplugged"))
+        store.link_changed(LinkState.LOST, ConnectionLost("unplugged"))
         assert (await watch.next()).time_stamp == 1
         with pytest.raises(ConnectionLost):
             await watch.next()
-        store.connection_restored()
+        store.link_changed(LinkState.UP, None)
         store.update(st(2))
         assert (await watch.next(timeout=STEP)).time_stamp == 2
 
 
 async def test_watch_created_while_down_fails_on_first_next() -> None:
     store = StatusStore()
-    store.connection_lost(ConnectionLost("down"))
+    store.link_changed(LinkState.LOST, ConnectionLost("down"))
     with store.watch() as watch, pytest.raises(ConnectionLost):
         await watch.next(timeout=STEP)
 
@@ -222,8 +222,8 @@ async def test_statuses_survive_reconnects_and_end_on_close() -> None:
     stream = store.statuses()
     store.update(st(1))
     assert (await anext(stream)).time_stamp == 1
-    store.connection_lost(ConnectionLost("unplugged"))
-    store.connection_restored()
+    store.link_changed(LinkState.LOST, ConnectionLost("unplugged"))
+    store.link_changed(LinkState.UP, None)
     store.update(st(1))  # the counter restarts after a reconnect
     assert (await anext(stream)).time_stamp == 1
     ending = asyncio.create_task(stream.next())  # next(): a coroutine, for tasks
@@ -421,11 +421,11 @@ async def test_events_from_updates_and_link() -> None:
     store.update(st(1, nav_status=0))
     store.update(st(2, nav_status=0))
     store.update(st(3, nav_status=1))
-    store.link_stale(LinkStale("quiet", silent_for=1.5))
-    store.link_fresh()
-    store.connection_lost(ConnectionLost("unplugged"))
-    store.connection_lost(ConnectionLost("still down"))  # no second event
-    store.connection_restored()
+    store.link_changed(LinkState.STALE, LinkStale("quiet", silent_for=1.5))
+    store.link_changed(LinkState.UP, None)
+    store.link_changed(LinkState.LOST, ConnectionLost("unplugged"))
+    store.link_changed(LinkState.LOST, ConnectionLost("still down"))  # no second event
+    store.link_changed(LinkState.UP, None)
     got = [await asyncio.wait_for(anext(stream), STEP) for _ in range(5)]
     assert [type(e) for e in got] == [
         ev.NavigationOpened,

@@ -154,9 +154,9 @@ def test_a_test_that_leaves_something_fails_at_teardown_naming_it(run: pytest.Py
     result.stdout.fnmatch_lines_random(
         [
             "*ERROR at teardown of test_leaves_a_robot*",
-            "*1 Robot(s) left open: <Robot on <StreamLink sim://simulator-*",
+            "*1 Robot(s) left open: <Robot on <Link sim://simulator-*",
             "*ERROR at teardown of test_drops_an_open_robot*",
-            "*1 Robot(s) left open: <Robot on <StreamLink sim://simulator-*",
+            "*1 Robot(s) left open: <Robot on <Link sim://simulator-*",
             "*ERROR at teardown of test_leaves_a_task*",
             "*1 task(s) left running: forgotten-task*",
             "*ERROR at teardown of test_leaves_a_timer*",

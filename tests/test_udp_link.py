@@ -21,9 +21,9 @@ from galileo_async import (
     StatusLayout,
 )
 from galileo_async.events import LinkRestored, LinkStaleEvent
+from galileo_async.links import open_link
 from galileo_async.protocol import HEADER, Forward, RawCommand, Stop, encode, encode_status
 from galileo_async.sim import Simulator
-from galileo_async.transports import open_link
 from galileo_async.transports.udp import REGISTRATION, parse_udp_url
 
 pytestmark = pytest.mark.timeout(60)
@@ -123,16 +123,13 @@ async def test_options_checked_before_anything_opens() -> None:
         await galileo.connect("udp://127.0.0.1:9", stale_timeout=-1)
     # The portable options a fleet file shares are taken and ignored.
     link = open_link("udp://127.0.0.1:9", _NullSink(), baudrate=9600, connect_timeout=1.0)
-    assert repr(link) == "<UdpLink udp://127.0.0.1:9>"
+    assert repr(link) == "<Link udp://127.0.0.1:9>"
     await link.close()
 
 
 class _NullSink:
     def update(self, status: object) -> None: ...
-    def connection_lost(self, exc: object) -> None: ...
-    def connection_restored(self) -> None: ...
-    def link_stale(self, exc: object) -> None: ...
-    def link_fresh(self) -> None: ...
+    def link_changed(self, state: object, error: object) -> None: ...
     def close(self) -> None: ...
 
 

@@ -2,7 +2,8 @@
 
 The simulator's UDP face plays the vendor's system_monitor service: it streams to the source
 of the last datagram it received, and a restarted service streams to nobody until a datagram
-comes. The link is the real UdpLink on 127.0.0.1. Everything runs on one VirtualClock: on
+comes. The link is the real Link over a UdpChannel on 127.0.0.1. Everything runs on one
+VirtualClock: on
 Linux a loopback datagram is in the receiver's socket buffer when ``sendto`` returns, so the
 clock's idle check sees it before time moves on. The link's defaults apply: stale after 1 s
 without a frame, given up (LOST, a new socket) after 5 s.

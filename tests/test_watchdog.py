@@ -12,16 +12,17 @@ import pytest
 from fake_device import FakeDevice, MemoryConnector, status_frame
 
 from galileo_async import events as ev
+from galileo_async.links import open_link
 from galileo_async.state import StatusStore
 from galileo_async.testing import VirtualClock, simulated_robot
-from galileo_async.transports import BaseLink, LinkState, StreamLink, open_link
+from galileo_async.transports import Link, LinkState, StreamChannel
 
 STEP = 2.0  # upper bound for anything that should happen promptly
 #: The defaults: stale_reconnect (5) x stale_timeout (1 s).
 LOST_AFTER = 5.0
 
 
-def stale_timers(link: BaseLink) -> list[asyncio.TimerHandle]:
+def stale_timers(link: Link) -> list[asyncio.TimerHandle]:
     """The armed loop timers whose callback is a method of ``link``."""
     # The loop keeps its timers in a private heap; only these checks read it (as conftest does).
     scheduled: list[asyncio.TimerHandle] = getattr(asyncio.get_running_loop(), "_scheduled", [])
@@ -29,20 +30,20 @@ def stale_timers(link: BaseLink) -> list[asyncio.TimerHandle]:
         handle
         for handle in scheduled
         if not handle.cancelled()
-        and getattr(getattr(handle, "_callback", None), "__self__", None) is link
+        and getattr(getattr(handle, "_callback", None), "__self__", None) in (link, link.watchdog)
     ]
 
 
-async def memory_link(links: list[BaseLink], **options: Any) -> tuple[MemoryConnector, StreamLink]:
+async def memory_link(links: list[Link], **options: Any) -> tuple[MemoryConnector, Link]:
     connector = MemoryConnector()
-    link = StreamLink(StatusStore(), connector, reconnect=False, **options)
+    link = Link(StreamChannel(connector), StatusStore(), reconnect=False, **options)
     links.append(link)
     await link.open()
     return connector, link
 
 
 async def test_stale_is_reported_after_stale_timeout_never_before(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     timeout = 0.2
     store = StatusStore()
@@ -69,7 +70,7 @@ async def test_stale_is_reported_after_stale_timeout_never_before(
 
 
 async def test_a_frame_only_records_its_time_the_timer_moves_when_it_fires(
-    links: list[BaseLink],
+    links: list[Link],
 ) -> None:
     timeout = 1.0
     connector, link = await memory_link(links, stale_timeout=timeout)
@@ -91,7 +92,7 @@ async def test_a_frame_only_records_its_time_the_timer_moves_when_it_fires(
     assert not link.stats.stale
 
 
-async def test_each_link_arms_one_timer_and_close_leaves_none(links: list[BaseLink]) -> None:
+async def test_each_link_arms_one_timer_and_close_leaves_none(links: list[Link]) -> None:
     fleet = [(await memory_link(links, stale_timeout=5.0))[1] for _ in range(20)]
     for link in fleet:
         assert len(stale_timers(link)) == 1
@@ -104,7 +105,7 @@ async def test_each_link_arms_one_timer_and_close_leaves_none(links: list[BaseLi
 
 
 async def test_a_lost_connection_or_no_stale_timeout_leaves_no_timer(
-    links: list[BaseLink],
+    links: list[Link],
 ) -> None:
     connector, link = await memory_link(links, stale_timeout=5.0)
     events = link.store.events()
@@ -116,7 +117,7 @@ async def test_a_lost_connection_or_no_stale_timeout_leaves_no_timer(
 
 
 async def test_a_stale_link_gives_the_connection_up_after_stale_reconnect(
-    device: FakeDevice, links: list[BaseLink]
+    device: FakeDevice, links: list[Link]
 ) -> None:
     timeout = 0.05
     store = StatusStore()

@@ -9,8 +9,8 @@ import typer
 
 from .. import __version__
 from ..errors import InvalidArgument
+from ..links import URL_SCHEMES, url_forms
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
-from ..transports import URL_SCHEMES, url_forms
 from . import capture, demo, fleet_cmd, ops, serve, stopping, teleop, vda5050, watch
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
@@ -70,7 +70,9 @@ def options(
             envvar=PORT_ENV,
             show_envvar=True,
             help=(
-                f"Where the robot is: {url_forms()}. Default: {DEFAULT_PORT}, the built-in "
+                # Built at import: the schemes of installed plugins are not loaded for it.
+                f"Where the robot is: {url_forms(plugins=False)}, or a scheme an installed "
+                f"plugin adds. Default: {DEFAULT_PORT}, the built-in "
                 "simulator (robot commands say so on stderr)."
             ),
         ),

@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 from collections.abc import AsyncIterator
 
-from ..transports import byte_connector
+from ..links import byte_connector
 
 __all__ = ["RECORD_QUEUE_CHUNKS", "ChunkQueue", "open_raw"]
 

@@ -138,6 +138,8 @@ def link_dict(link: object) -> dict[str, Any]:
             if dataclasses.is_dataclass(value) and not isinstance(value, type):
                 values.update(dataclasses.asdict(value))  # LinkStats.decoder: its counters
             elif f.repr:
+                if f.name == "state":  # LinkStats' flags derived from it come first
+                    values.update((key, getattr(link, key)) for key in ("connected", "stale"))
                 values[f.name] = value
     age = getattr(link, "last_frame_age", None)
     values["last_frame_age"] = None if age is None else round(float(age), 3)

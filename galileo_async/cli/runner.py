@@ -30,7 +30,7 @@ from ..errors import (
     NotReady,
     PortBusy,
 )
-from ..transports import link_kind, url_forms
+from ..links import link_kind, url_forms
 from .logs import setup_logging
 from .output import err_console, out_console, print_json, timestamp
 from .signals import Stops, handling, running, stop_on_interrupt

@@ -27,7 +27,8 @@ from typing import Any, Union, get_args, get_origin
 
 from .._checks import check_names
 from ..errors import InvalidArgument
-from ..options import OPTIONS
+from ..links import scheme_of
+from ..options import OPTIONS, Option
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -85,12 +86,23 @@ class FleetSpec:
         )
 
 
-def _check_option(where: str, key: str, value: object) -> Any:
+def _scheme_options(ports: Collection[str]) -> dict[str, tuple[type, ...]]:
+    """The TOML types of the options the schemes of ``ports`` add (plugins' own options)."""
+    own: dict[str, Option] = {}
+    for port in ports:
+        own.update((option.name, option) for option in scheme_of(port).options)
+    return {name: _toml_types(option.type) for name, option in own.items()}
+
+
+def _check_option(
+    where: str, key: str, value: object, extra: Mapping[str, tuple[type, ...]]
+) -> Any:
+    types = {**OPTION_TYPES, **extra} if extra else OPTION_TYPES
     try:  # a near miss when there is one, as connect() says it; else the known names
-        check_names([key], OPTION_TYPES)
+        check_names([key], types)
     except InvalidArgument as exc:
         raise FleetFileError(f"{where}: {exc}") from None
-    expected = OPTION_TYPES[key]
+    expected = types[key]
     if float in expected and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     if (bool not in expected and isinstance(value, bool)) or not isinstance(value, expected):
@@ -99,8 +111,10 @@ def _check_option(where: str, key: str, value: object) -> Any:
     return value
 
 
-def _options(where: str, table: Mapping[str, Any]) -> dict[str, Any]:
-    return {key: _check_option(where, key, value) for key, value in table.items()}
+def _options(
+    where: str, table: Mapping[str, Any], extra: Mapping[str, tuple[type, ...]]
+) -> dict[str, Any]:
+    return {key: _check_option(where, key, value, extra) for key, value in table.items()}
 
 
 def parse_fleet(
@@ -128,14 +142,16 @@ def parse_fleet(
         if not isinstance(port, str) or not port:
             raise FleetFileError(f'{where}: port must be a non-empty string (port = "…")')
         ports[name] = port
-        options = _options(where, {k: v for k, v in table.items() if k != "port"})
+        extra = _scheme_options([port])
+        options = _options(where, {k: v for k, v in table.items() if k != "port"}, extra)
         if options:
             robot_options[name] = options
     targets = data.get("targets")
     if targets is not None and not isinstance(targets, str):
         raise FleetFileError(f"{source}: targets must be a path string, got {targets!r}")
     path = None if targets is None else (base or Path()) / targets
-    return FleetSpec(ports, robot_options, _options(f"{source}: [defaults]", defaults), path)
+    shared = _options(f"{source}: [defaults]", defaults, _scheme_options(ports.values()))
+    return FleetSpec(ports, robot_options, shared, path)
 
 
 def _read(file: Path) -> dict[str, Any]:

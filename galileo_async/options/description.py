@@ -167,7 +167,7 @@ class ConnectOptions(TypedDict, total=False):
             "connect",
         ),
     ]
-    # Every link's (BaseLink's).
+    # Every link's (Link's).
     reconnect: Annotated[
         bool,
         Option(

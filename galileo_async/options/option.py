@@ -10,7 +10,7 @@ from .checks import Check
 
 __all__ = ["LINK_KINDS", "OWNERS", "Option", "Owner"]
 
-#: The link kinds (transports.link_kind): what a URL opens.
+#: The built-in link kinds (links.link_kind): what a URL opens.
 LINK_KINDS = ("serial", "socket", "udp", "sim", "ros", "http")
 #: Who takes an option: the Robot, connect() itself, or the link.
 Owner = Literal["robot", "connect", "link"]

@@ -11,10 +11,11 @@ from typing import TYPE_CHECKING, Any
 
 from .._checks import hide_secrets
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, InvalidArgument
+from ..links import open_link
 from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import loop_clock, open_link
+from ..transports import loop_clock
 from .control_server import control_operations, serve_control
 from .options import check_connect_options
 from .robot import Robot
@@ -62,7 +63,7 @@ class Connection:
         shown = hide_secrets(self.url)  # a password or token in the URL is never logged
         running_loop(f"connect({shown!r})")
         options = dict(self._options)
-        robot_options = {n: options.pop(n) for n in list(options) if OPTIONS[n].owner == "robot"}
+        robot_options = {n: options.pop(n) for n in list(options) if _owner(n) == "robot"}
         first_status_timeout = options.pop("first_status_timeout", FIRST_STATUS_TIMEOUT)
         control_socket = options.pop("control_socket", False)
         store = StatusStore(
@@ -95,6 +96,12 @@ class Connection:
             raise
         _log.debug("connected to %s", shown)
         return robot
+
+
+def _owner(name: str) -> str:
+    """Who takes option ``name``; a scheme's own option (a plugin's) is its link's."""
+    option = OPTIONS.get(name)
+    return "link" if option is None else option.owner
 
 
 async def _first_status(store: StatusStore, timeout: float, url: str) -> None:

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import GalileoConnectionError, GalileoTimeout, InvalidArgument
-from ..transports import link_kind
+from ..links import link_kind
 from ..transports.udp import parse_udp_url
 from .operations import DEFAULT_TIMEOUT
 from .stopping import DEFAULT_STOP_TIMEOUT

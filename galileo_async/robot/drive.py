@@ -219,7 +219,7 @@ class DriveSession:
             self._scope.cancel()  # the body ends now, raising CommandSuperseded
         if self._task is not None:
             self._task.cancel()
-        stop: Command = Velocity(0.0, 0.0) if self._ops.link.carries_velocity else Stop()
+        stop: Command = Velocity(0.0, 0.0) if self._ops.link.capabilities.velocity else Stop()
         try:
             self._stop_written = self._ops.link.enqueue(stop)
         except GalileoConnectionError as exc:
@@ -269,7 +269,7 @@ class DriveSession:
 
     def _encode(self, linear: float, angular: float) -> list[tuple[Command, _Replaced]]:
         """One write's commands, each with what replaces it queued; InvalidArgument past 100 %."""
-        if self._ops.link.carries_velocity:
+        if self._ops.link.capabilities.velocity:
             return [(Velocity(linear, angular), (Stop, Velocity))]
         commands = speed_commands(
             linear, angular, max_linear=self._limits.linear, max_angular=self._limits.angular

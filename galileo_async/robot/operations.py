@@ -23,7 +23,7 @@ from ..errors import (
     WrongEventLoop,
 )
 from ..events import AbandonedGoalCancelled
-from ..models import GalileoStatus
+from ..models import GalileoStatus, LinkState
 from ..protocol import ApiCall, Backward, Cancel, Command, Forward, Goto, TurnLeft, TurnRight
 from .follower import Confirm, Follower, Predicate, Sent, task_of
 from .runtime import Deadline
@@ -31,7 +31,7 @@ from .supersede import Supersession
 
 if TYPE_CHECKING:
     from ..state.store import StatusStore
-    from ..transports import BaseLink
+    from ..transports import AnyLink
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
@@ -91,7 +91,7 @@ class Operations:
     drive session in the way of a goal, and the user's stops (its Supersession).
     """
 
-    def __init__(self, link: BaseLink, store: StatusStore) -> None:
+    def __init__(self, link: AnyLink, store: StatusStore) -> None:
         self.link = link
         self.store = store
         #: What a user stop reaches: waiting drive/goal commands, the drive session, motions.
@@ -243,7 +243,10 @@ class Operations:
 
     def check_link(self, what: str) -> None:
         """Raise LinkStale or ConnectionLost, saying nothing was sent, while the link is down."""
-        error = self.store.link_error
+        state = self.link.state
+        if state is not LinkState.STALE and state is not LinkState.LOST:
+            return
+        error = self.link.error
         if error is None:
             return
         message = f"{what}: nothing was sent: {error}"

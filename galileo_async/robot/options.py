@@ -6,8 +6,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from .._checks import naming
+from ..links import check_link_options
 from ..options import OPTIONS, OWNERS, check_values
-from ..transports import check_link_options
 
 __all__ = ["CONNECT_OPTIONS", "ROBOT_OPTIONS", "check_connect_options", "check_robot_options"]
 

@@ -36,7 +36,7 @@ from ..protocol import (
 from ..state.listeners import EventListener, StatusListener
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import BaseLink, LinkState, LinkStats
+from ..transports import AnyLink, LinkState, LinkStats
 from ..transports.follow import LinkStateStream
 from .drive import (
     DEFAULT_DRIVE_RATE,
@@ -108,7 +108,7 @@ class Robot:
 
     def __init__(
         self,
-        link: BaseLink,
+        link: AnyLink,
         store: StatusStore,
         *,
         map_targets: int | None = None,
@@ -139,7 +139,9 @@ class Robot:
         self._goals = GoalRunner(ops)
         self._targets = DynamicTargets(ops, map_targets)
         self._patrol, self._mapping, self._charging = Patrol(ops), Mapping(ops), Charging(ops)
-        self.http: HttpPart | None = HttpPart(ops, self._goto) if link.carries_api_calls else None
+        self.http: HttpPart | None = (
+            HttpPart(ops, self._goto) if link.capabilities.rest_api else None
+        )
         #: Awaited first on close: what serves this Robot to others (the control socket).
         self._closers: list[Callable[[], Awaitable[None]]] = []
         OPEN_ROBOTS.add(self)
@@ -275,11 +277,11 @@ class Robot:
         """Send any command object as is, after busy back-off; nothing is confirmed."""
         if not isinstance(command, Command):
             raise InvalidArgument(f"expected a protocol command object, got {command!r}")
-        if isinstance(command, Velocity) and not self._link.carries_velocity:
+        if isinstance(command, Velocity) and not self._link.capabilities.velocity:
             raise InvalidArgument("a Velocity goes over ros:// only; use drive() on this link")
-        if isinstance(command, PoseGoal) and not self._link.carries_pose_goals:
+        if isinstance(command, PoseGoal) and not self._link.capabilities.pose_goals:
             raise InvalidArgument("a PoseGoal goes over http:// only; use goto_point()")
-        if isinstance(command, ApiCall) and not self._link.carries_api_calls:
+        if isinstance(command, ApiCall) and not self._link.capabilities.rest_api:
             raise InvalidArgument("an ApiCall goes over http:// only (robot.http is None here)")
         await self._ops.send_unconfirmed(command, f"send({command!r})", timeout)
 
@@ -457,7 +459,7 @@ class Robot:
         """
         command = AddTarget(x, y)  # validate before anything is sent
         self._ops.check_not_driving("goto_point")
-        if self._link.carries_pose_goals:  # http://: one nav task, followed as target -2
+        if self._link.capabilities.pose_goals:  # http://: one nav task, followed as target -2
             result = await self._goto(PoseGoal(x=x, y=y), timeout, None, progress_timeout,
                                       cancel_on_exit)  # fmt: skip
             return landed_at(result, x, y, self.arrive_tolerance)

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
-from ..models import GalileoStatus
+from ..models import GalileoStatus, LinkState
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, HostGoal, step_events
 from .listeners import Listeners
 from .streams import (
@@ -201,36 +201,27 @@ class StatusStore(Listeners):
             if not future.done():
                 future.set_result(None)
 
-    def connection_lost(self, exc: GalileoConnectionError) -> None:
-        """The transport dropped: fail every waiter and watch at once with ``exc``."""
-        was_lost = isinstance(self._link_error, ConnectionLost)
-        self._link_error = exc
-        self._fail_all(exc)
-        if not was_lost:
-            self._emit(ev.ConnectionLostEvent(status=self.status, reason=str(exc)))
-
-    def connection_restored(self) -> None:
-        """Valid frames arrive again after a drop (no-op unless it was lost)."""
-        if self._link_error is None:
-            return
-        was_lost = isinstance(self._link_error, ConnectionLost)
-        self._link_error = None
-        if was_lost:
-            self._emit(ev.ConnectionRestored(status=self.status))
-
-    def link_stale(self, exc: LinkStale) -> None:
-        """No frame for too long: fail every waiter and watch with ``exc``; emit LinkStaleEvent."""
-        if self._link_error is not None:
-            return
-        self._link_error = exc
-        self._fail_all(exc)
-        self._emit(ev.LinkStaleEvent(status=self.status, silent_for=exc.silent_for))
-
-    def link_fresh(self) -> None:
-        """Frames arrive again after the link was stale."""
-        if isinstance(self._link_error, LinkStale):
-            self._link_error = None
-            self._emit(ev.LinkRestored(status=self.status))
+    def link_changed(self, state: LinkState, error: GalileoConnectionError | None) -> None:
+        """LOST or STALE fail every waiter and watch with ``error``; each event once per spell."""
+        # LOST comes again at each further drop of one outage (a reopened port that died).
+        if state is LinkState.LOST and error is not None:
+            was_lost = isinstance(self._link_error, ConnectionLost)
+            self._link_error = error
+            self._fail_all(error)
+            if not was_lost:
+                self._emit(ev.ConnectionLostEvent(status=self.status, reason=str(error)))
+        elif state is LinkState.STALE and isinstance(error, LinkStale):
+            if self._link_error is not None:
+                return
+            self._link_error = error
+            self._fail_all(error)
+            self._emit(ev.LinkStaleEvent(status=self.status, silent_for=error.silent_for))
+        elif state is LinkState.UP:
+            previous, self._link_error = self._link_error, None
+            if isinstance(previous, ConnectionLost):
+                self._emit(ev.ConnectionRestored(status=self.status))
+            elif isinstance(previous, LinkStale):
+                self._emit(ev.LinkRestored(status=self.status))
 
     def close(self) -> None:
         """End every iterator; fail every waiter with the drop that ended the link, if any."""

@@ -1,13 +1,15 @@
-"""Transports: bytes to and from the robot on asyncio's own transports, paced, supervised, counted.
+"""Transports: the one Link over small async channels, paced, supervised, counted.
 
-One asyncio.Protocol (StreamLink) over serial, ``socket://`` and ``sim://``; BaseLink holds
-what every link shares (the one writer, reconnect, the stale timer); ``urls`` is the one URL
-switch, also used by the CLI.
+``Link`` owns what every link shares (the queue, the one writer, reconnect, the stale timer,
+the LinkState); a ``Channel`` connects one kind: ``StreamChannel`` (serial, ``socket://``,
+``sim://``) and ``UdpChannel`` (``udp://``). Which URL opens which channel is
+``galileo_async.links``, the scheme table above every link kind.
 """
 
 from __future__ import annotations
 
-from .base import BaseLink
+from .base import AnyLink, BaseLink
+from .channel import Capabilities, Channel, Feed
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -18,6 +20,7 @@ from .connectors import (
     translate_errors,
 )
 from .follow import LinkStateStream
+from .link import Link
 from .options import (
     CLOSE_TIMEOUT,
     DEFAULT_DRAIN_TIMEOUT,
@@ -28,11 +31,12 @@ from .options import (
     DEFAULT_STALE_RECONNECT,
     DEFAULT_STALE_TIMEOUT,
     LINK_OPTIONS,
+    PORTABLE_OPTIONS,
     STREAM_OPTIONS,
 )
 from .stats import LinkState, LinkStats, StatusSink, loop_clock
-from .stream import StreamLink
-from .urls import URL_SCHEMES, byte_connector, check_link_options, link_kind, open_link, url_forms
+from .stream import StreamChannel
+from .udp import UdpChannel
 
 __all__ = [
     "CLOSE_TIMEOUT",
@@ -46,23 +50,24 @@ __all__ = [
     "DEFAULT_STALE_RECONNECT",
     "DEFAULT_STALE_TIMEOUT",
     "LINK_OPTIONS",
+    "PORTABLE_OPTIONS",
     "STREAM_OPTIONS",
-    "URL_SCHEMES",
+    "AnyLink",
     "BaseLink",
+    "Capabilities",
+    "Channel",
     "Connector",
+    "Feed",
+    "Link",
     "LinkState",
     "LinkStateStream",
     "LinkStats",
     "StatusSink",
-    "StreamLink",
-    "byte_connector",
-    "check_link_options",
-    "link_kind",
+    "StreamChannel",
+    "UdpChannel",
     "loop_clock",
-    "open_link",
     "parse_socket_url",
     "serial_connector",
     "socket_connector",
     "translate_errors",
-    "url_forms",
 ]

@@ -1,4 +1,8 @@
-"""BaseLink: one paced writer, reconnect with back-off, a stale-link watchdog and stats."""
+"""BaseLink: the link of the HTTP and ROS kinds until they become channels under Link.
+
+One paced writer, reconnect with back-off, a stale-link watchdog and stats, for
+subclasses with a synchronous ``_write``; ``capabilities`` is computed from their flags.
+"""
 
 from __future__ import annotations
 
@@ -7,22 +11,22 @@ import asyncio
 import logging
 from collections import deque
 from collections.abc import Callable
-from typing import ClassVar
+from typing import ClassVar, TypeAlias
 
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import GalileoStatus
 from ..protocol import Command
 from . import options as _options
+from .channel import Capabilities
 from .follow import LinkStateFollowers, LinkStateStream
+from .link import Link
 from .queue import CommandQueue, Pending
 from .stats import LinkState, LinkStats, StatusSink, loop_clock
 from .watchdog import StaleWatchdog
 
-__all__ = ["BaseLink", "frames_log"]
+__all__ = ["AnyLink", "BaseLink"]
 
 _log = logging.getLogger(__name__)
-#: Raw frames in hex, both directions, at DEBUG only.
-frames_log = logging.getLogger("galileo_async.transports.frames")
 
 
 class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
@@ -89,11 +93,26 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         self._connected_at = 0.0
         self._opened = False
         self._state = LinkState.CONNECTING
+        self._error: GalileoConnectionError | None = None
         self._followers = LinkStateFollowers()
         #: The wait before the next reopen of this outage; None: the first is reconnect_initial.
         self._backoff: float | None = None
         self._closing = False
         self._closed = asyncio.Event()
+
+    @property
+    def capabilities(self) -> Capabilities:
+        """What the link can do, from its class flags (as Link.capabilities)."""
+        return Capabilities(
+            velocity=self.carries_velocity,
+            pose_goals=self.carries_pose_goals,
+            rest_api=self.carries_api_calls,
+        )
+
+    @property
+    def error(self) -> GalileoConnectionError | None:
+        """Why the link is STALE or LOST (as Link.error); None otherwise."""
+        return self._error
 
     @property
     def connected(self) -> bool:
@@ -192,7 +211,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
                 await asyncio.wait(tasks, timeout=_options.CLOSE_TIMEOUT)
             self._writer_task = self._reconnect_task = None
             self._fail_pending(ConnectionLost("the link is closed"))
-            self.stats.connected = False
+            self.stats.transport_open = False
             try:
                 await asyncio.wait_for(self._disconnect(), _options.CLOSE_TIMEOUT)
             except (asyncio.TimeoutError, GalileoConnectionError, OSError) as exc:
@@ -222,35 +241,33 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
         previous = self._state
         if previous is LinkState.CLOSED:
             return
-        self.stats.stale = False
         self._set_state(LinkState.UP)
+        self._error = None
         if previous is LinkState.CONNECTING:
             return  # the watchdog runs from the connection's start
         if previous is LinkState.STALE:
             _log.info("link fresh again")
-            self.store.link_fresh()
         else:  # lost: frames, not a reopened port, end the outage
             self._backoff = None
             _log.info("status frames again: connection restored")
-            self.store.connection_restored()
+        self.store.link_changed(LinkState.UP, None)
         self._arm_watchdog(self._stale_deadline(self.stats.clock()))
 
     def _on_lost(self, exc: BaseException | None) -> None:
         """The transport dropped (EOF, close or error): fail waiters, then reconnect."""
         if self._closing or not self.stats.connected:
             return
-        self.stats.connected = False
-        self.stats.stale = False
+        self.stats.transport_open = False
         self._cancel_watchdog()
         reason = f"connection lost: {exc}" if exc is not None else "connection closed by the peer"
-        error = ConnectionLost(reason)
+        error = self._error = ConnectionLost(reason)
         if self._state is LinkState.LOST:  # a reopened port that never answered: same outage
             _log.info("%s (no status frame since the reopen)", reason)
         else:
             self._set_state(LinkState.LOST)
             _log.warning("%s", reason)
         self._fail_pending(error)
-        self.store.connection_lost(error)  # reports an outage once, however often it drops
+        self.store.link_changed(LinkState.LOST, error)  # the store reports an outage once
         if self.reconnect:
             self._reconnect_task = asyncio.get_running_loop().create_task(
                 self._reconnect_loop(), name=f"{self!r} reconnect"
@@ -262,8 +279,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
     # --- internals -------------------------------------------------------------------------
 
     def _on_connected(self) -> None:
-        self.stats.connected = True
-        self.stats.stale = False
+        self.stats.transport_open = True
         self._connected_at = self.stats.clock()
         # A lost link stays lost until a valid frame comes (_fresh_again): a port reopens
         # fine when the node behind it is dead.
@@ -368,3 +384,7 @@ class BaseLink(CommandQueue, StaleWatchdog, abc.ABC):
             self._last_write = self.stats.clock()
             self.stats.commands_sent += 1
             future.set_result(True)
+
+
+#: Any robot link while the http:// and ros:// kinds are still BaseLinks.
+AnyLink: TypeAlias = "Link | BaseLink"

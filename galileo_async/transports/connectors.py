@@ -1,4 +1,4 @@
-"""Connectors: coroutines that open a byte transport (serial, TCP) for StreamLink."""
+"""Connectors: coroutines that open a byte transport (serial, TCP) for StreamChannel."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from ..errors import GalileoConnectionError, LinkStale
+from ..errors import GalileoConnectionError
 from ..models import GalileoStatus, LinkState, StatusLayout
 from ..protocol import DecoderStats
 
@@ -27,8 +27,9 @@ def loop_clock() -> Callable[[], float]:
 class LinkStats:
     """Counters and health of one link (read by users as ``robot.link``).
 
-    ``state`` is the link's LinkState (BaseLink keeps it; follow it with
-    ``Robot.link_states()``); ``connected`` tells only that the transport is open.
+    ``state`` is the link's LinkState (the link keeps it; follow it with
+    ``Robot.link_states()``); ``stale`` and ``connected`` derive from it and from
+    ``transport_open`` (only the link writes both).
 
     A byte link's decoder counts frames, discards, resyncs, lost frames, counter resets
     and the layout into ``decoder``; they read through as this object's own attributes.
@@ -38,8 +39,9 @@ class LinkStats:
     bytes_received: int
     reconnects: int
     commands_sent: int
-    connected: bool
-    stale: bool
+    #: The transport is open (a reopened port with no status yet included); read
+    #: ``connected`` (it is shown as that).
+    transport_open: bool = field(repr=False)
     state: LinkState
     last_frame_at: float | None = field(repr=False)
     #: The clock of last_frame_at: the link's event loop time once it opened.
@@ -53,22 +55,33 @@ class LinkStats:
         reconnects: int = 0,
         commands_sent: int = 0,
         connected: bool = False,
-        stale: bool = False,
         state: LinkState = LinkState.CONNECTING,
         last_frame_at: float | None = None,
         clock: Callable[[], float] = time.monotonic,
         **decoder_counts: Any,
     ) -> None:
-        """``decoder_counts``: DecoderStats fields (``frames=3``) when ``decoder`` is None."""
+        """``decoder_counts``: DecoderStats fields (``frames=3``) when ``decoder`` is None.
+
+        ``connected``: the transport is open (``transport_open``).
+        """
         self.decoder = DecoderStats(**decoder_counts) if decoder is None else decoder
         self.bytes_received = bytes_received
         self.reconnects = reconnects
         self.commands_sent = commands_sent
-        self.connected = connected
-        self.stale = stale
+        self.transport_open = connected
         self.state = state
         self.last_frame_at = last_frame_at
         self.clock = clock
+
+    @property
+    def connected(self) -> bool:
+        """True while the transport is up (the link not closed)."""
+        return self.transport_open and self.state is not LinkState.CLOSED
+
+    @property
+    def stale(self) -> bool:
+        """True while the link is STALE: open, but no valid status for stale_timeout."""
+        return self.state is LinkState.STALE
 
     @property
     def frames(self) -> int:
@@ -114,17 +127,8 @@ class StatusSink(Protocol):
     def update(self, status: GalileoStatus) -> None:
         """One valid status, in arrival order."""
 
-    def connection_lost(self, exc: GalileoConnectionError) -> None:
-        """The transport dropped."""
-
-    def connection_restored(self) -> None:
-        """Valid statuses arrive again after the transport dropped."""
-
-    def link_stale(self, exc: LinkStale) -> None:
-        """No valid status for stale_timeout."""
-
-    def link_fresh(self) -> None:
-        """Valid statuses arrive again after the link was stale."""
+    def link_changed(self, state: LinkState, error: GalileoConnectionError | None) -> None:
+        """The link is now LOST (ConnectionLost), STALE (LinkStale) or UP again (None)."""
 
     def close(self) -> None:
         """Nothing will be fed any more."""

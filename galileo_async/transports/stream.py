@@ -1,4 +1,4 @@
-"""StreamLink: status bytes from an asyncio transport through protocol.StatusDecoder."""
+"""StreamChannel: status bytes from an asyncio transport through protocol.StatusDecoder."""
 
 from __future__ import annotations
 
@@ -11,17 +11,15 @@ from typing import Any, cast
 
 from ..errors import ConnectionLost, GalileoConnectionError
 from ..models import StatusLayout
-from ..protocol import Command, StatusDecoder, encode
-from .base import BaseLink, frames_log
+from ..protocol import Command, DecoderStats, StatusDecoder, encode
+from .channel import Capabilities, Channel, Feed, frames_log
 from .connectors import Connector, translate_errors
 from .options import CLOSE_TIMEOUT
-from .stats import LinkState, StatusSink
 
-__all__ = ["StreamLink"]
+__all__ = ["StreamChannel"]
 
 _log = logging.getLogger(__name__)
 _DEBUG = logging.DEBUG
-_UP = LinkState.UP
 #: Most bytes one socket read takes (the rest waits for the next loop turn); 46 v2 frames.
 READ_SIZE = 4096
 
@@ -51,7 +49,7 @@ def _read_buffer(loop: asyncio.AbstractEventLoop) -> tuple[bytearray, memoryview
 
 
 class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
-    """Forwards one transport's bytes and its loss to the link that made it.
+    """Forwards one transport's bytes and its loss to the channel that made it.
 
     Sockets read into their loop's read buffer (BufferedProtocol): a plain Protocol is
     handed a fresh bytes object per read, which asyncio allocates at 256 KiB and shrinks,
@@ -60,14 +58,16 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     connectors call data_received.
     """
 
-    __slots__ = ("_buffer", "_decoder", "_link", "_stats", "_update", "_view", "current", "lost")
+    __slots__ = (
+        "_buffer", "_channel", "_decoder", "_received", "_stats", "_view", "current", "lost"
+    )  # fmt: skip
 
-    def __init__(self, link: StreamLink, loop: asyncio.AbstractEventLoop) -> None:
-        self._link = link
-        self._decoder = link.decoder
-        self._stats = link.stats
-        self._update = link.store.update
-        #: False once the link has replaced or dropped this protocol: late reads are ignored.
+    def __init__(self, channel: StreamChannel, feed: Feed, loop: asyncio.AbstractEventLoop) -> None:
+        self._channel = channel
+        self._decoder = channel.decoder
+        self._stats = feed.stats
+        self._received = feed.received
+        #: False once the channel has replaced or dropped this protocol: late reads are ignored.
         self.current = True
         self.lost: asyncio.Future[None] = loop.create_future()
         self._buffer, self._view = _read_buffer(loop)
@@ -89,14 +89,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         # Read in place: the decoder copies whatever it holds back, never keeps the buffer.
         statuses = self._decoder.feed_from(buffer, nbytes)  # counts into the link's stats
         if statuses:
-            # BaseLink._on_status for a whole read, inlined.
-            stats = self._stats
-            stats.last_frame_at = stats.clock()
-            if self._link._state is not _UP:
-                self._link._fresh_again()
-            update = self._update
-            for status in statuses:
-                update(status)
+            self._received(statuses)
 
     def data_received(self, data: bytes | bytearray) -> None:
         if not self.current:
@@ -106,13 +99,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
             frames_log.debug("rx %s", data.hex(" "))
         statuses = self._decoder.feed_from(data, len(data))
         if statuses:
-            stats = self._stats
-            stats.last_frame_at = stats.clock()
-            if self._link._state is not _UP:
-                self._link._fresh_again()
-            update = self._update
-            for status in statuses:
-                update(status)
+            self._received(statuses)
 
     def eof_received(self) -> bool | None:
         return None  # let the transport close itself: EOF is a drop
@@ -120,49 +107,62 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     def connection_lost(self, exc: Exception | None) -> None:
         if not self.lost.done():
             self.lost.set_result(None)
-        self._link._on_transport_lost(self, exc)
+        self._channel._on_transport_lost(self, exc)
 
 
-class StreamLink(BaseLink):
-    """A link over any byte transport: serial, TCP, pty or an in-memory pair."""
+class StreamChannel(Channel):
+    """The channel of any byte transport: serial, TCP, pty or an in-memory pair."""
 
     __slots__ = (
-        "_closers", "_connector", "_protocol", "_transport", "decoder", "name", "simulator"
+        "_closers", "_connector", "_feed", "_protocol", "_transport", "decoder", "name",
+        "simulator",
     )  # fmt: skip
+
+    capabilities = Capabilities(byte_stream=True)
 
     def __init__(
         self,
-        store: StatusSink,
         connector: Connector,
         *,
         layout: StatusLayout | str | None = None,
         name: str | None = None,
-        **base_options: Any,
     ) -> None:
-        super().__init__(store, **base_options)
         self.name = name
-        self.decoder = StatusDecoder(layout, stats=self.stats.decoder)
+        self.decoder = StatusDecoder(layout)
         #: The in-process simulator behind a ``sim://`` link, else None.
         self.simulator: Any = None
         self._connector = connector
+        self._feed: Feed | None = None
         self._transport: asyncio.WriteTransport | None = None
         self._protocol: _StreamProtocol | None = None
         self._closers: list[Callable[[], Awaitable[None]]] = []
 
     def __repr__(self) -> str:
-        return f"<StreamLink {self.name or 'custom'}>"
+        return f"<StreamChannel {self.name or 'custom'}>"
+
+    @property
+    def decoder_stats(self) -> DecoderStats:
+        """The decoder's counters."""
+        return self.decoder.stats
+
+    @property
+    def transport(self) -> asyncio.WriteTransport | None:
+        """The asyncio transport written to while open, else None."""
+        return self._transport
 
     def map_target_count(self) -> int | None:
         """The in-process simulator's map size on ``sim://``; else None (serial cannot tell)."""
         return None if self.simulator is None else len(self.simulator.config.targets)
 
     def add_closer(self, closer: Callable[[], Awaitable[None]]) -> None:
-        """Await ``closer()`` when the link closes (for resources the link owns)."""
+        """Await ``closer()`` when the channel closes (for resources the link owns)."""
         self._closers.append(closer)
 
-    async def _connect(self) -> None:
+    async def open(self, feed: Feed) -> None:
+        """Open the transport through the connector; report to ``feed``."""
         loop = asyncio.get_running_loop()
-        protocol = _StreamProtocol(self, loop)
+        self._feed = feed
+        protocol = _StreamProtocol(self, feed, loop)
         self.decoder.reset()
         # Current before the connector returns: bytes may arrive before it does.
         self._set_protocol(protocol)
@@ -180,7 +180,8 @@ class StreamLink(BaseLink):
             )
         self._transport = cast(asyncio.WriteTransport, transport)
 
-    def _write(self, command: Command) -> None:
+    async def write(self, command: Command) -> None:
+        """Hand one command's bytes to the transport (one write)."""
         transport = self._transport
         if transport is None or transport.is_closing():
             raise ConnectionLost("not connected")
@@ -189,7 +190,26 @@ class StreamLink(BaseLink):
             frames_log.debug("tx %s %s", data.hex(" "), command)
         transport.write(data)
 
-    async def _disconnect(self) -> None:
+    def pending_bytes(self) -> int:
+        """What the transport buffered unsent (0 if it cannot tell)."""
+        transport = self._transport
+        if transport is None:
+            return 0
+        try:
+            return transport.get_write_buffer_size()
+        except NotImplementedError:  # a transport that cannot tell gets no flow control
+            return 0
+
+    def abandon(self, reason: str) -> None:
+        """Abort the transport; its late loss is not reported."""
+        transport = self._transport
+        self._transport = None
+        self._set_protocol(None)
+        if transport is not None:
+            transport.abort()
+
+    async def close(self) -> None:
+        """Close the transport (bounded), then the closers."""
         transport, protocol = self._transport, self._protocol
         self._transport = None
         self._set_protocol(None)
@@ -214,7 +234,8 @@ class StreamLink(BaseLink):
             return
         self._transport = None
         self._set_protocol(None)
-        self._on_lost(exc)
+        if self._feed is not None:
+            self._feed.lost(exc)
 
     def _set_protocol(self, protocol: _StreamProtocol | None) -> None:
         """Make ``protocol`` the current one; the one it replaces ignores late reads."""

@@ -1,9 +1,9 @@
-"""UdpLink: the robot's UDP port 20001 (system_monitor) on asyncio's datagram transport.
+"""UdpChannel: the robot's UDP port 20001 (system_monitor) on asyncio's datagram transport.
 
 The robot streams its status to the source address of the last datagram it received and
-to nobody else (docs/protocol.md §7.4): the link registers with ``cd eb d7 00`` (a valid frame
-that does nothing) on every (re)connect and whenever it turns stale, and a stale link
-says that another host may have taken the stream.
+to nobody else (docs/protocol.md §7.4): the channel registers with ``cd eb d7 00`` (a
+valid frame that does nothing) on every (re)connect and whenever it turns stale, and a
+stale link says that another host may have taken the stream.
 """
 
 from __future__ import annotations
@@ -14,13 +14,12 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
-from ..protocol import HEADER, Command, RawCommand, UdpStatusDecoder, encode
-from .base import BaseLink, frames_log
+from ..protocol import HEADER, Command, DecoderStats, RawCommand, UdpStatusDecoder, encode
+from .channel import Capabilities, Channel, Feed, frames_log
 from .connectors import parse_host_port, translate_errors
 from .options import CLOSE_TIMEOUT
-from .stats import LinkState, StatusSink
 
-__all__ = ["DEFAULT_UDP_PORT", "REGISTRATION", "UdpLink", "check_datagram", "parse_udp_url"]
+__all__ = ["DEFAULT_UDP_PORT", "REGISTRATION", "UdpChannel", "check_datagram", "parse_udp_url"]
 
 _log = logging.getLogger(__name__)
 
@@ -52,70 +51,64 @@ def check_datagram(command: Command) -> None:
 
 
 class _DatagramProtocol(asyncio.DatagramProtocol):
-    """Hands one endpoint's datagrams, errors and closing to the link that made it."""
+    """Hands one endpoint's datagrams, errors and closing to the channel that made it."""
 
-    __slots__ = ("_link", "current", "lost")
+    __slots__ = ("_channel", "current", "lost")
 
-    def __init__(self, link: UdpLink, loop: asyncio.AbstractEventLoop) -> None:
-        self._link = link
-        #: False once the link has replaced or dropped this endpoint: late datagrams are ignored.
+    def __init__(self, channel: UdpChannel, loop: asyncio.AbstractEventLoop) -> None:
+        self._channel = channel
+        #: False once the channel replaced or dropped this endpoint: late datagrams are ignored.
         self.current = True
         self.lost: asyncio.Future[None] = loop.create_future()
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         if self.current:
-            self._link._on_datagram(data)
+            self._channel._on_datagram(data)
 
     def error_received(self, exc: Exception) -> None:
         if self.current:
-            self._link._on_error(exc)
+            self._channel._on_error(exc)
 
     def connection_lost(self, exc: Exception | None) -> None:
         if not self.lost.done():
             self.lost.set_result(None)
         if self.current:
-            self._link._on_endpoint_lost(self, exc)
+            self._channel._on_endpoint_lost(self, exc)
 
 
-class UdpLink(BaseLink):
-    """A link to the robot's UDP port: one command per datagram, status from the robot's port."""
+class UdpChannel(Channel):
+    """The robot's UDP port: one command per datagram, status from the robot's port."""
 
-    __slots__ = ("_protocol", "_refused", "_transport", "decoder", "host", "name", "port")
+    __slots__ = ("_feed", "_protocol", "_refused", "_transport", "decoder", "host", "name", "port")
 
-    def __init__(
-        self,
-        store: StatusSink,
-        host: str,
-        port: int = DEFAULT_UDP_PORT,
-        *,
-        name: str | None = None,
-        **base_options: Any,
-    ) -> None:
-        super().__init__(store, **base_options)
+    capabilities = Capabilities()
+
+    def __init__(self, host: str, port: int = DEFAULT_UDP_PORT, *, name: str | None = None) -> None:
         self.host, self.port = host, port
         self.name = name or f"udp://{host}:{port}"
-        self.decoder = UdpStatusDecoder(stats=self.stats.decoder)
+        self.decoder = UdpStatusDecoder()
+        self._feed: Feed | None = None
         self._transport: asyncio.DatagramTransport | None = None
         self._protocol: _DatagramProtocol | None = None
         #: An ICMP error (port unreachable) came since the last valid frame.
         self._refused: Exception | None = None
 
     def __repr__(self) -> str:
-        return f"<UdpLink {self.name}>"
+        return f"<UdpChannel {self.name}>"
 
-    def enqueue(
-        self,
-        command: Command,
-        *,
-        superseded_by: tuple[type[Command], ...] = (),
-        written: asyncio.Future[bool] | None = None,
-    ) -> asyncio.Future[bool]:
-        """As BaseLink's, after refusing (InvalidArgument) a command the UDP service dies of."""
+    @property
+    def decoder_stats(self) -> DecoderStats:
+        """The decoder's counters."""
+        return self.decoder.stats
+
+    def accepts(self, command: Command) -> None:
+        """InvalidArgument for a command the robot's UDP service dies of (check_datagram)."""
         check_datagram(command)
-        return super().enqueue(command, superseded_by=superseded_by, written=written)
 
-    async def _connect(self) -> None:
+    async def open(self, feed: Feed) -> None:
+        """Open a connected datagram endpoint and register with the robot."""
         loop = asyncio.get_running_loop()
+        self._feed = feed
         protocol = _DatagramProtocol(self, loop)
         self._drop_endpoint()
         self._protocol = protocol
@@ -146,7 +139,8 @@ class UdpLink(BaseLink):
             frames_log.debug("tx %s (registration)", REGISTRATION.hex(" "))
         transport.sendto(REGISTRATION)
 
-    def _write(self, command: Command) -> None:
+    async def write(self, command: Command) -> None:
+        """Send one command as one datagram."""
         transport = self._transport
         if transport is None or transport.is_closing():
             raise ConnectionLost("not connected")
@@ -155,29 +149,24 @@ class UdpLink(BaseLink):
             frames_log.debug("tx %s %s", data.hex(" "), command)
         transport.sendto(data)
 
-    def _write_buffer_size(self) -> int:
+    def pending_bytes(self) -> int:
+        """What the datagram transport buffered unsent."""
         transport = self._transport
         # asyncio's datagram transports have it; the DatagramTransport interface does not.
         size = getattr(transport, "get_write_buffer_size", None)
         return 0 if size is None else int(size())
 
     def _on_datagram(self, data: bytes) -> None:
-        stats = self.stats
-        stats.bytes_received += len(data)
+        feed = self._feed
+        if feed is None:
+            return
+        feed.stats.bytes_received += len(data)
         if frames_log.isEnabledFor(logging.DEBUG):
             frames_log.debug("rx %s", data.hex(" "))
         statuses = self.decoder.feed(data)  # counts into the link's stats
         if statuses:
-            # BaseLink._on_status for a whole datagram, the decoder having counted already.
             self._refused = None
-            stats.last_frame_at = stats.clock()
-            # Not only after a stale spell: the first frame after connecting, or after an
-            # outage that gave the socket up (a new one registered), brings the link UP too.
-            if self._state is not LinkState.UP:
-                self._fresh_again()
-            update = self.store.update
-            for status in statuses:
-                update(status)
+            feed.received(statuses)
 
     def _on_error(self, exc: Exception) -> None:
         # On a connected socket an ICMP port unreachable arrives as ConnectionRefusedError:
@@ -185,7 +174,8 @@ class UdpLink(BaseLink):
         _log.debug("%s: %r", self.name, exc)
         self._refused = exc
 
-    def _stale_message(self, silent: float) -> str:
+    def stale_message(self, silent: float) -> str:
+        """Silence on UDP: another host may have taken the stream, or the robot is away."""
         cause = (
             f"; the robot refused our datagrams ({self._refused})"
             if self._refused is not None
@@ -197,20 +187,21 @@ class UdpLink(BaseLink):
             f"robot is unreachable{cause}"
         )
 
-    def _on_stale(self) -> None:
-        # Take the stream back (or restart it after the robot's service restarted).
+    def on_stale(self) -> None:
+        """Take the stream back (or restart it after the robot's service restarted)."""
         self._register()
 
-    def _abandon(self, reason: str) -> None:
+    def abandon(self, reason: str) -> None:
+        """Drop the endpoint; the next open makes a new one."""
         self._drop_endpoint()
-        self._on_lost(ConnectionLost(reason))
 
     def _on_endpoint_lost(self, protocol: _DatagramProtocol, exc: Exception | None) -> None:
         if protocol is not self._protocol:
             return
         self._transport = None
         self._protocol = None
-        self._on_lost(exc)
+        if self._feed is not None:
+            self._feed.lost(exc)
 
     def _drop_endpoint(self) -> None:
         """Close the current endpoint, if any, without reporting it as lost."""
@@ -221,7 +212,8 @@ class UdpLink(BaseLink):
         if transport is not None:
             transport.abort()
 
-    async def _disconnect(self) -> None:
+    async def close(self) -> None:
+        """Close the endpoint (bounded)."""
         transport, protocol = self._transport, self._protocol
         self._transport = self._protocol = None
         if protocol is not None:

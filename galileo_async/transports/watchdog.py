@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 
-from ..errors import LinkStale
+from ..errors import GalileoConnectionError, LinkStale
 from .stats import LinkState, LinkStats, StatusSink
 
 __all__ = ["StaleWatchdog"]
@@ -17,8 +17,9 @@ class StaleWatchdog:
     """The stale-link half of BaseLink (a mixin: the state is BaseLink's)."""
 
     # Its own slots (the only mixin of BaseLink that has some: one layout per class).
-    __slots__ = ("_state", "_watchdog")
+    __slots__ = ("_error", "_state", "_watchdog")
 
+    _error: GalileoConnectionError | None
     _state: LinkState
     _watchdog: asyncio.TimerHandle | None
 
@@ -83,11 +84,10 @@ class StaleWatchdog:
             if now < alive_since + timeout:  # a frame came since (or the timer ran early)
                 self._arm_watchdog(alive_since + timeout)
                 return
-            self.stats.stale = True
             self._set_state(LinkState.STALE)
-            error = LinkStale(self._stale_message(silent), silent_for=silent)
+            error = self._error = LinkStale(self._stale_message(silent), silent_for=silent)
             _log.warning("%s", error)
-            self.store.link_stale(error)
+            self.store.link_changed(LinkState.STALE, error)
             self._on_stale()
         # A peer that froze or vanished may keep its TCP connection open: give it up.
         if self.stale_reconnect is None:
