@@ -69,7 +69,7 @@ def by_events(
     """The first end of goal TARGET that events() reports, told what this host sent."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(before)
     origin = object()
     store.follow_goal(HostGoal.sent(TARGET, before, origin))
@@ -113,7 +113,7 @@ def ended_twice(before: GalileoStatus, sequence: list[GalileoStatus], send: bool
     between (``send``: this host wrote ``g TARGET`` at ``before``)."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(before)
     if send:
         store.follow_goal(HostGoal.sent(TARGET, before))

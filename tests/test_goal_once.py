@@ -32,7 +32,7 @@ def goal_events(
     """The goal events of events() over ``frames`` (after the first); ``send``: g N before."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(frames[0])
     if send is not None:
         store.follow_goal(HostGoal.sent(send, frames[0]))
@@ -140,7 +140,7 @@ def test_the_distance_of_an_unknown_target_status_is_not_the_goals() -> None:
     frames = [status(distance=2.0), status(state=7, distance=0.1), status(state=0, distance=-1.0)]
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     for frame in frames:
         store.update(frame)
     aborted = [e for e in seen if isinstance(e, ev.GoalAbortedEvent)]

@@ -32,9 +32,7 @@ class Listeners:
     add (adding it twice calls it twice). Tuples: the store's hot path iterates a snapshot.
     """
 
-    __slots__ = (
-        "_event_listeners", "_legacy_event", "_legacy_update", "_update_listeners", "_update_one",
-    )  # fmt: skip
+    __slots__ = ("_event_listeners", "_update_listeners", "_update_one")
 
     def __init__(self) -> None:
         self._update_listeners: tuple[StatusListener, ...] = ()
@@ -42,8 +40,6 @@ class Listeners:
         # a loop, per frame of every robot (BENCHMARKS.md §2).
         self._update_one: StatusListener | None = None
         self._event_listeners: tuple[EventListener, ...] = ()
-        self._legacy_update: StatusListener | None = None
-        self._legacy_event: EventListener | None = None
 
     def add_update_listener(self, listener: StatusListener) -> None:
         """Call ``listener(status)`` with every later recorded status (placeholders are not)."""
@@ -82,34 +78,3 @@ class Listeners:
 
     def _listeners_changed(self) -> None:
         """An event listener went away (the store forgets its event key when none is left)."""
-
-    # --- the single slots of earlier versions, kept as one listener each ------------------
-
-    @property
-    def on_update(self) -> StatusListener | None:
-        """The first status listener, None while none listens; setting it replaces the
-        listener set through it before (others stay: add_update_listener)."""
-        listeners = self._update_listeners
-        return listeners[0] if listeners else None
-
-    @on_update.setter
-    def on_update(self, listener: StatusListener | None) -> None:
-        if self._legacy_update is not None:
-            self.remove_update_listener(self._legacy_update)
-        self._legacy_update = listener
-        if listener is not None:
-            self.add_update_listener(listener)
-
-    @property
-    def on_event(self) -> EventListener | None:
-        """The first event listener, None while none listens (events are not derived then)."""
-        listeners = self._event_listeners
-        return listeners[0] if listeners else None
-
-    def listen_events(self, on_event: EventListener | None) -> None:
-        """Replace the listener set by the previous call with ``on_event`` (None: none)."""
-        if self._legacy_event is not None:
-            self.remove_event_listener(self._legacy_event)
-        self._legacy_event = on_event
-        if on_event is not None:
-            self.add_event_listener(on_event)

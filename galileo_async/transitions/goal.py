@@ -22,14 +22,12 @@ __all__ = [
     "GoalChange",
     "GoalMachine",
     "GoalStep",
-    "GoalTransition",
     "HostGoal",
     "arrived",
     "at_target",
     "end_distance",
     "failed_newly",
     "goal_step",
-    "goal_transition",
     "informs",
     "run_starts",
     "running_distance",
@@ -58,17 +56,9 @@ class GoalChange(Enum):
     REJECTED = "rejected"  # GoalRejected; GoalRejectedEvent
     CANCELLED = "cancelled"  # GoalCancelled; GoalCancelledEvent
     PREEMPTED = "preempted"  # GoalCancelled(preempted=True); GoalCancelledEvent(preempted=True)
-    FAILED = "rejected"  # deprecated alias of REJECTED (its former name)
 
 
 ENDS = frozenset(GoalChange) - {GoalChange.ACCEPTED, GoalChange.PAUSED, GoalChange.RESUMED}
-
-
-class GoalTransition(NamedTuple):
-    """The goal's changes between two statuses, in order; ``distance`` for REACHED/ABORTED."""
-
-    changes: tuple[GoalChange, ...]
-    distance: float | None = None
 
 
 class HostGoal(NamedTuple):
@@ -267,18 +257,6 @@ def _host_result(step: GoalStep, host: HostGoal | None) -> GoalStep:
                 ))  # fmt: skip
             return step._replace(host=None)
     return step if step.host is not None else step._replace(host=host)
-
-
-def goal_transition(
-    prev: GalileoStatus,
-    cur: GalileoStatus,
-    *,
-    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
-    last_distance: float | None = None,
-) -> GoalTransition:
-    """goal_step for a watcher (nothing sent), without the goal ids."""
-    step = goal_step(prev, cur, arrive_tolerance=arrive_tolerance, last_distance=last_distance)
-    return GoalTransition(tuple(c for c, _ in step.changes), step.distance)
 
 
 def run_starts(prev: GalileoStatus, cur: GalileoStatus) -> bool:
