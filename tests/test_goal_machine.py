@@ -1,6 +1,6 @@
 """One goal state machine: goto's verdict and events()' first goal end agree on every sequence.
 
-The same frames (and the same "what this host sent") go to GoalTracker, goto's follower,
+The same frames (and the same "what this process sent") go to GoalTracker, goto's follower,
 and to a StatusStore's events(); both decide by transitions.goal_step.
 """
 
@@ -16,7 +16,7 @@ from galileo_async import events as ev
 from galileo_async.events import Event
 from galileo_async.robot.tracker import GoalTracker, cancelling
 from galileo_async.state import StatusStore
-from galileo_async.transitions import GoalChange, HostGoal, derive_events, goal_step
+from galileo_async.transitions import GoalChange, SentGoal, derive_events, goal_step
 
 TARGET = 3
 TOLERANCE = 0.3
@@ -49,8 +49,8 @@ def by_goto(before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int
     """GoalTracker's verdict on goal TARGET: (frame index, end, detail), None: not ended."""
     tracker = GoalTracker(TARGET, before=before, arrive_tolerance=TOLERANCE)
     for index, status in enumerate(sequence):
-        if index == cancel_at and tracker.host is not None:
-            tracker.host = cancelling(tracker.host)
+        if index == cancel_at and tracker.sent is not None:
+            tracker.sent = cancelling(tracker.sent)
         try:
             if tracker.feed(status):
                 return index, "reached", tracker.distance
@@ -66,16 +66,16 @@ def by_goto(before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int
 def by_events(
     before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None
 ) -> Verdict:
-    """The first end of goal TARGET that events() reports, told what this host sent."""
+    """The first end of goal TARGET that events() reports, told what this process sent."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
     store.add_event_listener(seen.append)
     store.update(before)
     origin = object()
-    store.follow_goal(HostGoal.sent(TARGET, before, origin))
+    store.track_goal(SentGoal.written(TARGET, before, origin))
     for index, status in enumerate(sequence):
         if index == cancel_at:
-            store.revise_goal(origin, cancelling)
+            store.revise_tracked_goal(origin, cancelling)
         store.update(status)
         for event in seen:
             if not isinstance(event, ev.GoalEvent) or event.target_id != TARGET:
@@ -110,13 +110,13 @@ RUN_ENDS = (ev.GoalReached, ev.GoalAbortedEvent, ev.GoalCancelledEvent)
 
 def ended_twice(before: GalileoStatus, sequence: list[GalileoStatus], send: bool) -> list[Any]:
     """Goal ids events() ends twice: a run's end after an end of that id with no GoalAccepted
-    between (``send``: this host wrote ``g TARGET`` at ``before``)."""
+    between (``send``: this process wrote ``g TARGET`` at ``before``)."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
     store.add_event_listener(seen.append)
     store.update(before)
     if send:
-        store.follow_goal(HostGoal.sent(TARGET, before))
+        store.track_goal(SentGoal.written(TARGET, before))
     for status in sequence:
         store.update(status)
     ended: set[int | None] = set()

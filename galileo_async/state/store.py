@@ -14,7 +14,7 @@ from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
 from ..models import GalileoStatus
-from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, HostGoal, step_events
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, SentGoal, step_events
 from .listeners import Listeners
 from .streams import (
     EventStream,
@@ -82,7 +82,7 @@ class StatusStore(Listeners):
         self._clock = clock
         self._event_key: tuple[Any, ...] | None = None
         # The goal rule with its memory (transitions.GoalMachine), as each goto keeps one;
-        # its host: what this host sent and the rule still follows (follow_goal).
+        # its `sent`: the goal this process sent and the rule still tracks (track_goal).
         self._goal = GoalMachine(arrive_tolerance=arrive_tolerance)
         self._waiters: list[Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
@@ -173,15 +173,17 @@ class StatusStore(Listeners):
         if not self.closed:
             self._status_hooks.append(callback)
 
-    def follow_goal(self, host: HostGoal) -> None:
-        """This host writes ``g N`` now: events() attributes what follows by the goal rule."""
-        self._goal.host = host
+    def track_goal(self, sent: SentGoal) -> None:
+        """This process writes ``g N`` now: events() attributes later frames by the goal rule."""
+        self._goal.sent = sent
 
-    def revise_goal(self, origin: object, revise: Callable[[HostGoal], HostGoal | None]) -> None:
-        """Apply ``revise`` to the followed goal if ``origin`` sent it (None: follow nothing)."""
-        host = self._goal.host
-        if host is not None and host.origin is origin:
-            self._goal.host = revise(host)
+    def revise_tracked_goal(
+        self, origin: object, revise: Callable[[SentGoal], SentGoal | None]
+    ) -> None:
+        """Apply ``revise`` to the tracked goal if ``origin`` sent it (None: track nothing)."""
+        sent = self._goal.sent
+        if sent is not None and sent.origin is origin:
+            self._goal.sent = revise(sent)
 
     def emit(self, event: Event) -> None:
         """Hand ``event``, one the driver itself caused, to every events() consumer."""
