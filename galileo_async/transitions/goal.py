@@ -294,7 +294,7 @@ class GoalMachine:
         #: The status the next is compared with (None: the next is the first).
         self.prev: GalileoStatus | None = None
         self.measured: GalileoStatus | None = None
-        self._latest = False  # prev is the last status given: see() follows it
+        self._latest = False  # prev is the last status given: see() moves it on
 
     def start(self, status: GalileoStatus | None) -> None:
         """Compare the next status with ``status`` (None: the next is the first); its valid
