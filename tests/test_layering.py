@@ -580,7 +580,6 @@ KNOWN_HALVES = {
     "galileo_async.robot.turning.Turning",
     "galileo_async.sim.script.Scripting",
     "galileo_async.sim.services.ServiceCommands",
-    "galileo_async.state.listeners.Listeners",
     "galileo_async.transports.queue.CommandQueue",
     "galileo_async.transports.watchdog.StaleWatchdog",
 }
