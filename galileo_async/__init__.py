@@ -23,7 +23,7 @@ from .models import (
 )
 
 if TYPE_CHECKING:
-    from .fleet import Fleet, FleetResult, RobotState, connect_fleet
+    from .fleet import Fleet, FleetResult, connect_fleet
     from .robot import Connection, GoalResult, Robot, StopReport, connect
     from .ros.discovery import DiscoveredRobot, discover
 
@@ -46,7 +46,6 @@ __all__ = [
     "NavStatus",
     "Pose",
     "Robot",
-    "RobotState",
     "StatusLayout",
     "StopReport",
     "TargetStatus",
@@ -66,7 +65,6 @@ _LAZY: dict[str, str] = {
     "discover": "ros.discovery",
     "Fleet": "fleet",
     "FleetResult": "fleet",
-    "RobotState": "fleet",
     "connect_fleet": "fleet",
     "Connection": "robot",
     "GoalResult": "robot",

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
@@ -205,31 +204,3 @@ class ConnectionLostEvent(Event):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ConnectionRestored(Event):
     """The transport is connected again after a drop."""
-
-
-#: The events' former names, the same as errors' names (GoalAborted, …) or another name for
-#: the same end (GoalFailed): importable from this module for one release, with a
-#: DeprecationWarning.
-_RENAMED: dict[str, type[Event]] = {
-    "GoalAborted": GoalAbortedEvent,
-    "GoalCancelled": GoalCancelledEvent,
-    "LinkStale": LinkStaleEvent,
-    "ConnectionLost": ConnectionLostEvent,
-    "GoalFailed": GoalRejectedEvent,
-}
-
-
-def __getattr__(name: str) -> type[Event]:
-    """The deprecated event names, each with a DeprecationWarning naming its new name."""
-    event = _RENAMED.get(name)
-    if event is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    why = f"galileo_async.{event.name} is the error of the same end"
-    if event.name == name:
-        why = f"galileo_async.{name} is the error of the same name"
-    warnings.warn(
-        f"galileo_async.events.{name} is deprecated, use {event.__name__}: {why}",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return event

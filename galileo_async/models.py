@@ -5,14 +5,12 @@ from __future__ import annotations
 import enum
 import math
 import struct
-import warnings
 from collections.abc import Generator, Iterator
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
 __all__ = [
-    "ARRIVED_DISTANCE",
     "FLOAT32_FIELDS",
     "STATUS_FIELDS",
     "AngleGoalStatus",
@@ -27,10 +25,6 @@ __all__ = [
     "VisualStatus",
     "float32_decimal",
 ]
-
-#: ``abs(target_distance)`` below this means "arrived" (docs/protocol.md §1, field 11): the
-#: deprecated GalileoStatus.arrived only; goals end by transitions.goal_step.
-ARRIVED_DISTANCE = 0.01
 
 #: What the vendor's serial node sends, with a counting time_stamp, until the navigation
 #: system's first status reaches it, and again after it restarts: its constructor's
@@ -345,22 +339,6 @@ class GalileoStatus(BaseModel):
     def goal_failed(self) -> bool:
         """The goal state is an error (3 in the document, -1 on real firmware)."""
         return self.target_status in (TargetStatus.ERROR, TargetStatus.INVALID)
-
-    @property
-    def arrived(self) -> bool:
-        """Deprecated: goal free within ARRIVED_DISTANCE; goto() and events() use goal_step."""
-        warnings.warn(
-            "GalileoStatus.arrived is deprecated: a goal's end is decided by "
-            "galileo_async.transitions.goal_step (GoalReached, within arrive_tolerance of its "
-            "last valid distance); transitions.at_target(status, tolerance) tests one status",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return (
-            self.target_status == TargetStatus.FREE
-            and self.target_distance is not None
-            and abs(self.target_distance) < ARRIVED_DISTANCE
-        )
 
     @property
     def is_placeholder(self) -> bool:

@@ -12,7 +12,7 @@ import pytest
 from cancel_ways import WAYS, stop_waiting
 from fake_device import status_frame
 
-from galileo_async import Fleet, FleetResult, Robot, RobotState, connect_fleet
+from galileo_async import Fleet, FleetResult, LinkState, Robot, connect_fleet
 from galileo_async import events as ev
 from galileo_async.errors import InvalidArgument, NotReady
 from galileo_async.sim import Simulator
@@ -44,7 +44,7 @@ async def test_robots_by_name(fleet: Fleet) -> None:
     assert all(isinstance(fleet[name], Robot) for name in fleet)
     assert fleet["a"] is not fleet["b"]
     assert fleet.name_of(fleet["b"]) == "b"
-    assert fleet.states() == dict.fromkeys("abc", RobotState.UP)
+    assert fleet.states() == dict.fromkeys("abc", LinkState.UP)
     with pytest.raises(KeyError):
         fleet["z"]
 
@@ -55,8 +55,8 @@ async def test_one_failure_does_not_block_the_others() -> None:
         async with connect_fleet(
             {"up": SIM, "down": dead}, retry_initial=0.05, connect_timeout=2
         ) as fleet:
-            assert fleet.state("up") is RobotState.UP
-            assert fleet.state("down") is RobotState.LOST
+            assert fleet.state("up") is LinkState.UP
+            assert fleet.state("down") is LinkState.LOST
             assert fleet.get("down") is None
             assert fleet.error("down") is not None
             with pytest.raises(NotReady, match="'down' is not connected"):
@@ -75,7 +75,7 @@ async def test_a_robot_that_comes_up_later_joins() -> None:
                 {"late": f"socket://127.0.0.1:{port}"}, retry_initial=0.02, retry_max=0.05
             ) as fleet,
         ):
-            assert fleet.state("late") is RobotState.LOST
+            assert fleet.state("late") is LinkState.LOST
             stream = fleet.statuses()
             server = await simulator.serve_tcp(port=port)
             try:
@@ -85,7 +85,7 @@ async def test_a_robot_that_comes_up_later_joins() -> None:
                 server.close()
             assert name == "late"
             assert status.time_stamp is not None
-            assert fleet.state("late") is RobotState.UP
+            assert fleet.state("late") is LinkState.UP
 
 
 class _OneFrameRobot(asyncio.Protocol):
@@ -115,13 +115,13 @@ async def test_stale_then_lost_state_and_events() -> None:
                 events = fleet.events()
                 name, event = await events.__anext__()
                 assert (name, type(event)) == ("r", ev.LinkStaleEvent)
-                assert fleet.state("r") is RobotState.STALE
-                assert fleet.state("s") is RobotState.UP
+                assert fleet.state("r") is LinkState.STALE
+                assert fleet.state("s") is LinkState.UP
                 for transport in _OneFrameRobot.transports:
                     transport.close()
                 name, event = await events.__anext__()
                 assert (name, type(event)) == ("r", ev.ConnectionLostEvent)
-                assert fleet.state("r") is RobotState.LOST
+                assert fleet.state("r") is LinkState.LOST
                 events.close()
     finally:
         server.close()
@@ -249,7 +249,7 @@ async def test_close_ends_merged_streams_and_is_idempotent() -> None:
         await fleet.close()
         assert fleet.closed
         assert robot.closed
-        assert fleet.state("a") is RobotState.CLOSED  # its link is closed, not lost
+        assert fleet.state("a") is LinkState.CLOSED  # its link is closed, not lost
         with anyio.fail_after(WAIT):
             remaining = [item async for item in statuses]
             assert len(remaining) <= 1  # the latest status, if not taken yet

@@ -7,7 +7,7 @@ from pathlib import Path
 import anyio
 import pytest
 
-from galileo_async import RobotState
+from galileo_async import LinkState
 from galileo_async.errors import InvalidArgument
 from galileo_async.fleet.file import FleetFileError, load_fleet_file
 
@@ -90,7 +90,7 @@ async def test_connecting_the_file(tmp_path: Path) -> None:
     spec = load_fleet_file(write(tmp_path, GOOD))
     with anyio.fail_after(10):
         async with spec.connect() as fleet:
-            assert fleet.states() == {"alpha": RobotState.UP, "beta": RobotState.UP}
+            assert fleet.states() == {"alpha": LinkState.UP, "beta": LinkState.UP}
             assert fleet["alpha"].map_targets == 4
             assert fleet["beta"].link.layout is not None
 

@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import asyncio
+from typing import Any
 
 import anyio
 import pytest
 from cancel_ways import WAYS, stop_waiting
 from fake_device import make_status
 
+import galileo_async.state.store
 from galileo_async import events as ev
 from galileo_async.errors import ConnectionLost, LinkStale
+from galileo_async.events import Event
 from galileo_async.fleet.streams import FleetHub, FleetStatusStream
 from galileo_async.models import LinkState
 from galileo_async.state import StatusStore
+from galileo_async.transitions import step_events
 
 WAIT = 5.0
 
@@ -134,12 +138,22 @@ async def test_two_tasks_on_one_stream_is_an_error() -> None:
         await task
 
 
-async def test_events_are_named_and_derived_only_while_read() -> None:
+async def test_events_are_named_and_derived_only_while_read(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    derived: list[Event] = []
+
+    def counted(*args: Any) -> list[Event]:
+        events = list(step_events(*args))
+        derived.extend(events)
+        return events
+
+    monkeypatch.setattr(galileo_async.state.store, "step_events", counted)
     hub, stores = fleet_of("a", "b")
+    stores["a"].update(make_status(time_stamp=0, nav_status=1))
     stores["a"].update(make_status(time_stamp=1, nav_status=0))
-    assert stores["a"].on_event is None  # nobody reads events: none derived
+    assert derived == []  # nobody reads events: none derived
     events = hub.events(maxlen=8)
-    assert stores["a"].on_event is not None
     stores["a"].update(make_status(time_stamp=2, nav_status=1))
     stores["b"].link_changed(LinkState.STALE, LinkStale("silent", silent_for=1.0))
     with anyio.fail_after(WAIT):
@@ -149,9 +163,11 @@ async def test_events_are_named_and_derived_only_while_read() -> None:
         name, event = await anext(events)
         assert name == "b"
         assert isinstance(event, ev.LinkStaleEvent)
+    assert [type(e) for e in derived] == [ev.NavigationOpened]
     events.close()
     del events
-    assert stores["a"].on_event is None
+    stores["a"].update(make_status(time_stamp=3, nav_status=0))
+    assert len(derived) == 1  # nobody reads them again: none derived
     hub.close()
 
 

@@ -1,6 +1,6 @@
 """One goal state machine: goto's verdict and events()' first goal end agree on every sequence.
 
-The same frames (and the same "what this host sent") go to GoalTracker, goto's follower,
+The same frames (and the same "what this process sent") go to GoalTracker, goto's follower,
 and to a StatusStore's events(); both decide by transitions.goal_step. The goal is a map
 target or a pose goal (goto_pose, goto_point over http://: target -2, which the machine
 treats as no id when it only observes: an error under it is no rejection).
@@ -18,7 +18,7 @@ from galileo_async import events as ev
 from galileo_async.events import Event
 from galileo_async.robot.tracker import GoalTracker, cancelling
 from galileo_async.state import StatusStore
-from galileo_async.transitions import GoalChange, HostGoal, derive_events, goal_step
+from galileo_async.transitions import GoalChange, SentGoal, derive_events, goal_step
 
 TARGET = 3
 #: The id the robot shows for a goal by pose (an HTTP API nav task).
@@ -40,7 +40,7 @@ def frame(nav: int, target_id: int, target_status: int, distance: float) -> Gali
 
 
 ids = st.sampled_from([-1, POSE, 1, TARGET, 5])
-#: The goal this host sends: a map target, or a pose goal.
+#: The goal this process sends: a map target, or a pose goal.
 targets = st.sampled_from([TARGET, POSE])
 #: The protocol's values, and values newer firmware may add (the enum keeps them): they tell
 #: nothing, so both sides must compare across them alike.
@@ -57,8 +57,8 @@ def by_goto(
     """GoalTracker's verdict on goal ``target``: (frame index, end, detail), None: not ended."""
     tracker = GoalTracker(target, before=before, arrive_tolerance=TOLERANCE)
     for index, status in enumerate(sequence):
-        if index == cancel_at and tracker.host is not None:
-            tracker.host = cancelling(tracker.host)
+        if index == cancel_at and tracker.sent is not None:
+            tracker.sent = cancelling(tracker.sent)
         try:
             if tracker.feed(status):
                 return index, "reached", tracker.distance
@@ -74,16 +74,16 @@ def by_goto(
 def by_events(
     before: GalileoStatus, sequence: list[GalileoStatus], cancel_at: int | None, target: int
 ) -> Verdict:
-    """The first end of goal ``target`` that events() reports, told what this host sent."""
+    """The first end of goal ``target`` that events() reports, told what this process sent."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(before)
     origin = object()
-    store.follow_goal(HostGoal.sent(target, before, origin))
+    store.track_goal(SentGoal.written(target, before, origin))
     for index, status in enumerate(sequence):
         if index == cancel_at:
-            store.revise_goal(origin, cancelling)
+            store.revise_tracked_goal(origin, cancelling)
         store.update(status)
         for event in seen:
             if not isinstance(event, ev.GoalEvent) or event.target_id != target:
@@ -139,13 +139,13 @@ def ended_twice(
     before: GalileoStatus, sequence: list[GalileoStatus], send: bool, target: int = TARGET
 ) -> list[Any]:
     """Goal ids events() ends twice: a run's end after an end of that id with no GoalAccepted
-    between (``send``: this host wrote goal ``target`` at ``before``)."""
+    between (``send``: this process wrote goal ``target`` at ``before``)."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(before)
     if send:
-        store.follow_goal(HostGoal.sent(target, before))
+        store.track_goal(SentGoal.written(target, before))
     for status in sequence:
         store.update(status)
     ended: set[int | None] = set()

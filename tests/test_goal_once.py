@@ -1,6 +1,6 @@
 """One goal ends once, and a target_status the protocol does not name tells nothing.
 
-The frames go to a StatusStore's events() (a watcher, or told what this host sent) and to
+The frames go to a StatusStore's events() (a watcher, or told what this process sent) and to
 GoalTracker (goto's follower); both follow transitions.GoalMachine.
 """
 
@@ -16,7 +16,7 @@ from galileo_async import events as ev
 from galileo_async.events import Event
 from galileo_async.robot.tracker import GoalTracker
 from galileo_async.state import StatusStore
-from galileo_async.transitions import HostGoal
+from galileo_async.transitions import SentGoal
 
 TOLERANCE = 0.3
 ENDS = ("GoalReached", "GoalAborted", "GoalRejected", "GoalCancelled")
@@ -32,10 +32,10 @@ def goal_events(
     """The goal events of events() over ``frames`` (after the first); ``send``: g N before."""
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     store.update(frames[0])
     if send is not None:
-        store.follow_goal(HostGoal.sent(send, frames[0]))
+        store.track_goal(SentGoal.written(send, frames[0]))
     for frame in frames[1:]:
         store.update(frame)
     return [(e.name, e.target_id) for e in seen if isinstance(e, ev.GoalEvent)]
@@ -99,8 +99,8 @@ def test_goto_sent_under_a_goal_shown_working_with_navigation_closed_is_no_resta
     # not a restart of a running one, so only a frame showing 3 working accepts it.
     before = status(nav=0)
     tracker = GoalTracker(3, before=before, arrive_tolerance=TOLERANCE)
-    assert tracker.host is not None
-    assert tracker.host.pending
+    assert tracker.sent is not None
+    assert tracker.sent.pending
     assert not tracker.accepted
     assert not tracker.feed(status())
     assert tracker.accepted
@@ -140,7 +140,7 @@ def test_the_distance_of_an_unknown_target_status_is_not_the_goals() -> None:
     frames = [status(distance=2.0), status(state=7, distance=0.1), status(state=0, distance=-1.0)]
     store = StatusStore(arrive_tolerance=TOLERANCE)
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     for frame in frames:
         store.update(frame)
     aborted = [e for e in seen if isinstance(e, ev.GoalAbortedEvent)]

@@ -19,7 +19,7 @@ from galileo_async.transitions import (
     arrived,
     derive_events,
     end_distance,
-    goal_transition,
+    goal_step,
     running_distance,
     valid_distance,
 )
@@ -112,7 +112,7 @@ async def test_a_goal_sent_again_forgets_the_distance_of_its_previous_run() -> N
 def test_the_store_forgets_a_finished_run_when_the_goal_starts_again() -> None:
     store = StatusStore()
     seen: list[Event] = []
-    store.listen_events(seen.append)
+    store.add_event_listener(seen.append)
     running = st(target_num_id=3, target_status=WORKING, target_distance=0.1)
     blind = running.model_copy(update={"target_distance": -1.0})
     free = running.model_copy(update={"target_status": FREE, "target_distance": -1.0})
@@ -146,25 +146,25 @@ def test_arrived_needs_a_known_distance_within_tolerance() -> None:
     assert not arrived(None, 0.3)
 
 
-def test_goal_transition_ends_with_the_last_valid_distance() -> None:
+def test_a_watchers_goal_step_ends_with_the_last_valid_distance() -> None:
     working = st(target_num_id=3, target_status=WORKING, target_distance=-1.0)
     free = st(target_num_id=3, target_status=FREE, target_distance=-1.0)
-    assert goal_transition(working, free, last_distance=0.1) == ((GoalChange.REACHED,), 0.1)
-    assert goal_transition(working, free) == ((GoalChange.ABORTED,), None)
+    assert goal_step(working, free, last_distance=0.1)[:2] == (((GoalChange.REACHED, 3),), 0.1)
+    assert goal_step(working, free)[:2] == (((GoalChange.ABORTED, 3),), None)
     near = working.model_copy(update={"target_distance": 0.05})
-    assert goal_transition(near, free, last_distance=3.0) == ((GoalChange.REACHED,), 0.05)
+    assert goal_step(near, free, last_distance=3.0)[:2] == (((GoalChange.REACHED, 3),), 0.05)
 
 
-def test_goal_transition_cancel_and_preempt() -> None:
+def test_a_watchers_goal_step_cancel_and_preempt() -> None:
     working = st(target_num_id=3, target_status=WORKING)
-    assert goal_transition(working, st(target_num_id=-1, target_status=FREE)).changes == (
-        GoalChange.CANCELLED,
+    assert goal_step(working, st(target_num_id=-1, target_status=FREE)).changes == (
+        (GoalChange.CANCELLED, 3),
     )
-    assert goal_transition(working, st(target_num_id=4, target_status=WORKING)).changes == (
-        GoalChange.PREEMPTED,
-        GoalChange.ACCEPTED,
+    assert goal_step(working, st(target_num_id=4, target_status=WORKING)).changes == (
+        (GoalChange.PREEMPTED, 3),
+        (GoalChange.ACCEPTED, 4),
     )
-    assert goal_transition(working, st(target_num_id=3)).changes == ()
+    assert goal_step(working, st(target_num_id=3)).changes == ()
 
 
 def test_running_distance_counts_only_the_running_goal() -> None:
@@ -188,28 +188,21 @@ def test_derive_events_uses_the_rule() -> None:
 
 # --- events' own names -------------------------------------------------------------------
 
-RENAMED = ("GoalAborted", "GoalCancelled", "LinkStale", "ConnectionLost")
+SHARED_NAMES = ("GoalAborted", "GoalCancelled", "LinkStale", "ConnectionLost")
 
 
-@pytest.mark.parametrize("old", RENAMED)
-def test_old_event_names_warn_and_give_the_new_class(old: str) -> None:
-    new = getattr(ev, f"{old}Event")
-    with pytest.warns(DeprecationWarning, match=f"{old}Event"):
-        assert getattr(ev, old) is new
-    assert old not in ev.__all__
-    assert f"{old}Event" in ev.__all__
+@pytest.mark.parametrize("name", SHARED_NAMES)
+def test_an_event_named_as_an_error_is_another_class_with_event_in_its_name(name: str) -> None:
+    event = getattr(ev, f"{name}Event")
+    assert not hasattr(ev, name)
+    assert name not in ev.__all__
+    assert f"{name}Event" in ev.__all__
     # The error keeps its name; the event is another class.
-    error = getattr(galileo_async, old)
+    error = getattr(galileo_async, name)
     assert issubclass(error, Exception)
-    assert error is not new
-    assert not issubclass(new, Exception)
-    assert new.name == old  # what str(), the CLI and VDA 5050 show
-
-
-def test_from_import_of_an_old_name_warns() -> None:
-    with pytest.warns(DeprecationWarning, match="GoalAbortedEvent"):
-        from galileo_async.events import GoalAborted as OldName
-    assert OldName is ev.GoalAbortedEvent
+    assert error is not event
+    assert not issubclass(event, Exception)
+    assert event.name == name  # what str(), the CLI and VDA 5050 show
 
 
 def test_unknown_names_still_raise_attribute_error() -> None:

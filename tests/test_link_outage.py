@@ -47,7 +47,7 @@ class Seen:
     def __init__(self, store: StatusStore) -> None:
         self.events: list[ev.Event] = []
         self._changed = asyncio.Event()
-        store.listen_events(self._record)
+        store.add_event_listener(self._record)
 
     def _record(self, event: ev.Event) -> None:
         self.events.append(event)

@@ -14,7 +14,6 @@ import pytest
 import vectors as v
 
 from galileo_async.models import (
-    ARRIVED_DISTANCE,
     STATUS_FIELDS,
     AngleGoalStatus,
     ChargeStatus,
@@ -189,28 +188,6 @@ def test_flag_properties(
         assert getattr(status(**{name: value}), prop) is True, (name, value)
     for other in false_values:
         assert getattr(status(**{name: other}), prop) is False, (name, other)
-
-
-@pytest.mark.parametrize(
-    ("target_status", "distance", "expected"),
-    [
-        (0, 0.0, True),
-        (0, 0.005, True),
-        (0, -0.005, True),  # abs() < 0.01 (docs/protocol.md §1, field 11)
-        (0, ARRIVED_DISTANCE, False),
-        (0, 1.5, False),  # free far away: the planner gave up
-        (0, -1.0, False),  # invalid distance
-        (0, None, False),
-        (1, 0.0, False),  # still working
-        (-1, 0.0, False),
-        (None, 0.0, False),
-    ],
-)
-def test_arrived(target_status: int | None, distance: float | None, expected: bool) -> None:
-    with pytest.warns(DeprecationWarning, match="goal_step"):
-        assert status(target_status=target_status, target_distance=distance).arrived is expected
-    with pytest.warns(DeprecationWarning, match="arrived"):
-        assert v.V1_STATUS.arrived is True  # the golden v1 frame: free at 5 mm
 
 
 def test_pose() -> None:

@@ -19,7 +19,7 @@ PUBLIC = {
     "OperationFailed", "OperationTimeout", "PortBusy", "Pose", "Robot", "StatusLayout",
     "TargetStatus",
     "UnconfirmedOperation", "VisualStatus", "WrongEventLoop", "__version__", "connect",
-    "discover", "errors", "protocol", "Fleet", "FleetResult", "RobotState", "connect_fleet",
+    "discover", "errors", "protocol", "Fleet", "FleetResult", "connect_fleet",
     "GoalStalled", "LinkState",
     "DuplicateVehicle",
     "HttpError", "NotSupported",

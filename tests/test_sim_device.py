@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from galileo_async.models import ARRIVED_DISTANCE, GalileoStatus, StatusLayout
+from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import LAYOUTS as SERIAL_LAYOUTS
 from galileo_async.protocol import StatusDecoder, encode
 from galileo_async.protocol import commands as c
@@ -28,9 +28,13 @@ FAST: dict[str, Any] = {"speed": 50.0, "visual_init_time": 0.5, "busy_on_start":
 TIMEOUT = 5.0
 
 
+#: Free within this many metres: the simulator lands a goal it drove on its target.
+ARRIVED = 0.01
+
+
 def arrived(status: GalileoStatus) -> bool:
     """Free within 1 cm of the target: where the simulator ends a goal it drove."""
-    return at_target(status, ARRIVED_DISTANCE)
+    return at_target(status, ARRIVED)
 
 
 class Host(asyncio.Protocol):

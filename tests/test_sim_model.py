@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from galileo_async.errors import InvalidArgument
-from galileo_async.models import ARRIVED_DISTANCE, GalileoStatus, StatusLayout
+from galileo_async.models import GalileoStatus, StatusLayout
 from galileo_async.protocol import (
     UDP_LAYOUTS,
     StatusDecoder,
@@ -26,9 +26,13 @@ FIRMWARES = ["real", "document"]
 TARGETS = ((2.0, 0.0), (0.0, 3.0), (-2.0, -1.0))
 
 
+#: Free within this many metres: the simulator lands a goal it drove on its target.
+ARRIVED = 0.01
+
+
 def arrived(status: GalileoStatus) -> bool:
     """Free within 1 cm of the target: where the simulator ends a goal it drove."""
-    return at_target(status, ARRIVED_DISTANCE)
+    return at_target(status, ARRIVED)
 
 
 def make(firmware: str = "real", **options: Any) -> RobotModel:

@@ -13,6 +13,7 @@ from galileo_async.errors import ConnectionLost, GalileoTimeout, LinkStale
 from galileo_async.models import GalileoStatus, LinkState
 from galileo_async.protocol import V2_DEFAULTS
 from galileo_async.state import StatusStore
+from galileo_async.state.listeners import Listeners
 
 STEP = 2.0  # upper bound for anything that should happen at once
 
@@ -471,3 +472,45 @@ async def test_close_is_idempotent_and_fails_everything() -> None:
     with pytest.raises(StopAsyncIteration):
         await anext(store.events())
     store.update(st(1))  # a late frame after close is harmless
+
+
+def test_listeners_call_in_order_publish_each_snapshot_and_remove_one_addition() -> None:
+    published: list[tuple[Any, ...]] = []
+    listeners: Listeners[int] = Listeners("number", published.append)
+    seen: list[str] = []
+
+    def first(item: int) -> None:
+        seen.append(f"first {item}")
+        listeners.add(late)  # added while called: from the next item on
+
+    def late(item: int) -> None:
+        seen.append(f"late {item}")
+
+    listeners.add(first)
+    listeners.add(first)  # twice: called twice
+    listeners.call(1)
+    assert seen == ["first 1", "first 1"]
+    assert len(listeners) == 4
+    listeners.remove(first)  # one addition of it
+    listeners.remove(print)  # not one: nothing changes
+    assert listeners.snapshot == (first, late, late)
+    assert published == [(first,), (first, first), (first, first, late), (first, first, late, late),
+                         (first, late, late)]  # fmt: skip
+    seen.clear()
+    listeners.call(2)
+    assert seen == ["first 2", "late 2", "late 2"]
+
+
+def test_a_listener_that_raises_is_logged_and_stops_none(caplog: pytest.LogCaptureFixture) -> None:
+    listeners: Listeners[int] = Listeners("number", lambda _snapshot: None)
+    seen: list[int] = []
+
+    def broken(_item: int) -> None:
+        raise RuntimeError("a broken listener")
+
+    listeners.add(broken)
+    listeners.add(seen.append)
+    listeners.call(7)
+    assert seen == [7]
+    assert "number listener" in caplog.text
+    assert "a broken listener" in caplog.text

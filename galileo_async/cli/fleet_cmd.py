@@ -13,7 +13,7 @@ from rich.live import Live
 from .._checks import hide_secrets
 from ..errors import InvalidArgument, NotReady, PortBusy
 from ..fleet.file import FleetSpec, load_fleet_file
-from ..fleet.fleet import RobotState
+from ..models import LinkState
 from ..robot.stopping import DEFAULT_STOP_TIMEOUT
 from .fleet_view import SORT_KEYS, FleetRow, FleetView
 from .goals import aclose
@@ -42,7 +42,7 @@ MatchOption = Annotated[
 StateOption = Annotated[
     list[str] | None,
     typer.Option("--state", help="Only robots in this link state (repeatable): "
-                 + ", ".join(state.value for state in RobotState)),
+                 + ", ".join(state.value for state in LinkState)),
 ]  # fmt: skip
 RowsOption = Annotated[int, typer.Option("--rows", min=1, help="Table rows shown at most.")]
 
@@ -62,11 +62,11 @@ def _served(spec: FleetSpec) -> dict[str, Any]:
     return {} if "control_socket" in spec.defaults else {"control_socket": True}
 
 
-def _view_options(sort: str, states: list[str] | None) -> set[RobotState] | None:
+def _view_options(sort: str, states: list[str] | None) -> set[LinkState] | None:
     if sort not in SORT_KEYS:
         fail(f"--sort must be one of {', '.join(SORT_KEYS)}, got {sort!r}", ExitCode.USAGE)
     try:
-        return {RobotState(state) for state in states} if states else None
+        return {LinkState(state) for state in states} if states else None
     except ValueError as exc:
         fail(f"--state: {exc}", ExitCode.USAGE)
 
@@ -101,7 +101,7 @@ def status(
                     console.print(json.dumps(line), markup=False, soft_wrap=True)
             else:
                 console.print(view.table())
-            up = all(fleet.state(name) is RobotState.UP for name in fleet)
+            up = all(fleet.state(name) is LinkState.UP for name in fleet)
         return ExitCode.OK if up else ExitCode.CONNECTION
 
     run(settings, main)

@@ -28,7 +28,7 @@ from .signals import interruption, pose_json
 if TYPE_CHECKING:
     from ..robot import GoalResult, Robot
 
-__all__ = ["CLEAR_ERROR_TIMEOUT", "aclose", "clear_goal_error", "follow_goal", "with_progress"]
+__all__ = ["CLEAR_ERROR_TIMEOUT", "aclose", "clear_goal_error", "run_goal", "with_progress"]
 
 T = TypeVar("T")
 _log = logging.getLogger(__name__)
@@ -140,7 +140,7 @@ def _interrupted(robot: Robot, target_id: int | None, sent: int) -> None:
     )
 
 
-async def follow_goal(
+async def run_goal(
     settings: Settings,
     robot: Robot,
     label: str,

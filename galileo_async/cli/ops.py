@@ -11,7 +11,7 @@ import typer
 
 from ..errors import InvalidArgument, UnconfirmedOperation
 from ..protocol import COMMAND_TYPES, Command, RawCommand, encode
-from .goals import clear_goal_error, follow_goal, with_progress
+from .goals import clear_goal_error, run_goal, with_progress
 from .runner import (
     ExitCode,
     err_console,
@@ -102,7 +102,7 @@ def goto(
 
     async def body(robot: Robot) -> int:
         await clear_goal_error(robot)
-        return await follow_goal(
+        return await run_goal(
             settings,
             robot,
             f"goto {target_id}",
@@ -128,7 +128,7 @@ def goto_point(
     async def body(robot: Robot) -> int:
         label = f"goto-point ({x:g}, {y:g})"
         # goto-point writes three commands: reset the dynamic targets, add one, go there.
-        return await follow_goal(
+        return await run_goal(
             settings, robot, label, lambda: robot.goto_point(x, y, timeout=timeout), goal_commands=3
         )
 

@@ -12,7 +12,6 @@ from .fleet import (
     FleetEventStream,
     FleetResult,
     FleetStatusStream,
-    RobotState,
     connect_fleet,
 )
 
@@ -27,7 +26,6 @@ __all__ = [
     "FleetResult",
     "FleetSpec",
     "FleetStatusStream",
-    "RobotState",
     "connect_fleet",
     "fleet_file_robots",
     "load_fleet_file",

@@ -32,7 +32,6 @@ __all__ = [
     "FleetEventStream",
     "FleetResult",
     "FleetStatusStream",
-    "RobotState",
     "connect_fleet",
 ]
 
@@ -48,10 +47,6 @@ DEFAULT_RETRY_MAX = 30.0
 _RETRIED = (GalileoConnectionError, OSError, TimeoutError)
 
 _T = TypeVar("_T")
-
-
-#: A fleet robot's state is its link's (LinkState); the name of earlier versions.
-RobotState = LinkState
 
 
 @dataclass(frozen=True)

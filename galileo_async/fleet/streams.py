@@ -30,7 +30,7 @@ DEFAULT_FLEET_EVENT_QUEUE = 4096
 
 
 class StatusFeed(Protocol):
-    """What the hub follows of one robot (a Robot; a StatusStore in tests): public API only."""
+    """What the hub reads of one robot (a Robot; a StatusStore in tests): public API only."""
 
     @property
     def status(self) -> GalileoStatus | None:

@@ -1,4 +1,4 @@
-"""Goals: GoalRunner follows each ``g N`` with a GoalTracker and a ProgressCheck, and pauses,
+"""Goals: GoalRunner tracks each ``g N`` with a GoalTracker and a ProgressCheck, and pauses,
 resumes and cancels the goal."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from ..errors import (
 from ..events import GoalStalledEvent
 from ..models import GalileoStatus, TargetStatus
 from ..protocol import Cancel, Command, Goto, Pause, Resume
-from ..transitions import HostGoal
+from ..transitions import SentGoal
 from .operations import GOAL_READY, LEAVING, Confirm, Operations, Require, Sent
 from .progress import ProgressCheck
 from .runtime import Deadline
@@ -69,7 +69,7 @@ class GoalRunner:
 
     @property
     def running(self) -> int | None:
-        """The target id of this Robot's goal being followed (written), or None."""
+        """The target id of this Robot's goal being tracked (written), or None."""
         goal = self._running
         return goal.target_id if goal is not None and goal.written else None
 
@@ -139,7 +139,7 @@ class GoalRunner:
         cancel_on_exit: bool,
         stops_at: int | None = None,
     ) -> GoalResult:
-        """Send ``command`` through Operations.send (supersedable) and follow its goal; see goto."""
+        """Send ``command`` through Operations.send (supersedable) and track its goal; see goto."""
         ops = self._ops
         goal = _Goal(self, command.target_id, accept_timeout, arrive_tolerance, progress_timeout)
         left = _forget  # what the store's goal rule keeps of it once goto returns
@@ -174,7 +174,7 @@ class GoalRunner:
         finally:
             if goal.halted_by is not None and goal.tracker is not None and goal.tracker.accepted:
                 left = cancelling  # stop() sent the cancel: its end is that cancel
-            ops.store.revise_goal(goal, left)
+            ops.store.revise_tracked_goal(goal, left)
             if self._running is goal:
                 self._running = None
 
@@ -186,8 +186,8 @@ class GoalRunner:
         self._ops.goal_started()
 
 
-def _forget(host: HostGoal) -> HostGoal | None:
-    """A goal goto no longer follows: the store's rule stops attributing frames to it."""
+def _forget(sent: SentGoal) -> SentGoal | None:
+    """A goal goto no longer tracks: the store's rule stops attributing frames to it."""
     return None
 
 
@@ -238,15 +238,15 @@ class _Goal:
         self.tracker = tracker = GoalTracker(
             self.target_id, before=before, arrive_tolerance=self.arrive_tolerance, origin=self
         )
-        assert tracker.host is not None
-        # events() follows the goal by the same rule, told what this host sends.
-        self._runner._ops.store.follow_goal(tracker.host)
+        assert tracker.sent is not None
+        # events() tracks the goal by the same rule, told what this process sends.
+        self._runner._ops.store.track_goal(tracker.sent)
 
-    def revise(self, revise: Callable[[HostGoal], HostGoal | None]) -> None:
-        """Change what this host is known to have sent for the goal (tracker and store alike)."""
-        if self.tracker is not None and self.tracker.host is not None:
-            self.tracker.host = revise(self.tracker.host)
-        self._runner._ops.store.revise_goal(self, revise)
+    def revise(self, revise: Callable[[SentGoal], SentGoal | None]) -> None:
+        """Change what this process is known to have sent for the goal (tracker and store alike)."""
+        if self.tracker is not None and self.tracker.sent is not None:
+            self.tracker.sent = revise(self.tracker.sent)
+        self._runner._ops.store.revise_tracked_goal(self, revise)
 
     async def follow(self, watch: Watch, sent: Sent) -> GoalResult:
         """Follow the goal from its write to its end: a GoalResult, or GoalError / timeout."""
@@ -271,7 +271,7 @@ class _Goal:
                 stall_at = None
                 wait = deadline.remaining()
             elif tracker.accepted:
-                if now >= accept_by and tracker.host is not None and tracker.host.restarting:
+                if now >= accept_by and tracker.sent is not None and tracker.sent.restarting:
                     self.revise(settled)
                 wait = deadline.remaining()
                 if stall_at is not None and (deadline.at is None or stall_at < deadline.at):

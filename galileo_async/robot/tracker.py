@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import GoalAborted, GoalCancelled, GoalError, GoalRejected
 from ..models import GalileoStatus, TargetStatus
-from ..transitions import ENDS, GoalChange, GoalMachine, HostGoal, at_target, end_distance
+from ..transitions import ENDS, GoalChange, GoalMachine, SentGoal, at_target, end_distance
 
 __all__ = ["ALREADY_THERE_FRAMES", "ALREADY_THERE_TIME", "GoalTracker"]
 
@@ -35,25 +35,25 @@ class GoalTracker:
     ) -> None:
         self.target_id = target_id
         self.arrive_tolerance = arrive_tolerance
-        host = HostGoal.sent(target_id, before, origin)
+        sent = SentGoal.written(target_id, before, origin)
         #: The goal rule with its memory, as the store's events() keeps one.
-        self.machine = GoalMachine(host=host, arrive_tolerance=arrive_tolerance)
+        self.machine = GoalMachine(sent=sent, arrive_tolerance=arrive_tolerance)
         self.machine.start(before)
-        # A goal sent again while it runs is running from the write (HostGoal.restarting).
-        self.accepted = not host.pending
+        # A goal sent again while it runs is running from the write (SentGoal.restarting).
+        self.accepted = not sent.pending
         self.distance: float | None = None
         #: The goal ended because the robot already stood at the target (no working frame).
         self.already_there = False
         self._there_frames = 0  # frames in a row at the target since the send, none working
 
     @property
-    def host(self) -> HostGoal | None:
-        """What this host sent, as goal_step follows it (None once the goal ended)."""
-        return self.machine.host
+    def sent(self) -> SentGoal | None:
+        """The goal this process sent, as goal_step tracks it (None once the goal ended)."""
+        return self.machine.sent
 
-    @host.setter
-    def host(self, host: HostGoal | None) -> None:
-        self.machine.host = host
+    @sent.setter
+    def sent(self, sent: SentGoal | None) -> None:
+        self.machine.sent = sent
 
     def feed(self, status: GalileoStatus) -> bool:
         """Consume one status; True when the goal arrived, GoalError when it ended otherwise."""
@@ -71,7 +71,7 @@ class GoalTracker:
                 if change is GoalChange.ABORTED:
                     self.distance = step.distance
                 raise self._error(change, status)
-        if self.host is not None and self.host.pending:
+        if self.sent is not None and self.sent.pending:
             self.accepted = False  # the restart's own cancel: the goal must show working again
             self._there_frames = self._there_frames + 1 if ours and self._near(status) else 0
         elif ours and self.accepted:
@@ -92,7 +92,7 @@ class GoalTracker:
         if since_send < ALREADY_THERE_TIME:
             return False
         self.accepted = self.already_there = True
-        self.host = None
+        self.sent = None
         self.distance = end_distance(status, self.distance)
         return True
 
@@ -135,14 +135,14 @@ class GoalTracker:
         )
 
 
-def settled(host: HostGoal) -> HostGoal:
-    """``host`` once its restart window is over: its first end is its own."""
-    return host._replace(restarting=False)
+def settled(sent: SentGoal) -> SentGoal:
+    """``sent`` once its restart window is over: its first end is its own."""
+    return sent._replace(restarting=False)
 
 
-def cancelling(host: HostGoal) -> HostGoal:
-    """``host`` once this host sent cancel (``i 2``) for it."""
-    return host._replace(cancelled=True)
+def cancelling(sent: SentGoal) -> SentGoal:
+    """``sent`` once this process sent cancel (``i 2``) for it."""
+    return sent._replace(cancelled=True)
 
 
 def _name(value: TargetStatus | None) -> str:

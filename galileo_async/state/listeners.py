@@ -1,10 +1,10 @@
-"""The store's listeners: any number of callbacks per status and per event (no I/O)."""
+"""Listeners: any number of synchronous callbacks, called in order with each item (no I/O)."""
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import Generic, TypeVar
 
 from ..events import Event
 from ..models import GalileoStatus
@@ -13,103 +13,53 @@ __all__ = ["EventListener", "Listeners", "StatusListener"]
 
 _log = logging.getLogger("galileo_async.state.store")
 
+_T = TypeVar("_T")
+
 StatusListener = Callable[[GalileoStatus], None]
 EventListener = Callable[[Event], None]
 
 
-def _without(listeners: tuple[Any, ...], listener: object) -> tuple[Any, ...]:
-    """``listeners`` less the first ``listener`` (equal bound methods count as one)."""
-    for index, each in enumerate(listeners):
-        if each == listener:
-            return listeners[:index] + listeners[index + 1 :]
-    return listeners
+class Listeners(Generic[_T]):
+    """Callbacks of one kind of item; ``call(item)`` calls each in the order they were added.
 
-
-class Listeners:
-    """StatusStore's listener half: add/remove callbacks; the store calls them in order.
-
-    Each listener is called synchronously, must be cheap, and is added once per call of
-    add (adding it twice calls it twice). Tuples: the store's hot path iterates a snapshot.
+    Each is called synchronously and must be cheap; one that raises is logged and the others
+    still run. A callback added twice is called twice, and removed once per remove().
     """
 
-    __slots__ = (
-        "_event_listeners", "_legacy_event", "_legacy_update", "_update_listeners", "_update_one",
-    )  # fmt: skip
+    __slots__ = ("_kind", "_publish", "snapshot")
 
-    def __init__(self) -> None:
-        self._update_listeners: tuple[StatusListener, ...] = ()
-        # The only status listener, when there is exactly one (a fleet's): called without
-        # a loop, per frame of every robot (BENCHMARKS.md §2).
-        self._update_one: StatusListener | None = None
-        self._event_listeners: tuple[EventListener, ...] = ()
-        self._legacy_update: StatusListener | None = None
-        self._legacy_event: EventListener | None = None
+    def __init__(
+        self, kind: str, publish: Callable[[tuple[Callable[[_T], None], ...]], None]
+    ) -> None:
+        """``kind`` names the item in the log; ``publish(snapshot)`` gets every new snapshot."""
+        self._kind = kind
+        self._publish = publish
+        # An immutable snapshot: a listener that adds or removes one while called changes
+        # the next call, not this one.
+        self.snapshot: tuple[Callable[[_T], None], ...] = ()
 
-    def add_update_listener(self, listener: StatusListener) -> None:
-        """Call ``listener(status)`` with every later recorded status (placeholders are not)."""
-        self._set_update_listeners((*self._update_listeners, listener))
+    def add(self, listener: Callable[[_T], None]) -> None:
+        """Call ``listener(item)`` with every later item."""
+        self._set((*self.snapshot, listener))
 
-    def remove_update_listener(self, listener: StatusListener) -> None:
-        """Stop calling ``listener`` (no-op if it is not one)."""
-        self._set_update_listeners(_without(self._update_listeners, listener))
+    def remove(self, listener: Callable[[_T], None]) -> None:
+        """Stop calling ``listener`` (its first addition; no-op if it is not one)."""
+        for index, each in enumerate(self.snapshot):
+            if each == listener:  # equal bound methods count as one
+                self._set(self.snapshot[:index] + self.snapshot[index + 1 :])
+                return
 
-    def _set_update_listeners(self, listeners: tuple[StatusListener, ...]) -> None:
-        self._update_listeners = listeners
-        self._update_one = listeners[0] if len(listeners) == 1 else None
-
-    def add_event_listener(self, listener: EventListener) -> None:
-        """Call ``listener(event)`` with every later event; events are derived while any listens."""
-        self._event_listeners = (*self._event_listeners, listener)
-
-    def remove_event_listener(self, listener: EventListener) -> None:
-        """Stop calling ``listener`` (no-op if it is not one)."""
-        self._event_listeners = _without(self._event_listeners, listener)
-        self._listeners_changed()
-
-    def _call_update_listeners(self, status: GalileoStatus) -> None:
-        for listener in self._update_listeners:
+    def call(self, item: _T) -> None:
+        """Call every listener with ``item``, in order; log any that raises."""
+        for listener in self.snapshot:
             try:
-                listener(status)
+                listener(item)
             except Exception:  # one broken listener must not stop the others
-                _log.exception("status listener %r failed", listener)
+                _log.exception("%s listener %r failed", self._kind, listener)
 
-    def _call_event_listeners(self, event: Event) -> None:
-        for listener in self._event_listeners:
-            try:
-                listener(event)
-            except Exception:  # one broken listener must not stop the others
-                _log.exception("event listener %r failed", listener)
+    def _set(self, snapshot: tuple[Callable[[_T], None], ...]) -> None:
+        self.snapshot = snapshot
+        self._publish(snapshot)
 
-    def _listeners_changed(self) -> None:
-        """An event listener went away (the store forgets its event key when none is left)."""
-
-    # --- the single slots of earlier versions, kept as one listener each ------------------
-
-    @property
-    def on_update(self) -> StatusListener | None:
-        """The first status listener, None while none listens; setting it replaces the
-        listener set through it before (others stay: add_update_listener)."""
-        listeners = self._update_listeners
-        return listeners[0] if listeners else None
-
-    @on_update.setter
-    def on_update(self, listener: StatusListener | None) -> None:
-        if self._legacy_update is not None:
-            self.remove_update_listener(self._legacy_update)
-        self._legacy_update = listener
-        if listener is not None:
-            self.add_update_listener(listener)
-
-    @property
-    def on_event(self) -> EventListener | None:
-        """The first event listener, None while none listens (events are not derived then)."""
-        listeners = self._event_listeners
-        return listeners[0] if listeners else None
-
-    def listen_events(self, on_event: EventListener | None) -> None:
-        """Replace the listener set by the previous call with ``on_event`` (None: none)."""
-        if self._legacy_event is not None:
-            self.remove_event_listener(self._legacy_event)
-        self._legacy_event = on_event
-        if on_event is not None:
-            self.add_event_listener(on_event)
+    def __len__(self) -> int:
+        return len(self.snapshot)

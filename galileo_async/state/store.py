@@ -14,8 +14,8 @@ from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
 from ..models import GalileoStatus, LinkState
-from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, HostGoal, step_events
-from .listeners import Listeners
+from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, SentGoal, step_events
+from .listeners import EventListener, Listeners, StatusListener
 from .streams import (
     EventStream,
     StatusStream,
@@ -53,16 +53,17 @@ _EVENT_KEY = attrgetter(
 _Sub = TypeVar("_Sub", bound="Subscription[Any]")
 
 
-class StatusStore(Listeners):
+class StatusStore:
     """Latest status and everything that waits on it; fed synchronously by the link."""
 
     # Slots keep the attributes update() reads 30 times a second inside the object: one
     # memory block less to fetch per frame, which counts across a fleet (BENCHMARKS.md §2).
     __slots__ = (
-        "__weakref__", "_clock", "_event_key", "_event_refs",
-        "_event_streams", "_frame_waiters", "_goal", "_link_error",
-        "_status_hooks", "_waiters", "_waiting_streams", "_watch_refs", "_watches", "closed",
-        "last_update", "placeholder_frames", "status", "updates",
+        "__weakref__", "_clock", "_event_calls", "_event_key", "_event_listeners", "_event_refs",
+        "_event_streams", "_frame_waiters", "_goal", "_link_error", "_status_hooks",
+        "_update_calls", "_update_listeners", "_update_one", "_waiters", "_waiting_streams",
+        "_watch_refs", "_watches", "closed", "last_update", "placeholder_frames", "status",
+        "updates",
     )  # fmt: skip
 
     def __init__(
@@ -71,7 +72,6 @@ class StatusStore(Listeners):
         clock: Callable[[], float] = time.monotonic,
         arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     ) -> None:
-        super().__init__()
         self.status: GalileoStatus | None = None
         #: How many statuses update() has recorded.
         self.updates = 0
@@ -82,7 +82,7 @@ class StatusStore(Listeners):
         self._clock = clock
         self._event_key: tuple[Any, ...] | None = None
         # The goal rule with its memory (transitions.GoalMachine), as each goto keeps one;
-        # its host: what this host sent and the rule still follows (follow_goal).
+        # its `sent`: the goal this process sent and the rule still tracks (track_goal).
         self._goal = GoalMachine(arrive_tolerance=arrive_tolerance)
         self._waiters: list[Waiter] = []
         # Weak: a subscription its consumer dropped unregisters itself when collected.
@@ -94,6 +94,16 @@ class StatusStore(Listeners):
         self._waiting_streams: list[StatusStream] = []
         self._event_refs: tuple[weakref.ref[EventStream], ...] = ()
         self._event_streams: Subscribers[EventStream] = Subscribers(self._set_event_refs)
+        # The listeners, and their snapshots in the store's own slots, as for subscriptions;
+        # _update_one is the only status listener when there is exactly one (a fleet's):
+        # called without a loop, per frame of every robot (BENCHMARKS.md §2).
+        self._update_calls: tuple[StatusListener, ...] = ()
+        self._update_one: StatusListener | None = None
+        self._update_listeners: Listeners[GalileoStatus] = Listeners(
+            "status", self._set_update_calls
+        )
+        self._event_calls: tuple[EventListener, ...] = ()
+        self._event_listeners: Listeners[Event] = Listeners("event", self._set_event_calls)
         self._link_error: GalileoConnectionError | None = None
         # Futures of first_frame(): resolved by any valid frame, placeholders included.
         self._frame_waiters: list[asyncio.Future[None]] = []
@@ -121,7 +131,7 @@ class StatusStore(Listeners):
             return
         if self._frame_waiters:
             self._wake_frame_waiters()
-        if self._event_refs or self._event_listeners:
+        if self._event_refs or self._event_calls:
             key = _EVENT_KEY(status)
             if key == self._event_key:
                 self._goal.see(status)  # no field that makes an event changed
@@ -152,8 +162,8 @@ class StatusStore(Listeners):
                 one(status)
             except Exception:
                 _log.exception("status listener %r failed", one)
-        elif self._update_listeners:
-            self._call_update_listeners(status)
+        elif self._update_calls:
+            self._update_listeners.call(status)
 
     def _placeholder(self) -> None:
         """A placeholder frame: the link is up, but the robot's state is unknown (again)."""
@@ -166,22 +176,24 @@ class StatusStore(Listeners):
         if self._frame_waiters:
             self._wake_frame_waiters()
 
-    # --- hooks for the driver's own follow-ups (robot layer) ----------------------------
+    # --- hooks for the robot layer: its one-shot callbacks, the goal it tracks, its events -
 
     def call_on_next_status(self, callback: Callable[[GalileoStatus], None]) -> None:
         """Call ``callback`` once with the next robot status (placeholders are not one)."""
         if not self.closed:
             self._status_hooks.append(callback)
 
-    def follow_goal(self, host: HostGoal) -> None:
-        """This host writes ``g N`` now: events() attributes what follows by the goal rule."""
-        self._goal.host = host
+    def track_goal(self, sent: SentGoal) -> None:
+        """This process writes ``g N`` now: events() attributes later frames by the goal rule."""
+        self._goal.sent = sent
 
-    def revise_goal(self, origin: object, revise: Callable[[HostGoal], HostGoal | None]) -> None:
-        """Apply ``revise`` to the followed goal if ``origin`` sent it (None: follow nothing)."""
-        host = self._goal.host
-        if host is not None and host.origin is origin:
-            self._goal.host = revise(host)
+    def revise_tracked_goal(
+        self, origin: object, revise: Callable[[SentGoal], SentGoal | None]
+    ) -> None:
+        """Apply ``revise`` to the tracked goal if ``origin`` sent it (None: track nothing)."""
+        sent = self._goal.sent
+        if sent is not None and sent.origin is origin:
+            self._goal.sent = revise(sent)
 
     def emit(self, event: Event) -> None:
         """Hand ``event``, one the driver itself caused, to every events() consumer."""
@@ -247,6 +259,22 @@ class StatusStore(Listeners):
             stream.close()
 
     # --- used by robot and users -------------------------------------------------------
+
+    def add_update_listener(self, listener: StatusListener) -> None:
+        """Call ``listener(status)`` with every later recorded status (placeholders are not)."""
+        self._update_listeners.add(listener)
+
+    def remove_update_listener(self, listener: StatusListener) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._update_listeners.remove(listener)
+
+    def add_event_listener(self, listener: EventListener) -> None:
+        """Call ``listener(event)`` with every later event; events are derived while any listens."""
+        self._event_listeners.add(listener)
+
+    def remove_event_listener(self, listener: EventListener) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._event_listeners.remove(listener)
 
     async def wait_until(
         self, predicate: Callable[[GalileoStatus], bool], timeout: float | None = None,
@@ -316,13 +344,20 @@ class StatusStore(Listeners):
     def _set_watch_refs(self, refs: tuple[weakref.ref[Watch], ...]) -> None:
         self._watch_refs = refs
 
-    def _listeners_changed(self) -> None:
-        if not self._event_listeners and not self._event_refs:
-            self._event_key = None
+    def _set_update_calls(self, listeners: tuple[StatusListener, ...]) -> None:
+        self._update_calls = listeners
+        self._update_one = listeners[0] if len(listeners) == 1 else None
+
+    def _set_event_calls(self, listeners: tuple[EventListener, ...]) -> None:
+        self._event_calls = listeners
+        self._forget_key_if_unheard()
 
     def _set_event_refs(self, refs: tuple[weakref.ref[EventStream], ...]) -> None:
         self._event_refs = refs
-        if not refs and not self._event_listeners:
+        self._forget_key_if_unheard()
+
+    def _forget_key_if_unheard(self) -> None:
+        if not self._event_refs and not self._event_calls:
             # Nobody listens: forget the key so that the next listener compares the status
             # before its first frame with that frame.
             self._event_key = None
@@ -379,7 +414,7 @@ class StatusStore(Listeners):
     def _emit(self, event: Event) -> None:
         for stream in self._event_streams:
             stream.offer(event)
-        if self._event_listeners:
-            self._call_event_listeners(event)
+        if self._event_calls:
+            self._event_listeners.call(event)
         if _log.isEnabledFor(logging.DEBUG):
             _log.debug("event %s", type(event).__name__)

@@ -30,7 +30,7 @@ from .goal import (
     DEFAULT_ARRIVE_TOLERANCE,
     GoalChange,
     GoalStep,
-    HostGoal,
+    SentGoal,
     goal_step,
     running_distance,
 )
@@ -46,13 +46,13 @@ def derive_events(
     *,
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     last_distance: float | None = None,
-    host: HostGoal | None = None,
+    sent: SentGoal | None = None,
 ) -> list[Event]:
     """Events for prev → cur (a field unknown on either side: no change); goals by goal_step."""
     if prev is None:
         return []
     tolerance, last = arrive_tolerance, last_distance
-    return derive_step(prev, cur, arrive_tolerance=tolerance, last_distance=last, host=host)[0]
+    return derive_step(prev, cur, arrive_tolerance=tolerance, last_distance=last, sent=sent)[0]
 
 
 def derive_step(
@@ -61,16 +61,16 @@ def derive_step(
     *,
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     last_distance: float | None = None,
-    host: HostGoal | None = None,
+    sent: SentGoal | None = None,
     measured: GalileoStatus | None = None,
-) -> tuple[list[Event], HostGoal | None]:
-    """derive_events, and the HostGoal after cur to keep; ``measured`` gives last_distance."""
+) -> tuple[list[Event], SentGoal | None]:
+    """derive_events, and the SentGoal after cur to keep; ``measured`` gives last_distance."""
     if last_distance is None:
         last_distance = running_distance(measured, prev)
     step = goal_step(
-        prev, cur, host=host, arrive_tolerance=arrive_tolerance, last_distance=last_distance
+        prev, cur, sent=sent, arrive_tolerance=arrive_tolerance, last_distance=last_distance
     )
-    return step_events(prev, cur, step), step.host
+    return step_events(prev, cur, step), step.sent
 
 
 def step_events(prev: GalileoStatus, cur: GalileoStatus, step: GoalStep) -> list[Event]:

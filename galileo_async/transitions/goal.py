@@ -1,6 +1,6 @@
 """The goal state machine, pure (no I/O): goal_step, and GoalMachine, its memory between frames.
 
-goal_step: (prev, cur, what this host sent) → how goals changed. GoalMachine feeds it each
+goal_step: (prev, cur, what this process sent) → how goals changed. GoalMachine feeds it each
 status of one stream against the last that told the goal state. events() (StatusStore,
 derive.step_events) and GoalTracker (goto, goto_point) each keep one GoalMachine, so every
 goal ends by one verdict with one name: GoalRejected ~ GoalRejectedEvent, …
@@ -22,14 +22,12 @@ __all__ = [
     "GoalChange",
     "GoalMachine",
     "GoalStep",
-    "GoalTransition",
-    "HostGoal",
+    "SentGoal",
     "arrived",
     "at_target",
     "end_distance",
     "failed_newly",
     "goal_step",
-    "goal_transition",
     "informs",
     "run_starts",
     "running_distance",
@@ -58,31 +56,25 @@ class GoalChange(Enum):
     REJECTED = "rejected"  # GoalRejected; GoalRejectedEvent
     CANCELLED = "cancelled"  # GoalCancelled; GoalCancelledEvent
     PREEMPTED = "preempted"  # GoalCancelled(preempted=True); GoalCancelledEvent(preempted=True)
-    FAILED = "rejected"  # deprecated alias of REJECTED (its former name)
 
 
 ENDS = frozenset(GoalChange) - {GoalChange.ACCEPTED, GoalChange.PAUSED, GoalChange.RESUMED}
 
 
-class GoalTransition(NamedTuple):
-    """The goal's changes between two statuses, in order; ``distance`` for REACHED/ABORTED."""
-
-    changes: tuple[GoalChange, ...]
-    distance: float | None = None
-
-
-class HostGoal(NamedTuple):
-    """What this host sent about one goal (HostGoal.sent at ``g N``): goal_step's third input."""
+class SentGoal(NamedTuple):
+    """The goal this process sent (SentGoal.written at ``g N``): goal_step's third input."""
 
     target_id: int
     before_id: int | None  # target_num_id at the write: only a change to ours proves an end
     pending: bool  # written, not yet seen working
     restarting: bool  # sent while it ran: its first end may be the restart's cancel (§2.b)
-    cancelled: bool = False  # this host sent cancel (i 2): free far away is that cancel
+    cancelled: bool = False  # this process sent cancel (i 2): free far away is that cancel
     origin: object = None  # the sender's own object: tells two sends of one id apart
 
     @classmethod
-    def sent(cls, target_id: int, before: GalileoStatus | None, origin: object = None) -> HostGoal:
+    def written(
+        cls, target_id: int, before: GalileoStatus | None, origin: object = None
+    ) -> SentGoal:
         """``g target_id`` is written now; ``before`` is the latest status at the write."""
         restarting = before is not None and _running(before) and before.target_num_id == target_id
         before_id = None if before is None else before.target_num_id
@@ -90,11 +82,11 @@ class HostGoal(NamedTuple):
 
 
 class GoalStep(NamedTuple):
-    """goal_step's verdict: (change, goal id) pairs in order, the end's distance, the next host."""
+    """goal_step's verdict: (change, goal id) pairs in order, the end's distance, the next sent."""
 
     changes: tuple[tuple[GoalChange, int | None], ...]
     distance: float | None
-    host: HostGoal | None
+    sent: SentGoal | None
 
 
 def valid_distance(value: float | None) -> float | None:
@@ -147,41 +139,41 @@ def goal_step(
     prev: GalileoStatus,
     cur: GalileoStatus,
     *,
-    host: HostGoal | None = None,
+    sent: SentGoal | None = None,
     arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
     last_distance: float | None = None,
 ) -> GoalStep:
-    """THE goal state machine: how goals changed from prev to cur, given ``host`` (what this host
-    sent and follows; None: a watcher). A status that does not inform (informs) on either side
-    is no change (GoalMachine compares across it), but a goal this host sent and has not seen
-    working is judged by cur alone. A goal shown with navigation closed does not run: it ended
-    when navigation closed under it.
+    """THE goal state machine: how goals changed from prev to cur, given ``sent`` (the goal
+    this process sent and tracks; None: a watcher). A status that does not inform (informs) on
+    either side is no change (GoalMachine compares across it), but a goal this process sent and
+    has not seen working is judged by cur alone. A goal shown with navigation closed does not
+    run: it ended when navigation closed under it.
     ``last_distance``: the last valid distance of prev's goal before prev (running_distance)."""
-    if host is not None and _closed(cur):  # closed navigation ends every goal, known or not
+    if sent is not None and _closed(cur):  # closed navigation ends every goal, known or not
         gone = prev.target_num_id
         dropped = (
-            ((GoalChange.CANCELLED, gone),) if _running(prev) and gone != host.target_id else ()
+            ((GoalChange.CANCELLED, gone),) if _running(prev) and gone != sent.target_id else ()
         )
-        return GoalStep((*dropped, (GoalChange.CANCELLED, host.target_id)), None, None)
+        return GoalStep((*dropped, (GoalChange.CANCELLED, sent.target_id)), None, None)
     if not informs(cur):
-        return GoalStep((), None, host)
-    if not informs(prev) and (host is None or not host.pending):
-        return GoalStep((), None, host)
-    if host is not None and host.pending:
-        if prev.target_num_id == host.target_id and _running(prev):
-            host = host._replace(pending=False)  # seen working already (a late listener)
+        return GoalStep((), None, sent)
+    if not informs(prev) and (sent is None or not sent.pending):
+        return GoalStep((), None, sent)
+    if sent is not None and sent.pending:
+        if prev.target_num_id == sent.target_id and _running(prev):
+            sent = sent._replace(pending=False)  # seen working already (a late listener)
         else:
-            return _host_result(_pending(prev, cur, host, arrive_tolerance, last_distance), host)
-    if host is not None and host.restarting and _restart_cancel(prev, cur, host, arrive_tolerance):
-        return GoalStep((), None, host._replace(pending=True, restarting=False))
-    return _host_result(_observed(prev, cur, arrive_tolerance, last_distance), host)
+            return _sent_result(_pending(prev, cur, sent, arrive_tolerance, last_distance), sent)
+    if sent is not None and sent.restarting and _restart_cancel(prev, cur, sent, arrive_tolerance):
+        return GoalStep((), None, sent._replace(pending=True, restarting=False))
+    return _sent_result(_observed(prev, cur, arrive_tolerance, last_distance), sent)
 
 
 def _restart_cancel(
-    prev: GalileoStatus, cur: GalileoStatus, host: HostGoal, tolerance: float
+    prev: GalileoStatus, cur: GalileoStatus, sent: SentGoal, tolerance: float
 ) -> bool:
     """``cur`` is the restart's own cancel: ours ran, and now it neither runs nor arrived."""
-    tid = host.target_id
+    tid = sent.target_id
     if prev.target_num_id != tid or not _running(prev) or _closed(cur) or failed_newly(prev, cur):
         return False
     return cur.target_num_id != tid or not (_running(cur) or at_target(cur, tolerance))
@@ -202,25 +194,25 @@ def _end(distance: float | None, tolerance: float) -> GoalChange:
 
 
 def _pending(
-    prev: GalileoStatus, cur: GalileoStatus, host: HostGoal, tol: float, last: float | None
+    prev: GalileoStatus, cur: GalileoStatus, sent: SentGoal, tol: float, last: float | None
 ) -> GoalStep:
     """A written goal not yet seen working: the frames that accept, refuse or end it."""
-    tid = host.target_id
+    tid = sent.target_id
     ours = cur.target_num_id == tid
-    # The goal before ours, when ours (or its refusal) shows: a goal this host wrote replaced it.
+    # The goal before ours, when ours (or its refusal) shows: a goal this process wrote replaced it.
     before = ((GoalChange.PREEMPTED, prev.target_num_id),) if _running(prev) else ()
     if ours and _running(cur):
-        return GoalStep(before + _accepted(cur, tid), None, host._replace(pending=False))
+        return GoalStep(before + _accepted(cur, tid), None, sent._replace(pending=False))
     if failed_newly(prev, cur):
         # The document reports a bad goal as 3; the firmware as -1, leaving target_num_id
         # unchanged (docs/protocol.md §2.b): an id check cannot be used.
         return GoalStep((*before, (GoalChange.REJECTED, tid)), None, None)
-    if ours and host.before_id != tid and cur.target_status == TargetStatus.FREE:
+    if ours and sent.before_id != tid and cur.target_status == TargetStatus.FREE:
         # Accepted and finished between two frames: the id changing to ours is the proof.
         distance = valid_distance(cur.target_distance)
         changes = (*before, (GoalChange.ACCEPTED, tid), (_end(distance, tol), tid))
         return GoalStep(changes, distance, None)
-    return _observed(prev, cur, tol, last)._replace(host=host)  # other goals; ours not yet
+    return _observed(prev, cur, tol, last)._replace(sent=sent)  # other goals; ours not yet
 
 
 def _observed(prev: GalileoStatus, cur: GalileoStatus, tol: float, last: float | None) -> GoalStep:
@@ -253,32 +245,20 @@ def _observed(prev: GalileoStatus, cur: GalileoStatus, tol: float, last: float |
     return GoalStep(((_end(distance, tol), old_id),), distance, None)
 
 
-def _host_result(step: GoalStep, host: HostGoal | None) -> GoalStep:
-    """``step`` with the end of ``host``'s goal told as this host's: its cancel, its end."""
-    if host is None:
+def _sent_result(step: GoalStep, sent: SentGoal | None) -> GoalStep:
+    """``step`` with the end of the ``sent`` goal told as this process's: its cancel, its end."""
+    if sent is None:
         return step
     for change, target_id in step.changes:
-        if target_id == host.target_id and change in ENDS:
-            if change is GoalChange.ABORTED and host.cancelled:
+        if target_id == sent.target_id and change in ENDS:
+            if change is GoalChange.ABORTED and sent.cancelled:
                 # The document's cancel leaves target_num_id alone (only real firmware sets
                 # -1, docs/protocol.md §2.c): free far away after our cancel is that cancel.
                 step = step._replace(changes=tuple(
                     (GoalChange.CANCELLED if c is change else c, t) for c, t in step.changes
                 ))  # fmt: skip
-            return step._replace(host=None)
-    return step if step.host is not None else step._replace(host=host)
-
-
-def goal_transition(
-    prev: GalileoStatus,
-    cur: GalileoStatus,
-    *,
-    arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE,
-    last_distance: float | None = None,
-) -> GoalTransition:
-    """goal_step for a watcher (nothing sent), without the goal ids."""
-    step = goal_step(prev, cur, arrive_tolerance=arrive_tolerance, last_distance=last_distance)
-    return GoalTransition(tuple(c for c, _ in step.changes), step.distance)
+            return step._replace(sent=None)
+    return step if step.sent is not None else step._replace(sent=sent)
 
 
 def run_starts(prev: GalileoStatus, cur: GalileoStatus) -> bool:
@@ -303,18 +283,18 @@ class GoalMachine:
     informing status with a valid distance, gives the end its distance (running_distance).
     """
 
-    __slots__ = ("_latest", "arrive_tolerance", "host", "measured", "prev")
+    __slots__ = ("_latest", "arrive_tolerance", "measured", "prev", "sent")
 
     def __init__(
-        self, *, host: HostGoal | None = None, arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE
+        self, *, sent: SentGoal | None = None, arrive_tolerance: float = DEFAULT_ARRIVE_TOLERANCE
     ) -> None:
         self.arrive_tolerance = arrive_tolerance
-        #: What this host sent, as goal_step follows it (None: a watcher, or the goal ended).
-        self.host = host
+        #: The goal this process sent, as goal_step tracks it (None: a watcher, or it ended).
+        self.sent = sent
         #: The status the next is compared with (None: the next is the first).
         self.prev: GalileoStatus | None = None
         self.measured: GalileoStatus | None = None
-        self._latest = False  # prev is the last status given: see() follows it
+        self._latest = False  # prev is the last status given: see() moves it on
 
     def start(self, status: GalileoStatus | None) -> None:
         """Compare the next status with ``status`` (None: the next is the first); its valid
@@ -330,11 +310,11 @@ class GoalMachine:
         step = goal_step(
             prev,
             status,
-            host=self.host,
+            sent=self.sent,
             arrive_tolerance=self.arrive_tolerance,
             last_distance=running_distance(self.measured, prev),
         )
-        self.host = step.host
+        self.sent = step.sent
         self._latest = informs(status)
         if self._latest:
             if run_starts(prev, status):
