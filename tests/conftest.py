@@ -9,11 +9,11 @@ from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
 import pytest
-from fake_device import FakeDevice
 from hypothesis import HealthCheck, settings
 
 from galileo_async.testing import LeakCheck
 from galileo_async.transports import BaseLink
+from tests.support.fake_device import FakeDevice
 
 settings.register_profile(
     "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]
