@@ -51,7 +51,7 @@ LINK_CLOSE_TIMEOUT = 2.0
 
 @pytest.fixture
 async def device() -> AsyncIterator[FakeDevice]:
-    """A started in-memory fake device (tests/fake_device.py), stopped afterwards."""
+    """A started in-memory fake device (tests/support/fake_device.py), stopped afterwards."""
     fake = FakeDevice()
     await fake.start()
     yield fake

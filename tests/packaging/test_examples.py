@@ -27,8 +27,8 @@ def run_example(name: str, *args: str) -> str:
 
 
 def test_every_example_is_tested() -> None:
-    # vda5050_vehicle.py needs a broker: tests/test_vda5050_links.py runs it.
-    # test_patrol_app.py is a pytest file: tests/test_testing_example.py runs it.
+    # vda5050_vehicle.py needs a broker: tests/vda5050/test_vda5050_links.py runs it.
+    # test_patrol_app.py is a pytest file: tests/testing/test_testing_example.py runs it.
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
         "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",

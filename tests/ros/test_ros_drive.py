@@ -1,7 +1,7 @@
 """drive() over ros://: a geometry_msgs/Twist on /cmd_vel at the rate, a zero Twist at exit.
 
 A real ROS 1 master, the rospy robot node, and a rospy /cmd_vel listener
-(tests/ros_cmd_vel_listener.py) that prints every Twist it receives.
+(tests/support/ros_cmd_vel_listener.py) that prints every Twist it receives.
 """
 
 from __future__ import annotations

@@ -158,7 +158,7 @@ class RosMaster:
 
 
 class RobotNode:
-    """The rospy robot node (tests/ros_robot_node.py) under the system Python."""
+    """The rospy robot node (tests/support/ros_robot_node.py) under the system Python."""
 
     def __init__(self, master: RosMaster, *args: str) -> None:
         self.master = master
