@@ -9,7 +9,7 @@ DIST ?= dist
 # Editable installs that type checkers see: setuptools' compat mode puts this directory on
 # sys.path with a plain .pth line, which mypy and pyright read (its default mode installs an
 # import hook they cannot follow). compat is setuptools' transitional mode, and setuptools
-# says so on every install (silenced here): tests/test_packaging.py fails should it go.
+# says so on every install (silenced here): tests/packaging/test_packaging.py fails should it go.
 PIP_EDITABLE := PYTHONWARNINGS='ignore:Compat editable installs' $(BIN)/python -m pip install \
 	--quiet --disable-pip-version-check --config-settings editable_mode=compat -e
 

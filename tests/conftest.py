@@ -9,11 +9,11 @@ from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
 import pytest
-from fake_device import FakeDevice
 from hypothesis import HealthCheck, settings
 
 from galileo_async.testing import LeakCheck
 from galileo_async.transports import Link
+from tests.support.fake_device import FakeDevice
 
 settings.register_profile(
     "ci", max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -51,7 +51,7 @@ LINK_CLOSE_TIMEOUT = 2.0
 
 @pytest.fixture
 async def device() -> AsyncIterator[FakeDevice]:
-    """A started in-memory fake device (tests/fake_device.py), stopped afterwards."""
+    """A started in-memory fake device (tests/support/fake_device.py), stopped afterwards."""
     fake = FakeDevice()
     await fake.start()
     yield fake

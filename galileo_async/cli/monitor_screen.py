@@ -124,7 +124,7 @@ def _named(label: str, value: enum.IntEnum | None) -> _Pair:
 
 def _compact(status: GalileoStatus | None, link: object, url: str) -> list[Text]:
     """A title line and three coloured lines (states; pose and speed; goal, power and link)
-    that fit 80 columns with the longest value of each (tests/test_cli_monitor_small.py)."""
+    that fit 80 columns with the longest value of each (tests/cli/test_cli_monitor_small.py)."""
     stats = link_dict(link)
     title = Text("galileo monitor", style="bold", overflow="ellipsis", no_wrap=True)
     if status is None:

@@ -30,7 +30,7 @@ __all__ = [
 
 #: Pydantic versions ``[low, high)`` (major, minor) whose BaseModel layout the fast path was
 #: checked against: the decoder's and the models' tests passed with 2.7.4, 2.11.10 and
-#: 2.14.4 (tests/test_build.py pins the installed version inside). Widen it only after
+#: 2.14.4 (tests/protocol/test_build.py pins the installed version inside). Widen it only after
 #: they pass with the new version.
 PYDANTIC_CHECKED: tuple[tuple[int, int], tuple[int, int]] = ((2, 7), (2, 15))
 

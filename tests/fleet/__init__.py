@@ -1,0 +1,1 @@
+"""Fleets: connect_fleet, fleet files, merged streams, stopping every robot."""

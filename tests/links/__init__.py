@@ -1,0 +1,1 @@
+"""Links: serial, socket, UDP, HTTP(S); the link state, outages, the stale watchdog, port owners."""

@@ -1,0 +1,1 @@
+"""The Robot: operations, stop, drive, turns, services, safety, exit paths, loop binding."""

@@ -1,0 +1,1 @@
+"""Support of the tests: fake robots, real peers, test vectors and harnesses (no tests)."""
