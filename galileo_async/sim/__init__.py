@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from .config import DEFAULT_TARGETS, FRAME_RATE, Faults, SimConfig, parse_sim_url
 from .device import DeviceStats, FrameEncoder, Ticker
-from .robot_model import RobotModel
-from .script import SETTABLE_FIELDS
+from .robot_model import SETTABLE_FIELDS, RobotModel
 from .simulator import Connector, SimState, Simulator
 
 __all__ = [

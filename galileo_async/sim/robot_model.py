@@ -8,15 +8,15 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from .._checks import check_int, check_names, check_number
 from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from ..protocol import commands as cmd
 from .config import FRAME_RATE, SimConfig
 from .motion import Body, turn_toward, wrap_angle
-from .script import Scripting
-from .services import ServiceCommands
 from .states import (
     ACTIVE,
     CHARGE_FREE,
+    CHARGED,
     CHARGING,
     DOCKING,
     EPSILON,
@@ -28,7 +28,7 @@ from .states import (
     WORKING,
 )
 
-__all__ = ["FRAME_TIME", "WIRE_FIELDS", "RobotModel", "WireValues"]
+__all__ = ["FRAME_TIME", "SETTABLE_FIELDS", "WIRE_FIELDS", "RobotModel", "WireValues"]
 
 #: Simulated seconds per status frame.
 FRAME_TIME = 1.0 / FRAME_RATE
@@ -39,8 +39,26 @@ WireValues = tuple[Any, ...]
 
 _UNKNOWN_POSE = (-1.0, -1.0, -1.0)
 
+#: Status fields ``set_fields`` takes, with their type: the others follow from the model
+#: (speeds from motion, busy_status from busy(), angle_goal_status from the goal on real
+#: firmware).
+SETTABLE_FIELDS: dict[str, type] = {
+    "nav_status": int,
+    "visual_status": int,
+    "map_status": int,
+    "charge_status": int,
+    "loop_status": int,
+    "power": float,
+    "target_num_id": int,
+    "target_status": int,
+    "target_distance": float,
+    "x": float,
+    "y": float,
+    "theta": float,
+}
 
-class RobotModel(Scripting, ServiceCommands, Body):
+
+class RobotModel(Body):
     """One Galileo robot: feed it commands with ``submit`` and advance it with ``step``."""
 
     def __init__(self, config: SimConfig | None = None) -> None:
@@ -380,6 +398,92 @@ class RobotModel(Scripting, ServiceCommands, Body):
         self.rotate_status = 0
         self._fresh = True
 
+    # ------------------------------------------------------------------ patrol
+    def _step_patrol(self) -> None:
+        if not self.loop_status or self.target_status in ACTIVE or not self.visual_initialised:
+            return
+        if self._patrol_resume_at is None:  # a leg just ended: dwell at the target
+            self._patrol_resume_at = self.time + self.patrol_dwell
+        if self.time + EPSILON < self._patrol_resume_at or not self.targets:
+            return
+        target_id = self._patrol_next % len(self.targets)
+        self._patrol_next = target_id + 1
+        self._patrol_resume_at = None
+        self._begin_goal(target_id)
+
+    def _start_patrol(self, _: object) -> None:
+        if self.nav_status == 1 and not self.loop_status:
+            self.loop_status = 1
+            self._patrol_resume_at = self.time  # first leg starts at once
+
+    def _stop_patrol(self, _: object) -> None:
+        if not self.config.real_firmware:
+            return  # the document stops patrol with 'm' 4 only
+        if self.loop_status:
+            self.loop_status = 0
+            if self.target_status in ACTIVE:
+                self._drop_goal()
+
+    def _set_patrol_dwell(self, command: cmd.SetPatrolDwell) -> None:
+        self.patrol_dwell = float(command.seconds)
+        if self.config.real_firmware:
+            self._start_patrol(
+                None
+            )  # firmware: 'm' 5 TT also starts patrol (docs/protocol.md §2.g)
+
+    # ------------------------------------------------------------------ mapping
+    def _start_mapping(self, _: object) -> None:
+        if self.map_status == 1:
+            return
+        self._stop_navigation(None)  # docs/protocol.md §2.h: start mapping also stops navigation
+        self.map_status, self.visual_status = 1, 1
+
+    def _stop_mapping(self, _: object) -> None:
+        if self.map_status == 1:
+            self.map_status, self.visual_status = 0, -1
+            self.set_busy(self.config.busy_on_map_stop)
+
+    def _save_map(self, _: object) -> None:
+        if not self.config.ignore_save_map:
+            self.set_busy(self.config.busy_on_save)
+
+    def _update_map(self, _: object) -> None:
+        if self.map_status == 0:
+            self._start_mapping(None)
+
+    # ------------------------------------------------------------------ charging & misc
+    def _step_power(self, dt: float) -> None:
+        config = self.config
+        if self.charge_status in (CHARGING, CHARGED):
+            self.power = min(config.power_full, self.power + config.charge_rate * dt)
+            if self.charge_status == CHARGING and self.power >= config.power_full:
+                self.charge_status = CHARGED
+        else:
+            self.power = max(0.0, self.power - config.power_drain * dt)
+
+    def _start_charging(self, _: object) -> None:
+        if self.charge_status in (CHARGE_FREE, 5):
+            if self.target_status in ACTIVE:
+                self._drop_goal()
+            self.loop_status = 0
+            self.charge_status = FINDING
+
+    def _stop_charging(self, _: object) -> None:
+        if self.charge_status != CHARGE_FREE:
+            self.charge_status, self._docked_at = CHARGE_FREE, None
+            self.control_v = self.control_w = 0.0
+
+    def _save_dock(self, _: object) -> None:
+        self.dock = (self.x, self.y)
+
+    def _greeting(self, command: cmd.Greeting) -> None:
+        self.greeting = command.enabled
+
+    def _shutdown(self, _: object) -> None:
+        self.shutdown = True
+        self.halt()
+
+    # ------------------------------------------------------------------ HTTP API
     def goto_pose(self, x: float, y: float) -> None:
         """A goal by pose, as an HTTP API nav task: target_num_id -2 (docs/protocol.md §5.4)."""
         if self.nav_status == 1 and self.visual_initialised:
@@ -391,3 +495,88 @@ class RobotModel(Scripting, ServiceCommands, Body):
     def set_speed(self, linear: float, angular: float) -> None:
         """Teleop in m/s and rad/s (the HTTP API's PUT /system/speed)."""
         self._teleop(v=linear, w=angular)
+
+    # ------------------------------------------------------------------ faults and overrides
+    def open_navigation(self) -> None:
+        """Navigation open and tracking, no goal shown (free, id -1), nothing busy.
+
+        As on a robot in service: its goal status left free by the last goal or cancel,
+        so a refused goal shows as -1 (docs/protocol.md §2.b).
+        """
+        self.nav_status, self.visual_status = 1, 1
+        self.target_status, self.target_num_id = FREE, -1
+        self._visual_ready_at = None
+
+    def lock_out_start(self) -> None:
+        """Begin the firmware's start lockout now, as a start a moment ago would.
+
+        A navigation start within ``start_ignore_time`` (5-30 s on real robots) is ignored
+        (docs/protocol.md §2.a).
+        """
+        self._last_start = self.time
+
+    def abort_next_goal(self) -> None:
+        """Make the planner give up half way on the next goal (fault injection)."""
+        self._abort_next = True
+
+    def reject_next_goal(self) -> None:
+        """Refuse the next goal as the firmware refuses an unknown target id."""
+        self._reject_next = True
+
+    def take_rejection(self) -> bool:
+        """True once after reject_next_goal(): the goal starting now is refused."""
+        rejected, self._reject_next = self._reject_next, False
+        return rejected
+
+    def set_busy(self, seconds: float) -> None:
+        """Be busy for ``seconds`` from now (at least)."""
+        self.busy_until = max(self.busy_until, self.time + seconds)
+
+    def hold_busy(self, seconds: float) -> None:
+        """Be busy for exactly ``seconds`` from now; 0 ends busy now (fault injection)."""
+        self.busy_until = self.time + seconds
+
+    def lose_visual(self, seconds: float | None = None) -> None:
+        """Lose visual tracking (visual_status 2, the robot halts) for ``seconds`` or until set."""
+        self.visual_status = 2
+        self._visual_ready_at = None
+        self._visual_lost_until = None if seconds is None else self.time + seconds
+        self.halt()
+
+    def step_script(self) -> None:
+        """Per step: tracking comes back when a timed lose_visual() ends."""
+        until = self._visual_lost_until
+        if until is not None and self.time + EPSILON >= until:
+            self._visual_lost_until = None
+            if self.visual_status == 2:
+                self.visual_status = 1
+
+    def freeze(self) -> None:
+        """The navigation stack dies: the same status re-sent, commands without effect."""
+        if self._frozen is None:
+            self._frozen = self.wire_values()
+
+    def thaw(self) -> None:
+        """The navigation stack comes back where it stopped."""
+        self._frozen = None
+
+    def place(self, x: float, y: float, theta: float) -> None:
+        """Put the robot at (x, y) facing ``theta`` radians, at rest."""
+        x, y, theta = check_number("x", x), check_number("y", y), check_number("heading", theta)
+        self.x, self.y = x, y  # all checked first: a bad heading changes nothing
+        self.theta = math.remainder(theta, math.tau)
+        self.halt()
+
+    def set_fields(self, **values: Any) -> None:
+        """Override status fields (SETTABLE_FIELDS); all are checked before any is set."""
+        check_names(values, SETTABLE_FIELDS)
+        checked = {
+            name: check_int(name, value, -(2**31), 2**31 - 1)
+            if SETTABLE_FIELDS[name] is int
+            else check_number(name, value)
+            for name, value in values.items()
+        }
+        for name, value in checked.items():
+            setattr(self, name, value)
+        if "visual_status" in values:  # an explicit visual state ends the scripted ones
+            self._visual_lost_until = self._visual_ready_at = None

@@ -585,8 +585,6 @@ def class_halves(source: str) -> dict[str, list[str]]:
 #: Halves still in the package, "module.Class". This set must become empty: each is made a
 #: whole object (composition) or merged into the class it completes, then taken off here.
 KNOWN_HALVES = {
-    "galileo_async.sim.script.Scripting",
-    "galileo_async.sim.services.ServiceCommands",
     "galileo_async.transports.queue.CommandQueue",
     "galileo_async.transports.watchdog.StaleWatchdog",
 }
