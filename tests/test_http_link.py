@@ -324,12 +324,12 @@ async def test_a_refused_command_raises_its_http_error_to_the_caller() -> None:
             await robot.goto(0, timeout=WAIT)
         assert info.value.endpoint == "/navigation/move_to_index"
         # stop()'s cancel (no goal shown: sent in case) failed too, without failing stop().
-        assert robot._link.failed_calls == 3  # type: ignore[attr-defined]
+        assert robot._link.channel.failed_calls == 3  # type: ignore[attr-defined]
 
 
 async def test_404_500_and_timeouts_are_http_errors() -> None:
     async with robot_on_http() as (_, robot, _face):
-        api = robot._link.api  # type: ignore[attr-defined]
+        api = robot._link.channel.api  # type: ignore[attr-defined]
         with pytest.raises(HttpError) as info:
             await api.call("GET", "/no/such")
         assert (info.value.status, info.value.endpoint) == (404, "/no/such")
@@ -442,14 +442,21 @@ async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
     async with bare_server(routes) as port:
         url = f"http://127.0.0.1:{port}?ws_port={port}"
         async with galileo.connect(url, stale_timeout=None) as robot:
-            link = robot._link  # the drive keep-alive's path: enqueue, nobody waits
-            link.enqueue(Velocity(0.3, 0.0))
+            # The drive keep-alive's path: enqueue, nobody waits, each speed superseded by
+            # the next speed or stop queued behind it (the Link drops it, unwritten).
+            link = robot._link
+            replaced_by = (Velocity, Stop)
+            link.enqueue(Velocity(0.3, 0.0), superseded_by=replaced_by)
             await held.wait()
-            for linear in (0.2, 0.1, 0.05):
-                link.enqueue(Velocity(linear, 0.0))
-            assert await asyncio.wait_for(link.enqueue(Stop()), WAIT)  # written behind them
+            dropped = [
+                link.enqueue(Velocity(linear, 0.0), superseded_by=replaced_by)
+                for linear in (0.2, 0.1, 0.05)
+            ]
+            stop = link.enqueue(Stop())
             release.set()
+            assert await asyncio.wait_for(stop, WAIT)  # written (answered) behind them
             await asyncio.wait_for(stopped.wait(), WAIT)
+            assert [future.result() for future in dropped] == [False, False, False]
         assert [body["speed_x"] for body in bodies] == [0.3, 0.0]
 
 

@@ -384,9 +384,11 @@ def test_state_knows_no_transport(path: Path) -> None:
     assert not uses, f"{path.name} uses asyncio.{uses}"
 
 
-LINK_SOURCES = sorted((PACKAGE_DIR / "transports").rglob("*.py")) + sorted(
-    (PACKAGE_DIR / "ros").rglob("*.py")
-)
+LINK_SOURCES = [
+    path
+    for part in ("transports", "ros", "http")
+    for path in sorted((PACKAGE_DIR / part).rglob("*.py"))
+]
 
 
 @pytest.mark.parametrize("path", LINK_SOURCES, ids=lambda p: p.relative_to(PACKAGE_DIR).as_posix())
@@ -399,8 +401,9 @@ def test_transports_import_nothing_from_robot_or_state(path: Path) -> None:
 def test_transport_checks_cover_the_transport_packages() -> None:
     names = {p.relative_to(PACKAGE_DIR).as_posix() for p in LINK_SOURCES}
     assert names >= {
-        "transports/__init__.py", "transports/base.py", "transports/stream.py",
-        "transports/connectors.py", "transports/urls.py", "ros/link.py",
+        "transports/__init__.py", "transports/link.py", "transports/channel.py",
+        "transports/stream.py", "transports/connectors.py", "transports/urls.py",
+        "ros/channel.py", "http/channel.py",
     }  # fmt: skip
 
 

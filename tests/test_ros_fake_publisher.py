@@ -1,4 +1,4 @@
-"""RosLink against a real master and a hand-built status publisher: odd definitions, bad bytes."""
+"""ros:// against a real master and a hand-built status publisher: odd definitions, bad bytes."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from galileo_async.ros import (
     STATUS_MD5,
     STATUS_TOPIC,
     STATUS_TYPE,
+    RosChannel,
     open_ros_link,
 )
 from galileo_async.ros.messages import CMDS_TYPE, STATUS_DEFINITION, full_definition
@@ -123,9 +124,11 @@ async def test_newer_definition_with_unknown_fields_and_bad_messages(master: Ros
         assert status.power == 24.0
         assert status.target_num_id == 6
         assert status.visual_status is None
-        await store.wait_until(lambda s: link.decode_errors > 0, timeout=3)
+        channel = link.channel
+        assert isinstance(channel, RosChannel)
+        await store.wait_until(lambda s: channel.decode_errors > 0, timeout=3)
         # Messages are counted as messages, their bytes (with the length prefix) as bytes.
-        assert link.stats.bytes_discarded == link.decode_errors * (len(bad) + 4)
+        assert link.stats.bytes_discarded == channel.decode_errors * (len(bad) + 4)
         assert link.stats.resyncs == 0
         assert link.connected
         await link.send(Goto(5))

@@ -1,4 +1,4 @@
-"""RosLink against a real ROS 1 master: connection failures, restarts, registration."""
+"""ros:// against a real ROS 1 master: connection failures, restarts, registration."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import galileo_async as galileo
 from galileo_async.errors import ConnectionLost, GalileoConnectionError, LinkStale
 from galileo_async.protocol.commands import Goto, StartNavigation
 from galileo_async.robot import Robot
-from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosLink, open_ros_link
+from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosChannel, open_ros_link
 from galileo_async.ros.xmlrpc import xmlrpc_call
 from galileo_async.state import StatusStore
 
@@ -44,10 +44,10 @@ async def registered(master: RosMaster, node_name: str) -> bool:
     )
 
 
-def ros_link(robot: Robot) -> RosLink:
-    link = robot._link
-    assert isinstance(link, RosLink)
-    return link
+def ros_link(robot: Robot) -> RosChannel:
+    channel = robot._link.channel
+    assert isinstance(channel, RosChannel)
+    return channel
 
 
 async def test_link_without_robot_fails_open_and_cleans_up(master: RosMaster) -> None:

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from ports import refused_port
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
-from galileo_async.ros import RosLink, open_ros_link, parse_ros_url
+from galileo_async.ros import RosChannel, open_ros_link, parse_ros_url
 from galileo_async.ros.tcpros import (
     MAX_FRAME,
     Framer,
@@ -227,8 +227,8 @@ def test_parse_ros_url() -> None:
 async def test_open_ros_link_options() -> None:
     store = StatusStore()
     link = open_ros_link("ros://127.0.0.1:1?node_name=/n", store, baudrate=9600, reconnect=False)
-    assert isinstance(link, RosLink)
-    assert link.node_name == "/n"
+    assert isinstance(link.channel, RosChannel)
+    assert link.channel.node_name == "/n"
     assert not link.reconnect
     with pytest.raises(InvalidArgument):
         open_ros_link("ros://127.0.0.1:1", StatusStore(), layout="v1")

@@ -7,9 +7,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..transports.link import Link
+from ..transports.options import LINK_OPTIONS
 from ..transports.stats import StatusSink
+from .calls import REST_CALLS, ApiCall, rest_call
+from .channel import STATUS_TOPIC, HttpChannel
 from .client import API_PATH, HttpApi
-from .link import STATUS_TOPIC, HttpLink
 from .options import (
     DEFAULT_HTTP_PORT,
     DEFAULT_WS_PORT,
@@ -26,14 +29,17 @@ __all__ = [
     "DEFAULT_HTTP_PORT",
     "DEFAULT_WS_PORT",
     "HTTP_OPTIONS",
+    "REST_CALLS",
     "STATUS_TOPIC",
+    "ApiCall",
     "HttpAddress",
     "HttpApi",
-    "HttpLink",
+    "HttpChannel",
     "check_http_options",
     "open_http_link",
     "parse_http_url",
     "redact_http_url",
+    "rest_call",
     "status_from_json",
 ]
 
@@ -49,9 +55,10 @@ _IGNORED = (
 )
 
 
-def open_http_link(url: str, store: StatusSink, **options: Any) -> HttpLink:
-    """An HttpLink (not yet opened) for ``http[s]://host[:port]``; options as HttpLink's."""
+def open_http_link(url: str, store: StatusSink, **options: Any) -> Link:
+    """A Link over an HttpChannel (not yet opened) for ``http[s]://host[:port]``."""
     check_http_options(url, options)
     address = parse_http_url(url, options)
     kept = {k: v for k, v in options.items() if k not in _IGNORED}
-    return HttpLink(store, address, name=url, **kept)
+    link_options = {k: kept.pop(k) for k in LINK_OPTIONS if k in kept}
+    return Link(HttpChannel(address, name=url, **kept), store, **link_options)

@@ -6,7 +6,7 @@ from .._checks import check_timeout
 from ..errors import InvalidArgument
 from ..state.listeners import EventListener, StatusListener
 from ..state.store import StatusStore
-from ..transports import AnyLink, LinkState
+from ..transports import Link, LinkState
 from ..transports.follow import LinkStateStream
 from .operations import Operations
 from .runtime import ROBOT_DEFAULT, RobotDefault, or_default
@@ -17,7 +17,7 @@ __all__ = ["Following"]
 class Following:
     """Robot's link state and listeners (a mixin: the link, store and ops are the Robot's)."""
 
-    _link: AnyLink
+    _link: Link
     _store: StatusStore
     _ops: Operations
     wait_timeout: float | None

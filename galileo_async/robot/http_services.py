@@ -8,12 +8,12 @@ from __future__ import annotations
 import asyncio
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 from .._checks import check_number, check_timeout
 from ..errors import GalileoTimeout, GoalCancelled, InvalidArgument, NotSupported, TaskFailed
 from ..state.store import StatusStore
-from ..transports import AnyLink
+from ..transports import Link
 from .goal import GoalResult
 from .operations import Operations
 from .runtime import finish_shielded
@@ -25,7 +25,10 @@ DEFAULT_TASK_POLL = 0.1
 _ENDED = ("COMPLETE", "CANCELLED", "ERROR")
 
 
+@runtime_checkable
 class _Api(Protocol):
+    """The REST calls of an http:// channel (HttpChannel.call)."""
+
     async def call(
         self,
         method: str,
@@ -65,22 +68,22 @@ class RobotInfo:
 class HttpServices:
     """Robot methods over the vendor's REST API; NotSupported on other links."""
 
-    _link: AnyLink
+    _link: Link
     _store: StatusStore
     _ops: Operations
 
     def _api(self, what: str) -> _Api:
         """The link's REST API; WrongEventLoop off the Robot's loop, NotSupported off http://."""
         self._ops.ensure_open()
-        if not self.has_http_api:
+        channel = self._link.channel
+        if not (self._link.capabilities.rest_api and isinstance(channel, _Api)):
             raise NotSupported(f"{what} needs the robot's HTTP API: connect with http://host:3546")
-        result: _Api = getattr(self._link, "api")  # noqa: B009 (only http:// links have one)
-        return result
+        return channel
 
     @property
     def has_http_api(self) -> bool:
         """True on an ``http://`` / ``https://`` link: the methods here are supported."""
-        return callable(getattr(getattr(self._link, "api", None), "call", None))
+        return self._link.capabilities.rest_api
 
     async def maps(self) -> list[str]:
         """The names of the maps saved on the robot (GET /map/image)."""

@@ -32,7 +32,7 @@ from .supersede import Supersession
 if TYPE_CHECKING:
     from ..state.store import StatusStore
     from ..state.streams import Watch
-    from ..transports import AnyLink
+    from ..transports import Link
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
@@ -151,7 +151,7 @@ class Confirm:
 class Operations(Supersession):
     """Send commands on behalf of one Robot, after checks, and follow their effect."""
 
-    def __init__(self, link: AnyLink, store: StatusStore) -> None:
+    def __init__(self, link: Link, store: StatusStore) -> None:
         super().__init__()
         self.link = link
         self.store = store

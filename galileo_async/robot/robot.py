@@ -27,7 +27,7 @@ from ..protocol import (
 )
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import AnyLink, LinkStats
+from ..transports import Link, LinkStats
 from .drive import (
     DEFAULT_DRIVE_RATE,
     DEFAULT_MAX_ANGULAR_SPEED,
@@ -97,7 +97,7 @@ class Robot(Turning, RobotServices, HttpServices, Following):
 
     def __init__(
         self,
-        link: AnyLink,
+        link: Link,
         store: StatusStore,
         *,
         map_targets: int | None = None,

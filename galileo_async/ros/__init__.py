@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from .link import (
+from .channel import (
     DEFAULT_MASTER_PORT,
     GOAL_NUM_PARAM,
     ROS_OPTIONS,
-    RosLink,
+    RosChannel,
     check_ros_options,
     open_ros_link,
     parse_ros_url,
@@ -34,7 +34,7 @@ __all__ = [
     "STATUS_TOPIC",
     "STATUS_TYPE",
     "NodeStats",
-    "RosLink",
+    "RosChannel",
     "RosNode",
     "StatusMessageDecoder",
     "check_ros_options",

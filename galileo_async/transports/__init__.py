@@ -8,7 +8,6 @@ the CLI.
 
 from __future__ import annotations
 
-from .base import AnyLink, BaseLink
 from .channel import Capabilities, Channel, Feed
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -52,8 +51,6 @@ __all__ = [
     "LINK_OPTIONS",
     "STREAM_OPTIONS",
     "URL_SCHEMES",
-    "AnyLink",
-    "BaseLink",
     "Capabilities",
     "Channel",
     "Connector",

@@ -11,7 +11,6 @@ from urllib.parse import urlsplit
 from .._checks import naming
 from ..errors import GalileoConnectionError, InvalidArgument
 from ..options import LINK_KINDS, check_options
-from .base import AnyLink
 from .connectors import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
@@ -126,11 +125,11 @@ def check_link_options(
         check_serial_url(url)
 
 
-def open_link(url: str, store: StatusSink, **options: Any) -> AnyLink:
+def open_link(url: str, store: StatusSink, **options: Any) -> Link:
     """A link (not yet opened) for a serial path, ``socket://``, ``udp://``, ``sim://``, ``ros://``
     or ``http[s]://``."""
     if link_kind(url) == "http":  # its own checks: a password in the URL is never shown
-        link: AnyLink = _http_module(url).open_http_link(url, store, **options)
+        link: Link = _http_module(url).open_http_link(url, store, **options)
         return link
     with naming(url, repr(url)):
         check_link_options(url, options)
@@ -172,7 +171,7 @@ def byte_connector(
     return serial_connector(url, baudrate=baudrate, **(serial_options or {})), None
 
 
-def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
+def _open_link(url: str, store: StatusSink, options: dict[str, Any]) -> Link:
     kind = link_kind(url)
     if kind == "ros":
         return _ros_link(url, store, options)
@@ -220,6 +219,6 @@ def _http_module(url: str) -> ModuleType:
     return http
 
 
-def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
-    link: AnyLink = _ros_module(url).open_ros_link(url, store, **options)
+def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> Link:
+    link: Link = _ros_module(url).open_ros_link(url, store, **options)
     return link
