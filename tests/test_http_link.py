@@ -9,6 +9,7 @@ import logging
 import subprocess
 import sys
 from collections.abc import AsyncIterator
+from dataclasses import astuple
 from typing import Any
 
 import pytest
@@ -24,8 +25,8 @@ from galileo_async import (
     TaskFailed,
 )
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored, LinkStaleEvent
-from galileo_async.http import HttpApi, parse_http_url, redact_http_url
-from galileo_async.protocol import Stop, Velocity
+from galileo_async.http import ApiCall, HttpApi, parse_http_url, redact_http_url
+from galileo_async.protocol import RawCommand, RotateTo, Stop, Velocity
 from galileo_async.sim import Simulator
 from galileo_async.transports import link_kind
 
@@ -248,6 +249,62 @@ async def test_http_only_methods_are_not_supported_elsewhere() -> None:
                 await call()
         with pytest.raises(NotSupported):
             await robot.goto_pose(1.0, 1.0)
+
+
+async def test_send_returns_the_rest_answer_and_refusals_queue_nothing() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        link = robot._link
+        assert link.capabilities.rest_api
+        assert link.capabilities.pose_goals
+        answer = await link.send(ApiCall("GET", "/system/info"))
+        assert answer["info"] == (await robot.info()).raw["info"]
+        where = await link.send(ApiCall("GET", "/navigation/current_path"))
+        assert (where["map"], where["path"]) == astuple(await robot.current_map())
+        sent = robot.link.commands_sent
+        for refused in (RawCommand(b"x"), RotateTo(90)):
+            with pytest.raises(NotSupported, match="no HTTP API form"):
+                link.enqueue(refused)
+            with pytest.raises(NotSupported, match="no HTTP API form"):
+                await link.send(refused)
+        assert not link.queue.entries
+        assert robot.link.commands_sent == sent
+
+
+async def test_a_cancelled_sender_leaves_its_call_to_finish() -> None:
+    held = asyncio.Event()
+    release = asyncio.Event()
+    bodies: list[dict[str, Any]] = []
+
+    async def status(request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse()
+        await ws.prepare(request)
+        await ws.send_str(json.dumps({"navStatus": 1, "power": 24.0, "targetNumID": -1}))
+        async for _ in ws:
+            pass
+        return ws
+
+    async def speed(request: web.Request) -> web.Response:
+        bodies.append(await request.json())
+        held.set()
+        await release.wait()
+        return web.json_response({"result": True})
+
+    routes = [web.get("/galileo/status", status), web.put("/api/v1/system/speed", speed)]
+    async with bare_server(routes) as port:
+        url = f"http://127.0.0.1:{port}?ws_port={port}"
+        async with galileo.connect(url, stale_timeout=None) as robot:
+            link = robot._link
+            sender = asyncio.create_task(link.send(Velocity(0.1, 0.0)))
+            await asyncio.wait_for(held.wait(), WAIT)
+            sender.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await sender
+            release.set()
+            # Written behind the first call, which finished: the writer counted both.
+            assert await asyncio.wait_for(link.send(Stop()), WAIT) == {"result": True}
+            assert link.stats.commands_sent == 2
+            assert link.channel.failed_calls == 0  # type: ignore[attr-defined]
+        assert [body["speed_x"] for body in bodies] == [0.1, 0.0]
 
 
 # --- error paths -----------------------------------------------------------------------------

@@ -187,7 +187,7 @@ TRANSPORT_ASYNCIO_NAMES = {
 
 
 def module_name(path: Path) -> str:
-    """Dotted name of a source file of the package (``galileo_async.transports.base``)."""
+    """Dotted name of a source file of the package (``galileo_async.transports.link``)."""
     parts = path.relative_to(PACKAGE_DIR).with_suffix("").parts
     if parts[-1] == "__init__":
         parts = parts[:-1]

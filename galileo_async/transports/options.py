@@ -58,7 +58,7 @@ def _link_options(kind: str) -> tuple[str, ...]:
 #: Options a link kind ignores when they do not apply to it, so one set serves a fleet of
 #: mixed URLs (a serial port has no connect timeout, a socket no baud rate).
 PORTABLE_OPTIONS = ("baudrate", "serial_options", "connect_timeout")
-#: Options every link kind takes (BaseLink's).
+#: Options every link kind takes (Link's).
 LINK_OPTIONS = tuple(
     o.name
     for o in OPTIONS.values()
@@ -81,5 +81,5 @@ def check_values(options: Mapping[str, Any]) -> None:
 
 
 def check_options(**options: Any) -> None:
-    """Raise InvalidArgument for the first option a link cannot work with (BaseLink's)."""
+    """Raise InvalidArgument for the first option a link cannot work with (Link's)."""
     _options.check_values(options)
