@@ -2,8 +2,9 @@
 
 ``Link`` owns what every link shares (the queue, the one writer, reconnect, the stale timer,
 the LinkState); a ``Channel`` connects one kind: ``StreamChannel`` (serial, ``socket://``,
-``sim://``) and ``UdpChannel`` (``udp://``). ``urls`` is the one URL switch, also used by
-the CLI.
+``sim://``) and ``UdpChannel`` (``udp://``) here, ``ros.RosChannel`` and
+``http.HttpChannel`` in their optional packages. ``urls`` is the one URL switch, also used
+by the CLI.
 """
 
 from __future__ import annotations
