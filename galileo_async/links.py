@@ -2,7 +2,7 @@
 
 One ``Scheme`` per link kind says which URL schemes it answers, the address form for help
 texts, how to check a URL, which options of its own it takes, and how to build its channel
-(or, for http:// and ros://, its link; both are loaded only for their URLs). A port
+under the one Link (http:// and ros:// are loaded only for their URLs). A port
 without a known scheme is a serial device. A distribution outside this package adds a
 scheme through the entry point group ``galileo_async.channels``: each entry point names a
 ``Scheme``; they are loaded only when a URL has a scheme no built-in entry knows, or when
@@ -27,7 +27,6 @@ from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CONNECT_TIMEOUT,
     LINK_OPTIONS,
-    AnyLink,
     Channel,
     Connector,
     Link,
@@ -68,8 +67,6 @@ ENTRY_POINT_GROUP = "galileo_async.channels"
 #: (url, options) → the channel; ``options`` are the link's options that are not every
 #: link's (LINK_OPTIONS): the scheme's own, and the portable ones, which it may ignore.
 ChannelFactory = Callable[[str, dict[str, Any]], Channel]
-#: (url, store, options) → a link of a kind that is not a channel yet (http://, ros://).
-LinkFactory = Callable[[str, StatusSink, dict[str, Any]], AnyLink]
 _Names = Collection[str]
 #: (url, options, also, owners) → None or InvalidArgument, for kinds that check their own.
 OptionsCheck = Callable[[str, Mapping[str, Any], Collection[str], Collection[str]], None]
@@ -90,7 +87,7 @@ class Scheme:
     schemes: tuple[str, ...]
     #: What follows ``://`` in help texts (``host[:port]``).
     address: str
-    #: Builds the channel (kinds under the one Link).
+    #: Builds the channel, from the URL and the options that are not every link's.
     channel: ChannelFactory | None = None
     #: Raises InvalidArgument for a URL of the scheme it cannot open (opens nothing);
     #: None: every URL of the scheme is taken as it is.
@@ -102,9 +99,8 @@ class Scheme:
     carries: str = ""
     #: Builds a byte connector (serial, socket://, sim://).
     connector: ConnectorFactory | None = None
-    #: Builds the whole link (kinds not under the one Link yet).
-    link: LinkFactory | None = None
-    #: Checks URL and options itself (kinds not under the one Link yet).
+    #: Checks URL and options itself, instead of ``check_url`` and ``options`` (kinds whose
+    #: URL carries options or secrets, which its errors must not show: http, ros).
     check: OptionsCheck | None = None
 
 
@@ -208,9 +204,9 @@ def _ros_module(url: str) -> ModuleType:
     return ros
 
 
-def _http_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
-    link: AnyLink = _http_module(url).open_http_link(url, store, **options)
-    return link
+def _http_channel(url: str, options: dict[str, Any]) -> Channel:
+    channel: Channel = _http_module(url).http_channel(url, options)
+    return channel
 
 
 def _http_check(
@@ -219,9 +215,9 @@ def _http_check(
     _http_module(url).check_http_options(url, options, also=also, owners=owners)
 
 
-def _ros_link(url: str, store: StatusSink, options: dict[str, Any]) -> AnyLink:
-    link: AnyLink = _ros_module(url).open_ros_link(url, store, **options)
-    return link
+def _ros_channel(url: str, options: dict[str, Any]) -> Channel:
+    channel: Channel = _ros_module(url).ros_channel(url, options)
+    return channel
 
 
 def _ros_check(
@@ -246,11 +242,11 @@ BUILT_IN = (
         carries="datagrams",
     ),
     Scheme(
-        "http", ("http", "https"), "host[:port]", link=_http_link, check=_http_check,
+        "http", ("http", "https"), "host[:port]", channel=_http_channel, check=_http_check,
         carries="REST calls and JSON",
     ),
     Scheme(
-        "ros", ("ros",), "host[:port]", link=_ros_link, check=_ros_check,
+        "ros", ("ros",), "host[:port]", channel=_ros_channel, check=_ros_check,
         carries="ROS messages",
     ),
     Scheme("sim", ("sim",), "[?speed=…]", channel=_stream_channel, connector=_sim_connector),
@@ -366,17 +362,23 @@ def _check(
         entry.check_url(url)
 
 
-def open_link(url: str, store: StatusSink, **options: Any) -> AnyLink:
+def open_link(url: str, store: StatusSink, **options: Any) -> Link:
     """A link (not yet opened) for a serial path or a URL of any scheme of the table."""
     entry = scheme_of(url)
-    if entry.link is not None:  # its own checks: a password in the URL is never shown
-        return entry.link(url, store, options)
+    if entry.check is not None:  # its own checks: a password in the URL is never shown
+        entry.check(url, options, (), ("link",))
+        return _link(entry, url, store, options)
     with naming(url, repr(url)):
         _check(entry, url, options, (), ("link",))
-        if entry.channel is None:
-            raise InvalidArgument(f"{url!r}: the {entry.kind} entry builds no channel")
-        link_options = {name: options.pop(name) for name in LINK_OPTIONS if name in options}
-        return Link(entry.channel(url, options), store, **link_options)
+        return _link(entry, url, store, options)
+
+
+def _link(entry: Scheme, url: str, store: StatusSink, options: dict[str, Any]) -> Link:
+    """The Link over ``entry``'s channel for ``url``; ``options`` checked already."""
+    if entry.channel is None:
+        raise InvalidArgument(f"{url!r}: the {entry.kind} entry builds no channel")
+    link_options = {name: options.pop(name) for name in LINK_OPTIONS if name in options}
+    return Link(entry.channel(url, options), store, **link_options)
 
 
 def byte_connector(

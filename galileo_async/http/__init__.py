@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..transports.stats import StatusSink
+from .calls import REST_CALLS, rest_call
+from .channel import STATUS_TOPIC, HttpChannel
 from .client import API_PATH, HttpApi
-from .link import STATUS_TOPIC, HttpLink
 from .options import (
     DEFAULT_HTTP_PORT,
     DEFAULT_WS_PORT,
@@ -26,14 +26,16 @@ __all__ = [
     "DEFAULT_HTTP_PORT",
     "DEFAULT_WS_PORT",
     "HTTP_OPTIONS",
+    "REST_CALLS",
     "STATUS_TOPIC",
     "HttpAddress",
     "HttpApi",
-    "HttpLink",
+    "HttpChannel",
     "check_http_options",
-    "open_http_link",
+    "http_channel",
     "parse_http_url",
     "redact_http_url",
+    "rest_call",
     "status_from_json",
 ]
 
@@ -49,9 +51,8 @@ _IGNORED = (
 )
 
 
-def open_http_link(url: str, store: StatusSink, **options: Any) -> HttpLink:
-    """An HttpLink (not yet opened) for ``http[s]://host[:port]``; options as HttpLink's."""
-    check_http_options(url, options)
+def http_channel(url: str, options: dict[str, Any]) -> HttpChannel:
+    """The channel of ``http[s]://host[:port]``; ``options``: checked, without the Link's."""
     address = parse_http_url(url, options)
     kept = {k: v for k, v in options.items() if k not in _IGNORED}
-    return HttpLink(store, address, name=url, **kept)
+    return HttpChannel(address, name=url, **kept)

@@ -167,7 +167,7 @@ class ConnectOptions(TypedDict, total=False):
             "connect",
         ),
     ]
-    # Every link's (Link's).
+    # Every link kind's (the Link's).
     reconnect: Annotated[
         bool,
         Option(

@@ -31,7 +31,7 @@ from .supersede import Supersession
 
 if TYPE_CHECKING:
     from ..state.store import StatusStore
-    from ..transports import AnyLink
+    from ..transports import Link
 
 __all__ = [
     "CANCEL_SEND_TIMEOUT",
@@ -91,7 +91,7 @@ class Operations:
     drive session in the way of a goal, and the user's stops (its Supersession).
     """
 
-    def __init__(self, link: AnyLink, store: StatusStore) -> None:
+    def __init__(self, link: Link, store: StatusStore) -> None:
         self.link = link
         self.store = store
         #: What a user stop reaches: waiting drive/goal commands, the drive session, motions.

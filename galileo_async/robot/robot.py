@@ -36,7 +36,7 @@ from ..protocol import (
 from ..state.listeners import EventListener, StatusListener
 from ..state.store import StatusStore, StatusStream
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import AnyLink, LinkState, LinkStats
+from ..transports import Link, LinkState, LinkStats
 from ..transports.follow import LinkStateStream
 from .drive import (
     DEFAULT_DRIVE_RATE,
@@ -108,7 +108,7 @@ class Robot:
 
     def __init__(
         self,
-        link: AnyLink,
+        link: Link,
         store: StatusStore,
         *,
         map_targets: int | None = None,

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from .link import (
+from .channel import (
     DEFAULT_MASTER_PORT,
     GOAL_NUM_PARAM,
     ROS_OPTIONS,
-    RosLink,
+    RosChannel,
     check_ros_options,
-    open_ros_link,
     parse_ros_url,
+    ros_channel,
 )
 from .messages import (
     CMDS_MD5,
@@ -34,11 +34,11 @@ __all__ = [
     "STATUS_TOPIC",
     "STATUS_TYPE",
     "NodeStats",
-    "RosLink",
+    "RosChannel",
     "RosNode",
     "StatusMessageDecoder",
     "check_ros_options",
     "encode_cmds",
-    "open_ros_link",
     "parse_ros_url",
+    "ros_channel",
 ]

@@ -11,7 +11,7 @@ from typing import Any
 
 from .._checks import check_int
 from ..errors import GalileoConnectionError, InvalidArgument
-from .link import DEFAULT_MASTER_PORT
+from .channel import DEFAULT_MASTER_PORT
 
 __all__ = ["DISCOVERY_PORT", "MAX_DATAGRAM", "DiscoveredRobot", "discover", "parse_announcement"]
 

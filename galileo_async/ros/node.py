@@ -51,7 +51,7 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: Bound on everything close() awaits (unregistering, servers closing): within BaseLink's.
+#: Bound on everything close() awaits (unregistering, servers closing): within the Link's.
 CLOSE_BOUND = 1.0
 
 _node_numbers = itertools.count(1)

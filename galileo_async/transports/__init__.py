@@ -2,13 +2,13 @@
 
 ``Link`` owns what every link shares (the queue, the one writer, reconnect, the stale timer,
 the LinkState); a ``Channel`` connects one kind: ``StreamChannel`` (serial, ``socket://``,
-``sim://``) and ``UdpChannel`` (``udp://``). Which URL opens which channel is
+``sim://``) and ``UdpChannel`` (``udp://``) here, ``ros.RosChannel`` and
+``http.HttpChannel`` in their optional packages. Which URL opens which channel is
 ``galileo_async.links``, the scheme table above every link kind.
 """
 
 from __future__ import annotations
 
-from .base import AnyLink, BaseLink
 from .channel import Capabilities, Channel, Feed
 from .connectors import (
     DEFAULT_BAUDRATE,
@@ -52,8 +52,6 @@ __all__ = [
     "LINK_OPTIONS",
     "PORTABLE_OPTIONS",
     "STREAM_OPTIONS",
-    "AnyLink",
-    "BaseLink",
     "Capabilities",
     "Channel",
     "Connector",

@@ -9,6 +9,7 @@ import logging
 import subprocess
 import sys
 from collections.abc import AsyncIterator
+from dataclasses import astuple
 from typing import Any
 
 import pytest
@@ -25,7 +26,7 @@ from galileo_async import (
 from galileo_async.events import ConnectionLostEvent, ConnectionRestored, LinkStaleEvent
 from galileo_async.http import HttpApi, parse_http_url, redact_http_url
 from galileo_async.links import link_kind
-from galileo_async.protocol import ApiCall, Stop, Velocity
+from galileo_async.protocol import ApiCall, RawCommand, RotateTo, Stop, Velocity
 from galileo_async.robot import HttpPart
 from galileo_async.sim import Simulator
 from tests.support.cancel_ways import WAYS, stop_waiting
@@ -304,6 +305,62 @@ async def test_robot_http_on_a_lost_link_sends_nothing() -> None:
         assert face.requests == before
 
 
+async def test_send_returns_the_rest_answer_and_refusals_queue_nothing() -> None:
+    async with robot_on_http() as (_, robot, _face):
+        link = robot._link
+        assert link.capabilities.rest_api
+        assert link.capabilities.pose_goals
+        answer = await link.send(ApiCall("GET", "/system/info"))
+        assert answer["info"] == (await robot.info()).raw["info"]
+        where = await link.send(ApiCall("GET", "/navigation/current_path"))
+        assert (where["map"], where["path"]) == astuple(await robot.current_map())
+        sent = robot.link.commands_sent
+        for refused in (RawCommand(b"x"), RotateTo(90)):
+            with pytest.raises(NotSupported, match="no HTTP API form"):
+                link.enqueue(refused)
+            with pytest.raises(NotSupported, match="no HTTP API form"):
+                await link.send(refused)
+        assert not link.queue.entries
+        assert robot.link.commands_sent == sent
+
+
+async def test_a_cancelled_sender_leaves_its_call_to_finish() -> None:
+    held = asyncio.Event()
+    release = asyncio.Event()
+    bodies: list[dict[str, Any]] = []
+
+    async def status(request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse()
+        await ws.prepare(request)
+        await ws.send_str(json.dumps({"navStatus": 1, "power": 24.0, "targetNumID": -1}))
+        async for _ in ws:
+            pass
+        return ws
+
+    async def speed(request: web.Request) -> web.Response:
+        bodies.append(await request.json())
+        held.set()
+        await release.wait()
+        return web.json_response({"result": True})
+
+    routes = [web.get("/galileo/status", status), web.put("/api/v1/system/speed", speed)]
+    async with bare_server(routes) as port:
+        url = f"http://127.0.0.1:{port}?ws_port={port}"
+        async with galileo.connect(url, stale_timeout=None) as robot:
+            link = robot._link
+            sender = asyncio.create_task(link.send(Velocity(0.1, 0.0)))
+            await asyncio.wait_for(held.wait(), WAIT)
+            sender.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await sender
+            release.set()
+            # Written behind the first call, which finished: the writer counted both.
+            assert await asyncio.wait_for(link.send(Stop()), WAIT) == {"result": True}
+            assert link.stats.commands_sent == 2
+            assert link.channel.failed_calls == 0  # type: ignore[attr-defined]
+        assert [body["speed_x"] for body in bodies] == [0.1, 0.0]
+
+
 # --- error paths -----------------------------------------------------------------------------
 
 
@@ -378,12 +435,12 @@ async def test_a_refused_command_raises_its_http_error_to_the_caller() -> None:
             await robot.goto(0, timeout=WAIT)
         assert info.value.endpoint == "/navigation/move_to_index"
         # stop()'s cancel (no goal shown: sent in case) failed too, without failing stop().
-        assert robot._link.failed_calls == 3  # type: ignore[attr-defined]
+        assert robot._link.channel.failed_calls == 3  # type: ignore[attr-defined]
 
 
 async def test_404_500_and_timeouts_are_http_errors() -> None:
     async with robot_on_http() as (_, robot, _face):
-        api = robot._link.api  # type: ignore[attr-defined]
+        api = robot._link.channel.api  # type: ignore[attr-defined]
         with pytest.raises(HttpError) as info:
             await api.call("GET", "/no/such")
         assert (info.value.status, info.value.endpoint) == (404, "/no/such")
@@ -496,14 +553,21 @@ async def test_speeds_do_not_pile_up_behind_a_slow_call() -> None:
     async with bare_server(routes) as port:
         url = f"http://127.0.0.1:{port}?ws_port={port}"
         async with galileo.connect(url, stale_timeout=None) as robot:
-            link = robot._link  # the drive keep-alive's path: enqueue, nobody waits
-            link.enqueue(Velocity(0.3, 0.0))
+            # The drive keep-alive's path: enqueue, nobody waits, each speed superseded by
+            # the next speed or stop queued behind it (the Link drops it, unwritten).
+            link = robot._link
+            replaced_by = (Velocity, Stop)
+            link.enqueue(Velocity(0.3, 0.0), superseded_by=replaced_by)
             await held.wait()
-            for linear in (0.2, 0.1, 0.05):
-                link.enqueue(Velocity(linear, 0.0))
-            assert await asyncio.wait_for(link.enqueue(Stop()), WAIT)  # written behind them
+            dropped = [
+                link.enqueue(Velocity(linear, 0.0), superseded_by=replaced_by)
+                for linear in (0.2, 0.1, 0.05)
+            ]
+            stop = link.enqueue(Stop())
             release.set()
+            assert await asyncio.wait_for(stop, WAIT)  # written (answered) behind them
             await asyncio.wait_for(stopped.wait(), WAIT)
+            assert [future.result() for future in dropped] == [False, False, False]
         assert [body["speed_x"] for body in bodies] == [0.3, 0.0]
 
 

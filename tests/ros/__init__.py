@@ -1,1 +1,1 @@
-"""ros://: TCPROS and XML-RPC, ROS messages, RosLink and a Robot against a real ROS 1 master."""
+"""ros://: TCPROS and XML-RPC, ROS messages, RosChannel and a Robot against a real ROS 1 master."""

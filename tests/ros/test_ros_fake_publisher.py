@@ -1,4 +1,4 @@
-"""RosLink against a real master and a hand-built status publisher: odd definitions, bad bytes."""
+"""ros:// against a real master and a hand-built status publisher: odd definitions, bad bytes."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from galileo_async.errors import GalileoConnectionError
+from galileo_async.links import open_link
 from galileo_async.models import NavStatus
 from galileo_async.protocol.commands import Goto
 from galileo_async.ros import (
@@ -17,7 +18,7 @@ from galileo_async.ros import (
     STATUS_MD5,
     STATUS_TOPIC,
     STATUS_TYPE,
-    open_ros_link,
+    RosChannel,
 )
 from galileo_async.ros.messages import CMDS_TYPE, STATUS_DEFINITION, full_definition
 from galileo_async.ros.tcpros import TcprosPublisher, subscribe
@@ -114,7 +115,7 @@ async def test_newer_definition_with_unknown_fields_and_bad_messages(master: Ros
     good = header(1) + struct.pack("<iI", 1, 4) + b"r2d2" + struct.pack("<fi", 24.0, 6)
     bad = header(2) + struct.pack("<iI", 1, 1000)  # robotName runs past the end
     store = StatusStore()
-    link = open_ros_link(master.url, store, node_name="/driver", connect_timeout=3)
+    link = open_link(master.url, store, node_name="/driver", connect_timeout=3)
     sender = asyncio.create_task(feed(robot, [good, bad]))
     try:
         await link.open()
@@ -123,9 +124,11 @@ async def test_newer_definition_with_unknown_fields_and_bad_messages(master: Ros
         assert status.power == 24.0
         assert status.target_num_id == 6
         assert status.visual_status is None
-        await store.wait_until(lambda s: link.decode_errors > 0, timeout=3)
+        channel = link.channel
+        assert isinstance(channel, RosChannel)
+        await store.wait_until(lambda s: channel.decode_errors > 0, timeout=3)
         # Messages are counted as messages, their bytes (with the length prefix) as bytes.
-        assert link.stats.bytes_discarded == link.decode_errors * (len(bad) + 4)
+        assert link.stats.bytes_discarded == channel.decode_errors * (len(bad) + 4)
         assert link.stats.resyncs == 0
         assert link.connected
         await link.send(Goto(5))
@@ -159,7 +162,7 @@ async def test_publisher_without_definition_uses_the_md5(master: RosMaster) -> N
     }
     message = header(3) + struct.pack(layout, *(values[name] for _, name in fields))
     store = StatusStore()
-    link = open_ros_link(master.url, store, connect_timeout=3)
+    link = open_link(master.url, store, connect_timeout=3)
     sender = asyncio.create_task(feed(robot, [message]))
     try:
         await link.open()
@@ -185,7 +188,7 @@ async def test_wrong_message_type_is_refused(master: RosMaster) -> None:
     )
     robot = FakeRobot(master, publisher)
     await robot.start()
-    link = open_ros_link(master.url, StatusStore(), connect_timeout=1)
+    link = open_link(master.url, StatusStore(), connect_timeout=1)
     try:
         with pytest.raises(GalileoConnectionError, match="std_msgs/String"):
             await link.open()

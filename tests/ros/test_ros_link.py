@@ -1,4 +1,4 @@
-"""RosLink against a real ROS 1 master: connection failures, restarts, registration."""
+"""ros:// against a real ROS 1 master: connection failures, restarts, registration."""
 
 from __future__ import annotations
 
@@ -10,9 +10,10 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.errors import ConnectionLost, GalileoConnectionError, LinkStale
+from galileo_async.links import open_link
 from galileo_async.protocol.commands import Goto, StartNavigation
 from galileo_async.robot import Robot
-from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosLink, open_ros_link
+from galileo_async.ros import CMDS_TOPIC, STATUS_TOPIC, RosChannel
 from galileo_async.ros.xmlrpc import xmlrpc_call
 from galileo_async.state import StatusStore
 from tests.support.ports import refused_port
@@ -44,15 +45,15 @@ async def registered(master: RosMaster, node_name: str) -> bool:
     )
 
 
-def ros_link(robot: Robot) -> RosLink:
-    link = robot._link
-    assert isinstance(link, RosLink)
-    return link
+def ros_link(robot: Robot) -> RosChannel:
+    channel = robot._link.channel
+    assert isinstance(channel, RosChannel)
+    return channel
 
 
 async def test_link_without_robot_fails_open_and_cleans_up(master: RosMaster) -> None:
     store = StatusStore()
-    link = open_ros_link(master.url, store, connect_timeout=0.5, node_name="/lonely")
+    link = open_link(master.url, store, connect_timeout=0.5, node_name="/lonely")
     with pytest.raises(GalileoConnectionError, match="/galileo/status"):
         await link.open()
     assert not await registered(master, "/lonely")  # it unregistered on the way out
@@ -62,7 +63,7 @@ async def test_link_without_robot_fails_open_and_cleans_up(master: RosMaster) ->
 async def test_link_without_master_fails_open(tmp_path: Path) -> None:
     store = StatusStore()
     with refused_port() as port:
-        link = open_ros_link(f"ros://127.0.0.1:{port}", store, rpc_timeout=0.5)
+        link = open_link(f"ros://127.0.0.1:{port}", store, rpc_timeout=0.5)
         with pytest.raises(GalileoConnectionError, match="getPid"):
             await link.open()
         await link.close()
@@ -71,7 +72,7 @@ async def test_link_without_master_fails_open(tmp_path: Path) -> None:
 async def test_raw_link_sends_and_counts(master: RosMaster) -> None:
     async with RobotNode.running(master):
         store = StatusStore()
-        link = open_ros_link(master.url, store, node_name="/raw_link", host="127.0.0.1")
+        link = open_link(master.url, store, node_name="/raw_link", host="127.0.0.1")
         try:
             await link.open()
             assert await registered(master, "/raw_link")

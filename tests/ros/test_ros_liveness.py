@@ -1,4 +1,4 @@
-"""RosLink against a real master: peers that die silently, and closing when the master hangs."""
+"""ros:// against a real master: peers that die silently, and closing when the master hangs."""
 
 from __future__ import annotations
 
@@ -13,10 +13,12 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
+from galileo_async.links import open_link
 from galileo_async.robot import Robot
-from galileo_async.ros import RosLink, open_ros_link
+from galileo_async.ros import RosChannel
 from galileo_async.ros.node import CLOSE_BOUND
 from galileo_async.state import StatusStore
+from galileo_async.transports import Link
 from tests.support.ros_support import RobotNode, RosMaster, eventually, refuses_connections
 
 pytestmark = pytest.mark.timeout(60)
@@ -28,10 +30,10 @@ async def master(tmp_path: Path) -> AsyncIterator[RosMaster]:
         yield master
 
 
-def ros_link(robot: Robot) -> RosLink:
-    link = robot._link
-    assert isinstance(link, RosLink)
-    return link
+def ros_link(robot: Robot) -> RosChannel:
+    channel = robot._link.channel
+    assert isinstance(channel, RosChannel)
+    return channel
 
 
 def publisher_uri(robot: Robot) -> str:
@@ -158,7 +160,7 @@ async def test_stale_without_reconnect_when_disabled(master: RosMaster) -> None:
 
 def test_stale_reconnect_must_be_at_least_one_stale_timeout() -> None:
     with pytest.raises(InvalidArgument, match="stale_reconnect"):
-        RosLink(StatusStore(), "http://127.0.0.1:11311/", stale_reconnect=0.5)
+        Link(RosChannel("http://127.0.0.1:11311/"), StatusStore(), stale_reconnect=0.5)
 
 
 @pytest.mark.parametrize("how", ["frozen", "killed"])
@@ -166,9 +168,10 @@ async def test_close_releases_local_sockets_first_when_the_master_is_gone(
     master: RosMaster, how: str
 ) -> None:
     async with RobotNode.running(master):
-        link = open_ros_link(master.url, StatusStore(), host="127.0.0.1", node_name="/closer")
+        link = open_link(master.url, StatusStore(), host="127.0.0.1", node_name="/closer")
         await link.open()
-        node = link.node
+        assert isinstance(link.channel, RosChannel)
+        node = link.channel.node
         assert node is not None
         assert node._slave.uri is not None
         slave_port = urlsplit(node._slave.uri).port

@@ -21,7 +21,7 @@ from galileo_async.errors import (
 )
 from galileo_async.models import GalileoStatus, StatusLayout, TargetStatus
 from galileo_async.robot import Robot, connect
-from galileo_async.ros import RosLink
+from galileo_async.ros import RosChannel
 from tests.support.ros_support import RobotNode, RosMaster
 
 pytestmark = pytest.mark.timeout(60)
@@ -185,11 +185,11 @@ async def test_older_13_field_status(master: RosMaster) -> None:
         assert status.gc_status is None
         assert status.power == pytest.approx(12.5)
         assert status.time_stamp is not None
-        link = robot._link
-        assert isinstance(link, RosLink)
-        assert link.node is not None
-        assert link.node.decoder is not None
-        assert len(link.node.decoder.field_names) == 14
+        channel = robot._link.channel
+        assert isinstance(channel, RosChannel)
+        assert channel.node is not None
+        assert channel.node.decoder is not None
+        assert len(channel.node.decoder.field_names) == 14
         await robot.start_navigation(timeout=10)
         result = await robot.goto(0, timeout=10)
         assert result.target_id == 0

@@ -12,7 +12,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from galileo_async.errors import GalileoConnectionError, InvalidArgument
-from galileo_async.ros import RosLink, open_ros_link, parse_ros_url
+from galileo_async.links import open_link
+from galileo_async.ros import RosChannel, parse_ros_url
 from galileo_async.ros.tcpros import (
     MAX_FRAME,
     Framer,
@@ -224,14 +225,14 @@ def test_parse_ros_url() -> None:
             parse_ros_url(bad)
 
 
-async def test_open_ros_link_options() -> None:
+async def test_open_link_ros_options() -> None:
     store = StatusStore()
-    link = open_ros_link("ros://127.0.0.1:1?node_name=/n", store, baudrate=9600, reconnect=False)
-    assert isinstance(link, RosLink)
-    assert link.node_name == "/n"
+    link = open_link("ros://127.0.0.1:1?node_name=/n", store, baudrate=9600, reconnect=False)
+    assert isinstance(link.channel, RosChannel)
+    assert link.channel.node_name == "/n"
     assert not link.reconnect
     with pytest.raises(InvalidArgument):
-        open_ros_link("ros://127.0.0.1:1", StatusStore(), layout="v1")
+        open_link("ros://127.0.0.1:1", StatusStore(), layout="v1")
     await link.close()
 
 

@@ -1,4 +1,4 @@
-"""RosLink: the BaseLink that drives a robot over its ROS 1 master (``ros://host:port``)."""
+"""RosChannel: the channel that drives a robot over its ROS 1 master (``ros://host:port``)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,10 @@ from urllib.parse import parse_qs, urlsplit
 from ..errors import ConnectionLost, GalileoConnectionError, InvalidArgument
 from ..models import GalileoStatus
 from ..options import OPTIONS, check_options, check_values
-from ..protocol.commands import Command
+from ..protocol import Command, DecoderStats
 from ..protocol.velocity import Velocity
-from ..transports.base import BaseLink
+from ..transports.channel import Capabilities, Channel, Feed
 from ..transports.options import DEFAULT_STALE_RECONNECT, LINK_OPTIONS
-from ..transports.stats import StatusSink
 from .hosts import local_address_for, parse_hosts
 from .node import (
     DEFAULT_CONNECT_TIMEOUT,
@@ -33,10 +32,10 @@ __all__ = [
     "DEFAULT_STALE_RECONNECT",
     "GOAL_NUM_PARAM",
     "ROS_OPTIONS",
-    "RosLink",
+    "RosChannel",
     "check_ros_options",
-    "open_ros_link",
     "parse_ros_url",
+    "ros_channel",
 ]
 
 _log = logging.getLogger(__name__)
@@ -100,17 +99,16 @@ def parse_ros_url(url: str) -> tuple[str, dict[str, Any]]:
     return f"http://{host}:{port}/", options
 
 
-class RosLink(BaseLink):
+class RosChannel(Channel):
     """Commands published on /galileo/cmds, statuses from /galileo/status (any version).
 
     A Velocity (drive()) is published as geometry_msgs/Twist on /cmd_vel.
     """
 
-    carries_velocity = True
+    capabilities = Capabilities(velocity=True)
 
     def __init__(
         self,
-        store: StatusSink,
         master_uri: str,
         *,
         host: str | None = None,
@@ -121,11 +119,9 @@ class RosLink(BaseLink):
         master_check_interval: float = DEFAULT_MASTER_CHECK_INTERVAL,
         hosts: str | Mapping[str, str] | None = None,
         name: str | None = None,
-        **base_options: Any,
     ) -> None:
         #: Host name → IP for peers' advertised names (else: the name, or the master's address).
         self.hosts = {} if hosts is None else parse_hosts(hosts)
-        super().__init__(store, **base_options)
         self.master_uri = master_uri
         # Like rospy: an explicit option, else ROS_IP / ROS_HOSTNAME, else the route's address.
         self.host = host or os.environ.get("ROS_IP") or os.environ.get("ROS_HOSTNAME")
@@ -136,25 +132,34 @@ class RosLink(BaseLink):
         self.master_check_interval = master_check_interval
         self.name = name or master_uri
         self.node: RosNode | None = None
-        #: Undecodable status messages over the link's life (their bytes are in bytes_discarded).
+        #: Undecodable status messages over the channel's life (their bytes are in bytes_discarded).
         self.decode_errors = 0
+        self._decoder_stats = DecoderStats()
+        self._feed: Feed | None = None
         self._counted = NodeStats()
         self._goal_num: int | None = None
 
     def __repr__(self) -> str:
-        return f"<RosLink {self.name}>"
+        return f"<RosChannel {self.name}>"
+
+    @property
+    def decoder_stats(self) -> DecoderStats:
+        """Counted by the link per status; lost and undecodable messages counted here."""
+        return self._decoder_stats
 
     def map_target_count(self) -> int | None:
         """``/galileo/goal_num`` as read at the last connect (dynamic targets included)."""
         return self._goal_num
 
-    async def _connect(self) -> None:
+    async def open(self, feed: Feed) -> None:
+        """Start a node on the master, subscribed and advertised; read the target count."""
         await self._drop_node()
+        self._feed = feed
         host = self.host or await local_address_for(self.master_uri)
         node = RosNode(
             self.master_uri,
             on_status=self._status_from_node,
-            on_lost=self._on_lost,
+            on_lost=feed.lost,
             host=host,
             bind=self.bind,
             name=self.node_name,
@@ -194,24 +199,27 @@ class RosLink(BaseLink):
     def _status_from_node(self, status: GalileoStatus) -> None:
         if self.node is not None:
             self._count(self.node)
-        self._on_status(status)
+        if self._feed is not None:
+            self._feed.status(status)
 
     def _count(self, node: RosNode) -> None:
-        stats, counted, current = self.stats, self._counted, node.stats
-        stats.bytes_received += current.bytes_received - counted.bytes_received
-        stats.decoder.lost_frames += current.lost_messages - counted.lost_messages
-        stats.decoder.bytes_discarded += current.bytes_discarded - counted.bytes_discarded
+        if self._feed is None:
+            return
+        decoder, counted, current = self._decoder_stats, self._counted, node.stats
+        self._feed.stats.bytes_received += current.bytes_received - counted.bytes_received
+        decoder.lost_frames += current.lost_messages - counted.lost_messages
+        decoder.bytes_discarded += current.bytes_discarded - counted.bytes_discarded
         self.decode_errors += current.decode_errors - counted.decode_errors
         self._counted = dataclasses.replace(current)
 
-    def _abandon(self, reason: str) -> None:
-        """Drop the node's connections (a frozen robot keeps its sockets open), then reconnect."""
+    def abandon(self, reason: str) -> None:
+        """Drop the node's connections (a frozen robot keeps its sockets open)."""
         if self.node is not None:
+            # The node reports the loss; the link ignores its own second report.
             self.node.drop(ConnectionLost(reason))
-        if self.stats.connected:  # no node, or one that was already down
-            super()._abandon(reason)
 
-    def _write(self, command: Command) -> None:
+    async def write(self, command: Command) -> None:
+        """Publish ``command`` on /galileo/cmds, or a Velocity as a Twist on /cmd_vel."""
         if self.node is None:
             raise GalileoConnectionError(f"not connected to {self.master_uri}")
         if isinstance(command, Velocity):
@@ -219,7 +227,8 @@ class RosLink(BaseLink):
         else:
             self.node.publish(command)
 
-    async def _disconnect(self) -> None:
+    async def close(self) -> None:
+        """Close the node (unregistering from the master, bounded)."""
         await self._drop_node()
 
     async def _drop_node(self) -> None:
@@ -233,10 +242,8 @@ class RosLink(BaseLink):
                     self.node = None
 
 
-def open_ros_link(url: str, store: StatusSink, **options: Any) -> RosLink:
-    """A RosLink (not yet opened) for ``ros://host[:port]``; options as RosLink and BaseLink."""
-    check_ros_options(url, options)
+def ros_channel(url: str, options: dict[str, Any]) -> RosChannel:
+    """The channel of ``ros://host[:port]``; ``options``: checked, without the Link's."""
     master_uri, url_options = parse_ros_url(url)
-    for key in (*_IGNORED_OPTIONS, "layout"):
-        options.pop(key, None)
-    return RosLink(store, master_uri, name=url, **(url_options | options))
+    kept = {k: v for k, v in options.items() if k not in (*_IGNORED_OPTIONS, "layout")}
+    return RosChannel(master_uri, name=url, **(url_options | kept))
