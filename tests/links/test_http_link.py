@@ -311,9 +311,9 @@ async def test_send_returns_the_rest_answer_and_refusals_queue_nothing() -> None
         assert link.capabilities.rest_api
         assert link.capabilities.pose_goals
         answer = await link.send(ApiCall("GET", "/system/info"))
-        assert answer["info"] == (await robot.info()).raw["info"]
+        assert answer["info"] == (await http_of(robot).info()).raw["info"]
         where = await link.send(ApiCall("GET", "/navigation/current_path"))
-        assert (where["map"], where["path"]) == astuple(await robot.current_map())
+        assert (where["map"], where["path"]) == astuple(await http_of(robot).current_map())
         sent = robot.link.commands_sent
         for refused in (RawCommand(b"x"), RotateTo(90)):
             with pytest.raises(NotSupported, match="no HTTP API form"):
