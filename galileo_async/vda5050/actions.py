@@ -101,6 +101,11 @@ class ActionRunner:
         """state.actionStates."""
         return list(self._states.values())
 
+    @property
+    def running(self) -> bool:
+        """True while an action is neither FINISHED nor FAILED (WAITING and PAUSED count)."""
+        return any(s.actionStatus not in ("FINISHED", "FAILED") for s in self._states.values())
+
     def add_error(self, rejection: Rejection) -> None:
         """Report ``rejection`` in state.errors (the newest MAX_ACTION_ERRORS are kept)."""
         self.errors = [*self.errors, rejection.error][-MAX_ACTION_ERRORS:]

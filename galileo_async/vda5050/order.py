@@ -206,9 +206,14 @@ class OrderProgress:
         return self.last_node_id, self.last_node_sequence_id
 
     def decide(
-        self, order: Order, position: tuple[float, float] | None, default_deviation: float
-    ) -> Decision:
-        """What to do with a checked order: ignore (resent), new, stitch; else Rejection."""
+        self, order: Order, position: tuple[float, float] | None, default_deviation: float,
+        *, actions_running: bool = False,
+    ) -> Decision:  # fmt: skip
+        """What to do with a checked order: ignore (resent), new, stitch; else Rejection.
+
+        ``actions_running``: an action of the vehicle is neither FINISHED nor FAILED (with
+        nodes left, Figure 8's step 3: a new orderId is then an orderUpdateError).
+        """
         refs = _order_refs(order)
         first = order.nodes[0]
         if order.orderId == self.order_id:
@@ -221,14 +226,16 @@ class OrderProgress:
                 )
             if order.orderUpdateId == self.order_update_id:
                 return "ignore"
-        if self.active and order.orderId != self.order_id:
+        if order.orderId != self.order_id and (self.active or actions_running):
             # Figure 8, step 3: a new order waits until this one is done or cancelled.
-            raise Rejection(
-                "orderError",
+            active = [("activeOrderId", self.order_id)] if self.order_id else []
+            why = (
                 f"order {self.order_id} is still running or waits for an update: cancel it "
-                f"first (cancelOrder) or update it",
-                [*refs, ("activeOrderId", self.order_id)],
+                "first (cancelOrder) or update it"
+                if self.active
+                else "an action is still neither FINISHED nor FAILED: wait until it ends"
             )
+            raise Rejection("orderUpdateError", why, [*refs, *active])
         if self.active or order.orderId == self.order_id:
             base_end = self._base_end()
             if (first.nodeId, first.sequenceId) == base_end:

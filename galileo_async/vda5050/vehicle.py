@@ -200,7 +200,10 @@ class Vehicle:
                 )
             pose = status.pose
             position = (pose.x, pose.y) if pose is not None else None
-            decision = self.progress.decide(order, position, self.config.default_deviation_xy)
+            decision = self.progress.decide(
+                order, position, self.config.default_deviation_xy,
+                actions_running=self.actions.running,
+            )  # fmt: skip
         except Rejection as exc:
             self._reject(exc)
             return

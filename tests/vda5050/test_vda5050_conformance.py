@@ -108,19 +108,58 @@ async def test_rejections_are_reported_until_an_order_is_accepted(broker: Broker
         assert accepted["errors"] == []
 
 
-async def test_a_new_order_while_one_runs_is_refused_even_at_the_base_end(
+async def test_a_new_order_while_one_waits_for_an_update_is_an_order_update_error(
     broker: Broker,
 ) -> None:
+    # Figure 8, step 3, "waiting for an update": only horizon nodes are left.
     async with driven_vehicle(broker) as (_, _vehicle, master):
         nodes = [node("s", 0.0, 0.0), node("a", 1.0, 0.0), node("b", 1.0, 1.0, released=False)]
         await master.send("order", make_order("o1", nodes))
         await master.next_state(lambda s: s["lastNodeId"] == "a" and not s["driving"])
         other = make_order("o2", [node("a", 1.0, 0.0), node("c", 0.0, 1.0)], first_seq=2)
         await master.send("order", other)
-        refused = await master.next_state(lambda s: "orderError" in error_types(s))
-        assert ("orderId", "o2") in references(refused, "orderError")
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert ("activeOrderId", "o1") in references(refused, "orderUpdateError")
+        assert "orderError" not in error_types(refused)
         assert refused["orderId"] == "o1"
         assert [n["nodeId"] for n in refused["nodeStates"]] == ["b"]
+
+
+async def test_a_new_order_while_one_drives_its_base_is_an_order_update_error(
+    broker: Broker,
+) -> None:
+    # Figure 8, step 3, "still executing": released nodes are left; the order goes on.
+    async with driven_vehicle(broker, "sim://?speed=3") as (robot, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("far", 2.0, 0.0)])
+        await master.next_state(lambda s: s["driving"])
+        await master.order("o2", [node("start", 0.0, 0.0), node("b", 0.0, 1.0)])
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert refused["orderId"] == "o1"
+        assert [n["nodeId"] for n in refused["nodeStates"]] == ["far"]
+        done = await master.next_state(lambda s: s["lastNodeId"] == "far")
+        assert done["orderId"] == "o1"
+        assert robot.status is not None
+
+
+async def test_a_new_order_while_an_action_runs_is_an_order_update_error(
+    broker: Broker,
+) -> None:
+    # Figure 8, step 3: no nodes left, but an action neither FINISHED nor FAILED (docking).
+    async with driven_vehicle(broker, "sim://?speed=1") as (_, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("a", 0.2, 0.0)])
+        await master.next_state(lambda s: s["lastNodeId"] == "a" and not s["nodeStates"])
+        await master.instant(("c1", "startCharging"))
+        await master.next_state(lambda s: action_status(s, "c1") == "RUNNING")
+        await master.order("o2", [node("a", 0.2, 0.0), node("b", 0.2, 0.5)])
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert action_status(refused, "c1") == "RUNNING"
+        assert refused["orderId"] == "o1"
+        assert refused["nodeStates"] == []
+        charging = await master.next_state(lambda s: action_status(s, "c1") == "FINISHED")
+        assert charging["orderId"] == "o1"
 
 
 async def test_a_new_order_from_the_last_node_the_vehicle_has_left_has_no_route(

@@ -119,8 +119,11 @@ def test_progress_new_order_resent_lower_and_stitch() -> None:
     other = order("p", [node("z", 9, 9)])
     with pytest.raises(Rejection, match="still running") as running:
         progress.decide(other, (2.0, 0.0), 0.5)
-    assert running.value.error.errorType == "orderError"
+    assert running.value.error.errorType == "orderUpdateError"  # Figure 8, step 3
     progress.clear()
+    with pytest.raises(Rejection, match="neither FINISHED nor FAILED") as acting:
+        progress.decide(other, (9.0, 9.0), 0.5, actions_running=True)
+    assert acting.value.error.errorType == "orderUpdateError"
     with pytest.raises(Rejection) as far:
         progress.decide(other, (2.0, 0.0), 0.5)
     assert far.value.error.errorType == "noRouteError"
