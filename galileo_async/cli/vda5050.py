@@ -23,6 +23,7 @@ from .signals import stop_requested, stop_signal
 
 if TYPE_CHECKING:
     from ..robot import Robot
+    from ..vda5050 import Vehicle
 
 __all__ = ["PASSWORD_ENV", "vda5050"]
 
@@ -74,6 +75,34 @@ class _RetryFormatter(logging.Formatter):
         if isinstance(delay, float | int):
             when = time.strftime(" (next try at %H:%M:%S)", time.localtime(time.time() + delay))
         return f"retrying: {message}{when}"
+
+
+async def _tell_links(vehicle: Vehicle, robot: Robot, shown: str) -> None:
+    """One line on stderr per broker connection and per robot link outage and return."""
+    from ..models import LinkState
+
+    async def broker() -> None:
+        again = ""
+        while True:
+            await vehicle.wait_online()
+            err_console().print(f"connected to {shown}{again}: ONLINE", markup=False)
+            again = " again"
+            await vehicle.wait_offline()
+
+    async with anyio.create_task_group() as group:
+        group.start_soon(broker)
+        down: LinkState | None = None
+        async for state in robot.link_states():
+            if state in (LinkState.LOST, LinkState.STALE) and down is None:
+                down = state
+                err_console().print(
+                    f"robot link {state.name}: the vehicle reports robotLinkLost, orders "
+                    "are refused", markup=False, style="yellow",
+                )  # fmt: skip
+            elif state is LinkState.UP and down is not None:
+                down = None
+                err_console().print("robot link UP again", markup=False)
+        group.cancel_scope.cancel()
 
 
 @contextlib.contextmanager
@@ -209,6 +238,7 @@ def vda5050(
         with _warnings_on_stderr(settings.verbose):
             async with anyio.create_task_group() as group:
                 group.start_soon(run_vehicle, group)
+                group.start_soon(_tell_links, vehicle, robot, shown)
                 with stop_requested() as stop:
                     await stop.wait()
                 received = stop_signal()

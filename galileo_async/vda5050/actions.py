@@ -80,9 +80,20 @@ class ActionRunner:
             "factsheetRequest": vehicle.publish_factsheet,
             "startCharging": self._start_charging,
             "stopCharging": robot.stop_charging,
-            "startNavigation": robot.start_navigation,
-            "stopNavigation": robot.stop_navigation,
+            "startNavigation": self._start_navigation,
+            "stopNavigation": self._stop_navigation,
         }
+        #: The master closed navigation (stopNavigation) and has not opened it since:
+        #: --start-navigation leaves it closed.
+        self.navigation_stopped = False
+
+    async def _start_navigation(self) -> None:
+        self.navigation_stopped = False
+        await self._vehicle.robot.start_navigation()
+
+    async def _stop_navigation(self) -> None:
+        self.navigation_stopped = True
+        await self._vehicle.robot.stop_navigation()
 
     async def _start_charging(self) -> None:
         """Dock and charge: FINISHED only once the robot charges (RUNNING while it docks)."""
@@ -100,6 +111,11 @@ class ActionRunner:
     def states(self) -> list[ActionState]:
         """state.actionStates."""
         return list(self._states.values())
+
+    @property
+    def running(self) -> bool:
+        """True while an action is neither FINISHED nor FAILED (WAITING and PAUSED count)."""
+        return any(s.actionStatus not in ("FINISHED", "FAILED") for s in self._states.values())
 
     def add_error(self, rejection: Rejection) -> None:
         """Report ``rejection`` in state.errors (the newest MAX_ACTION_ERRORS are kept)."""
@@ -190,6 +206,8 @@ class ActionRunner:
             executor = self._vehicle.executor
             if not (self._vehicle.progress.active or executor.moving):
                 raise Rejection("noOrderToCancel", "there is no order to cancel", refs)
+            if executor.cancelling:
+                raise Rejection("noOrderToCancel", "the order is being cancelled already", refs)
             await executor.cancel_order()
             return
         if action.actionType in MAP_ACTIONS:

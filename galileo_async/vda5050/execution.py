@@ -13,16 +13,20 @@ import anyio
 from ..errors import GalileoError, GalileoTimeout
 from ..models import TargetStatus
 from ..robot import Robot
+from . import report
 from .models import Edge, Error, ErrorReference, Info, Node, reference
 from .order import OrderProgress, target_number
 
-__all__ = ["NODE_TURN_TIMEOUT", "Executor", "can_limit_speed"]
+__all__ = ["CANCEL_STOP_TIMEOUT", "NODE_TURN_TIMEOUT", "Executor", "can_limit_speed"]
 
 _log = logging.getLogger(__name__)
 
 #: Seconds the turn in place to a node's theta may take (then the order fails:
 #: navigationTimeout); an order's own limit, not Robot.rotate_to's ROTATE_TIMEOUT.
 NODE_TURN_TIMEOUT = 10.0
+#: Seconds cancelOrder waits for the robot to stand still after its goal is cancelled
+#: (then the action FAILED: the order is deleted all the same).
+CANCEL_STOP_TIMEOUT = 10.0
 
 
 def can_limit_speed(robot: Robot) -> bool:
@@ -43,6 +47,8 @@ class Executor:
         self._scope: anyio.CancelScope | None = None
         #: The vehicle is paused (startPause): no node is started until stopPause.
         self.paused = False
+        #: cancelOrder runs: no node is started, the order is deleted once the robot stands.
+        self.cancelling = False
         #: Why the order ended short, reported until the next accepted order.
         self.errors: list[Error] = []
         self.information: list[Info] = []
@@ -61,7 +67,11 @@ class Executor:
         while True:
             await self._wake.wait()
             self._wake.clear()
-            while not self.paused and (step := self.progress.next_step()) is not None:
+            while (
+                not self.paused
+                and not self.cancelling
+                and (step := self.progress.next_step()) is not None
+            ):
                 await self._drive_step(*step)
 
     async def _drive_step(self, edge: Edge, node: Node) -> None:
@@ -75,7 +85,8 @@ class Executor:
                     await self._drive(node)
                 self.progress.reached(node)
         except GalileoError as exc:
-            if self.progress.order_id != order_id or not self.progress.active:
+            stale = self.progress.order_id != order_id or not self.progress.active
+            if stale or self.cancelling:
                 return  # cancelled or failed meanwhile: that already said why
             _log.info("order %s failed at node %s: %s", order_id, node.nodeId, exc)
             self.fail(
@@ -140,14 +151,27 @@ class Executor:
         await self._idle.wait()
 
     async def cancel_order(self) -> None:
-        """cancelOrder: stop the robot, delete the order; returns once nothing moves."""
-        self.progress.clear()
+        """cancelOrder (§6.6.3): stop the robot, then delete the order; returns once it stands.
+
+        The order stays in the state until the robot stands, so the state that first shows
+        it deleted is the one whose cancelOrder is FINISHED. GalileoTimeout when the robot
+        does not stand within CANCEL_STOP_TIMEOUT s; the order is deleted on every exit.
+        """
+        self.cancelling = True
         self.paused = False
-        await self.stop_driving()
-        status = self.robot.status
-        if status is not None and status.goal_active:
-            await self.robot.cancel()
-        self._changed()
+        try:
+            await self.stop_driving()
+            status = self.robot.status
+            if status is not None and status.goal_active:
+                await self.robot.cancel()
+            if report.driving(self.robot.status):
+                await self.robot.wait_until(
+                    lambda s: not report.driving(s), timeout=CANCEL_STOP_TIMEOUT
+                )
+        finally:
+            self.cancelling = False
+            self.progress.clear()
+            self._changed()
 
     async def pause(self) -> None:
         """startPause: no next node; a working goal is paused (i 0)."""

@@ -10,6 +10,7 @@ from typing import Literal
 from .models import Edge, EdgeState, Error, ErrorReference, Node, NodeState, Order
 
 __all__ = [
+    "MAX_KNOWN_NODES",
     "MAX_TARGET_NUMBER",
     "OrderProgress",
     "Rejection",
@@ -19,6 +20,8 @@ __all__ = [
 
 #: Map target numbers the goto command accepts (docs/protocol.md §2).
 MAX_TARGET_NUMBER = 255
+#: Node positions of accepted orders remembered (the newest) to name the nearest node.
+MAX_KNOWN_NODES = 1000
 
 Decision = Literal["ignore", "new", "stitch"]
 
@@ -188,6 +191,8 @@ class OrderProgress:
     last_node_sequence_id: int = 0
     nodes: list[Node] = field(default_factory=list)
     edges: list[Edge] = field(default_factory=list)
+    #: (x, y, mapId) of the nodes of accepted orders by nodeId (the newest MAX_KNOWN_NODES).
+    known_nodes: dict[str, tuple[float, float, str]] = field(default_factory=dict)
 
     @property
     def active(self) -> bool:
@@ -206,9 +211,15 @@ class OrderProgress:
         return self.last_node_id, self.last_node_sequence_id
 
     def decide(
-        self, order: Order, position: tuple[float, float] | None, default_deviation: float
-    ) -> Decision:
-        """What to do with a checked order: ignore (resent), new, stitch; else Rejection."""
+        self, order: Order, position: tuple[float, float] | None, default_deviation: float,
+        *, actions_running: bool = False, theta: float | None = None, map_id: str = "",
+    ) -> Decision:  # fmt: skip
+        """What to do with a checked order: ignore (resent), new, stitch; else Rejection.
+
+        ``actions_running``: an action of the vehicle is neither FINISHED nor FAILED (with
+        nodes left, Figure 8's step 3: a new orderId is then an orderUpdateError).
+        ``theta`` and ``map_id``: the rest of the vehicle's pose, named in a noRouteError.
+        """
         refs = _order_refs(order)
         first = order.nodes[0]
         if order.orderId == self.order_id:
@@ -221,14 +232,16 @@ class OrderProgress:
                 )
             if order.orderUpdateId == self.order_update_id:
                 return "ignore"
-        if self.active and order.orderId != self.order_id:
+        if order.orderId != self.order_id and (self.active or actions_running):
             # Figure 8, step 3: a new order waits until this one is done or cancelled.
-            raise Rejection(
-                "orderError",
+            active = [("activeOrderId", self.order_id)] if self.order_id else []
+            why = (
                 f"order {self.order_id} is still running or waits for an update: cancel it "
-                f"first (cancelOrder) or update it",
-                [*refs, ("activeOrderId", self.order_id)],
+                "first (cancelOrder) or update it"
+                if self.active
+                else "an action is still neither FINISHED nor FAILED: wait until it ends"
             )
+            raise Rejection("orderUpdateError", why, [*refs, *active])
         if self.active or order.orderId == self.order_id:
             base_end = self._base_end()
             if (first.nodeId, first.sequenceId) == base_end:
@@ -250,9 +263,38 @@ class OrderProgress:
             return "new"
         raise Rejection(
             "noRouteError",
-            f"the first node {first.nodeId} is not where the vehicle stands",
+            f"the first node {first.nodeId} is not where the vehicle stands: "
+            + self._whereabouts(order, position, theta, map_id),
             [*refs, ("nodeId", first.nodeId)],
         )
+
+    def _whereabouts(
+        self, order: Order, position: tuple[float, float] | None, theta: float | None,
+        map_id: str,
+    ) -> str:  # fmt: skip
+        """Where the vehicle is, and the nearest node it knows (this order's or an earlier's)."""
+        if position is None:
+            return "the vehicle's position is unknown"
+        x, y = position
+        where = f"the vehicle is at x {x:.3f} m, y {y:.3f} m"
+        if theta is not None:
+            where += f", theta {math.atan2(math.sin(theta), math.cos(theta)):.3f} rad"
+        if map_id:
+            where += f" on map {map_id}"
+        candidates = dict(self.known_nodes)
+        for node in order.nodes:
+            if node.nodePosition is not None:
+                p = node.nodePosition
+                candidates[node.nodeId] = (p.x, p.y, p.mapId)
+        distances = [
+            (math.hypot(nx - x, ny - y), node_id)
+            for node_id, (nx, ny, node_map) in candidates.items()
+            if not map_id or node_map == map_id
+        ]
+        if distances:
+            distance, nearest = min(distances)
+            where += f"; the nearest node is {nearest}, {distance:.2f} m away"
+        return where
 
     def accept(self, order: Order, decision: Decision) -> None:
         """Take ``order`` over: a new order starts at its first node (reached), a stitch appends."""
@@ -266,6 +308,13 @@ class OrderProgress:
             self.last_node_id, self.last_node_sequence_id = first.nodeId, first.sequenceId
             self.nodes, self.edges = list(order.nodes[1:]), list(order.edges)
         self.order_id, self.order_update_id = order.orderId, order.orderUpdateId
+        for node in order.nodes:
+            if node.nodePosition is not None:
+                p = node.nodePosition
+                self.known_nodes.pop(node.nodeId, None)  # the newest last
+                self.known_nodes[node.nodeId] = (p.x, p.y, p.mapId)
+        for node_id in list(self.known_nodes)[:-MAX_KNOWN_NODES]:
+            del self.known_nodes[node_id]
 
     def next_step(self) -> tuple[Edge, Node] | None:
         """The released edge and node to drive next, or None (done, or waiting for a base)."""

@@ -56,7 +56,8 @@ INSTANT_ACTIONS: dict[str, str] = {
 ERROR_HINTS: dict[str, str] = {
     "validationError": "send a message that follows the JSON schema of this version",
     "orderError": "leave out what the factsheet does not list (actions, fields, maps)",
-    "orderUpdateError": "start the update at the end of the current base, or cancel first",
+    "orderUpdateError": "start an update at the end of the current base; send a new orderId "
+    "once the order and the actions ended (or after cancelOrder)",
     "noRouteError": "start the order where the vehicle stands (within allowedDeviationXY)",
     "unsupportedAction": "use an action the factsheet lists in agvActions",
     "noOrderToCancel": "nothing to do: the vehicle has no order",

@@ -12,7 +12,7 @@ import anyio
 from pydantic import BaseModel, ValidationError
 
 from ..errors import DuplicateVehicle, GalileoError, InvalidArgument
-from ..models import LinkState, TargetStatus
+from ..models import GalileoStatus, LinkState, TargetStatus
 from ..robot import Robot
 from . import report
 from .actions import ActionRunner
@@ -35,11 +35,22 @@ from .order import OrderProgress, Rejection, check_order
 from .session import Session
 from .shutdown import Shutdown, ShutdownReport
 
-__all__ = ["MAX_ORDER_ERRORS", "Vehicle", "can_limit_speed", "run_vehicles"]
+__all__ = [
+    "MAX_ORDER_ERRORS",
+    "NAVIGATION_RETRY_INITIAL",
+    "NAVIGATION_RETRY_MAX",
+    "Vehicle",
+    "can_limit_speed",
+    "run_vehicles",
+]
 
 _log = logging.getLogger(__name__)
 #: Order rejections kept in state.errors (the newest) until an order is accepted.
 MAX_ORDER_ERRORS = 10
+#: Seconds --start-navigation waits before it tries again after a failed start, doubled
+#: after each failure up to NAVIGATION_RETRY_MAX.
+NAVIGATION_RETRY_INITIAL = 2.0
+NAVIGATION_RETRY_MAX = 60.0
 
 #: The link states in which the robot is unreachable, each with the name of the event that
 #: reports it (the robotLinkLost error's reference).
@@ -66,6 +77,9 @@ class Vehicle:
         self._dirty = anyio.Event()
         self._order_errors: list[Error] = []
         self._link_error: Error | None = None
+        self._navigation_error: Error | None = None
+        #: The robot link came back: --start-navigation looks at navigation again.
+        self._link_returned = False
         self._other_key_logged = False
         self._shutdown = Shutdown(self)
 
@@ -99,7 +113,7 @@ class Vehicle:
 
     def errors(self) -> list[Error]:
         """state.errors: the link, the order, the actions, the status."""
-        link = [self._link_error] if self._link_error is not None else []
+        link = [e for e in (self._link_error, self._navigation_error) if e is not None]
         return [
             *link, *self._shutdown.errors, *self._order_errors, *self.executor.errors,
             *self.actions.errors, *report.status_errors(self.robot.status),
@@ -200,7 +214,18 @@ class Vehicle:
                 )
             pose = status.pose
             position = (pose.x, pose.y) if pose is not None else None
-            decision = self.progress.decide(order, position, self.config.default_deviation_xy)
+            decision = self.progress.decide(
+                order, position, self.config.default_deviation_xy,
+                actions_running=self.actions.running, map_id=self.config.map_id,
+                theta=pose.theta if pose is not None else None,
+            )  # fmt: skip
+            if decision == "stitch" and self.executor.cancelling:
+                raise Rejection(
+                    "orderUpdateError",
+                    f"order {order.orderId} is being cancelled (cancelOrder runs): send a new "
+                    "order once it is FINISHED",
+                    [("orderId", order.orderId), ("orderUpdateId", str(order.orderUpdateId))],
+                )
         except Rejection as exc:
             self._reject(exc)
             return
@@ -264,7 +289,7 @@ class Vehicle:
             if self.config.visualization_rate > 0:
                 group.start_soon(self._visualize)
             if self.config.start_navigation:
-                group.start_soon(self._start_navigation)
+                group.start_soon(self._keep_navigation)
             self._group = group
             try:
                 await self.session.run()
@@ -303,14 +328,48 @@ class Vehicle:
         """
         return await self._shutdown(reason)
 
-    async def _start_navigation(self) -> None:
-        status = self.robot.status
-        if status is not None and status.navigating and status.visual_initialised:
-            return
-        try:
-            await self.robot.start_navigation()
-        except GalileoError as exc:
-            self.actions.add_error(Rejection("startNavigationFailed", str(exc), []))
+    def _may_open_navigation(self, status: GalileoStatus) -> bool:
+        """Nothing forbids opening navigation now: no order, no drive, no stop, link up."""
+        return not (
+            self.closing or self.actions.navigation_stopped or self.progress.active
+            or self.executor.moving or report.driving(status) or self._link_error is not None
+        )  # fmt: skip
+
+    async def _keep_navigation(self) -> None:
+        """--start-navigation: open navigation now and whenever the robot comes back closed.
+
+        Again after a robot restart (the link UP again, or navigation closed after it was
+        open), with back-off on failure; never while an order or a drive runs, after the
+        master's stopNavigation, or once the vehicle shuts down.
+        """
+        serial = self.config.serial_number
+        wanted, was_open, delay = True, False, NAVIGATION_RETRY_INITIAL
+        async for status in self.robot.statuses():
+            if self._link_returned:
+                self._link_returned, wanted = False, True
+            if status.navigating:
+                wanted, was_open = False, True
+                continue
+            if was_open:
+                was_open, wanted = False, True
+                if not self.actions.navigation_stopped:
+                    _log.warning("%s: the robot's navigation closed (a restart?)", serial)
+            if not wanted or not self._may_open_navigation(status):
+                continue
+            _log.warning("%s: opening the robot's navigation (--start-navigation)", serial)
+            try:
+                await self.robot.start_navigation()
+            except GalileoError as exc:
+                self._navigation_error = Rejection("startNavigationFailed", str(exc), []).error
+                self.changed()
+                _log.warning("%s: navigation did not open: %s; retry in %g s",
+                             serial, exc, delay)  # fmt: skip
+                await anyio.sleep(delay)
+                delay = min(delay * 2, NAVIGATION_RETRY_MAX)
+                continue
+            _log.info("%s: navigation is open", serial)
+            self._navigation_error = None
+            wanted, was_open, delay = False, True, NAVIGATION_RETRY_INITIAL
             self.changed()
 
     async def _watch_status(self) -> None:
@@ -338,6 +397,7 @@ class Vehicle:
                 self.changed()
             elif state is LinkState.UP and self._link_error is not None:
                 self._link_error = None
+                self._link_returned = True
                 self.changed()
 
     async def _publish_states(self) -> None:

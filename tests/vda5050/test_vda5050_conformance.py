@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -108,19 +109,58 @@ async def test_rejections_are_reported_until_an_order_is_accepted(broker: Broker
         assert accepted["errors"] == []
 
 
-async def test_a_new_order_while_one_runs_is_refused_even_at_the_base_end(
+async def test_a_new_order_while_one_waits_for_an_update_is_an_order_update_error(
     broker: Broker,
 ) -> None:
+    # Figure 8, step 3, "waiting for an update": only horizon nodes are left.
     async with driven_vehicle(broker) as (_, _vehicle, master):
         nodes = [node("s", 0.0, 0.0), node("a", 1.0, 0.0), node("b", 1.0, 1.0, released=False)]
         await master.send("order", make_order("o1", nodes))
         await master.next_state(lambda s: s["lastNodeId"] == "a" and not s["driving"])
         other = make_order("o2", [node("a", 1.0, 0.0), node("c", 0.0, 1.0)], first_seq=2)
         await master.send("order", other)
-        refused = await master.next_state(lambda s: "orderError" in error_types(s))
-        assert ("orderId", "o2") in references(refused, "orderError")
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert ("activeOrderId", "o1") in references(refused, "orderUpdateError")
+        assert "orderError" not in error_types(refused)
         assert refused["orderId"] == "o1"
         assert [n["nodeId"] for n in refused["nodeStates"]] == ["b"]
+
+
+async def test_a_new_order_while_one_drives_its_base_is_an_order_update_error(
+    broker: Broker,
+) -> None:
+    # Figure 8, step 3, "still executing": released nodes are left; the order goes on.
+    async with driven_vehicle(broker, "sim://?speed=3") as (robot, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("far", 2.0, 0.0)])
+        await master.next_state(lambda s: s["driving"])
+        await master.order("o2", [node("start", 0.0, 0.0), node("b", 0.0, 1.0)])
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert refused["orderId"] == "o1"
+        assert [n["nodeId"] for n in refused["nodeStates"]] == ["far"]
+        done = await master.next_state(lambda s: s["lastNodeId"] == "far")
+        assert done["orderId"] == "o1"
+        assert robot.status is not None
+
+
+async def test_a_new_order_while_an_action_runs_is_an_order_update_error(
+    broker: Broker,
+) -> None:
+    # Figure 8, step 3: no nodes left, but an action neither FINISHED nor FAILED (docking).
+    async with driven_vehicle(broker, "sim://?speed=1") as (_, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("a", 0.2, 0.0)])
+        await master.next_state(lambda s: s["lastNodeId"] == "a" and not s["nodeStates"])
+        await master.instant(("c1", "startCharging"))
+        await master.next_state(lambda s: action_status(s, "c1") == "RUNNING")
+        await master.order("o2", [node("a", 0.2, 0.0), node("b", 0.2, 0.5)])
+        refused = await master.next_state(lambda s: "orderUpdateError" in error_types(s))
+        assert ("orderId", "o2") in references(refused, "orderUpdateError")
+        assert action_status(refused, "c1") == "RUNNING"
+        assert refused["orderId"] == "o1"
+        assert refused["nodeStates"] == []
+        charging = await master.next_state(lambda s: action_status(s, "c1") == "FINISHED")
+        assert charging["orderId"] == "o1"
 
 
 async def test_a_new_order_from_the_last_node_the_vehicle_has_left_has_no_route(
@@ -138,6 +178,23 @@ async def test_a_new_order_from_the_last_node_the_vehicle_has_left_has_no_route(
         await master.order("o2", [node("start", 0.0, 0.0), node("b", 0.0, 1.0)])
         refused = await master.next_state(lambda s: "noRouteError" in error_types(s))
         assert refused["orderId"] == "o1"
+        # The description says where the vehicle is and which known node is nearest.
+        [error] = [e for e in refused["errors"] if e["errorType"] == "noRouteError"]
+        found = re.search(
+            r"at x (\S+) m, y (\S+) m, theta (\S+) rad on map map; "
+            r"the nearest node is (\w+), (\S+) m away",
+            error["errorDescription"],
+        )
+        assert found is not None, error["errorDescription"]
+        x, y, theta = (float(found[i]) for i in (1, 2, 3))
+        position = refused["agvPosition"]
+        assert math.hypot(x - position["x"], y - position["y"]) < 0.01
+        assert abs(theta - position["theta"]) < 0.01
+        nearest = min(("start", 0.0, 0.0), ("far", 4.0, 3.0), ("b", 0.0, 1.0),
+                      key=lambda n: math.hypot(n[1] - x, n[2] - y))  # fmt: skip
+        assert found[4] == nearest[0]
+        away = math.hypot(nearest[1] - x, nearest[2] - y)
+        assert float(found[5]) == pytest.approx(away, abs=0.01)
         assert robot.status is not None
         assert not robot.status.goal_active
 
@@ -231,3 +288,25 @@ async def test_the_cli_of_a_duplicate_vehicle_exits_10(broker: Broker, tmp_path:
         assert proc.returncode == 10, proc.stderr
         assert b"DuplicateVehicle" in proc.stderr
         await first.wait_online()
+
+
+async def test_the_first_state_without_the_cancelled_order_shows_cancel_order_finished(
+    broker: Broker,
+) -> None:
+    # vda-5050-lib: "processed by cancellation" is read off the first state that shows the
+    # order processed (no nodes, no edges); §6.6.3: FINISHED once the vehicle stands.
+    async with driven_vehicle(broker, "sim://?speed=1") as (robot, _vehicle, master):
+        await master.order("o1", [node("start", 0.0, 0.0), node("far", 5.0, 0.0)])
+        await robot.wait_until(lambda s: (s.current_speed_x or 0.0) > 0.5, timeout=WAIT)
+        await master.instant(("c1", "cancelOrder"))
+        running = await master.next_state(lambda s: action_status(s, "c1") == "RUNNING")
+        processed = await master.next_state(
+            lambda s: not s["nodeStates"] and not s["edgeStates"], since=running
+        )
+        assert action_status(processed, "c1") == "FINISHED"
+        assert processed["driving"] is False
+        assert processed["orderId"] == "o1"
+        assert processed["lastNodeId"] == "start"
+        assert "noOrderToCancel" not in error_types(processed)
+        assert robot.status is not None
+        assert not robot.status.goal_active

@@ -18,6 +18,7 @@ import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
 from galileo_async.sim import Simulator
 from galileo_async.vda5050 import Vehicle, VehicleConfig, run_vehicles
+from galileo_async.vda5050.report import driving
 from tests.support.ports import refused_port
 from tests.support.ros_support import stop_process
 from tests.support.vda5050_support import (
@@ -94,9 +95,10 @@ async def test_order_running_without_broker_too_long_stops_the_robot(broker: Bro
         await master.order("o1", [node("start", 0.0, 0.0), node("far", 4.0, 3.0)])
         await master.next_state(lambda s: s["driving"])
         await broker.stop()
-        await robot.wait_until(lambda s: not s.goal_active, timeout=WAIT)
-        assert not vehicle.progress.active
+        # The order is deleted once the robot stands (§6.6.3, as cancelOrder does).
+        await robot.wait_until(lambda s: not s.goal_active and not driving(s), timeout=WAIT)
         await broker.start()
+        assert not vehicle.progress.active
         async with Master.connected(broker) as again:
             state = await again.wait_for("state", lambda s: "brokerLost" in error_types(s))
             assert state["nodeStates"] == []
@@ -275,6 +277,49 @@ async def test_cli_ctrl_c_says_offline_and_exits_0(broker: Broker, tmp_path: Pat
             assert master.received["connection"][-1]["connectionState"] == "OFFLINE"
         finally:
             await stop_process(proc)
+
+
+async def test_cli_says_when_it_is_connected_and_when_the_robot_link_goes_and_returns(
+    broker: Broker, tmp_path: Path
+) -> None:
+    first = Simulator(speed=3)
+    server = await first.serve_tcp()
+    port = server.sockets[0].getsockname()[1]
+    log_path = tmp_path / "cli-p3.log"
+    try:
+        async with Master.connected(broker, serial="p3") as master:
+            with log_path.open("ab") as log:
+                proc = await asyncio.create_subprocess_exec(
+                    sys.executable, "-m", "galileo_async", "--port",
+                    f"socket://127.0.0.1:{port}", "vda5050", "--broker", broker.url,
+                    "--manufacturer", "acme", "--serial-number", "p3",
+                    stdin=asyncio.subprocess.DEVNULL, stdout=log, stderr=log, cwd=ROOT,
+                )  # fmt: skip
+            try:
+                await master.wait_for("connection", lambda m: m["connectionState"] == "ONLINE")
+                await first.close()  # the robot restarts
+                await master.wait_for("state", lambda s: "robotLinkLost" in error_types(s))
+                async with Simulator(speed=3) as second:
+                    await second.serve_tcp(port=port)
+                    await master.next_state(lambda s: "robotLinkLost" not in error_types(s))
+                    proc.send_signal(signal.SIGINT)
+                    with anyio.fail_after(WAIT):
+                        code = await proc.wait()
+            finally:
+                await stop_process(proc)
+    finally:
+        await first.close()
+    text = log_path.read_text()
+    assert code == 0, text
+    lines = text.splitlines()
+    connected = [line for line in lines if line.startswith("connected to mqtt://")]
+    assert len(connected) == 1, text
+    assert lines.index(connected[0]) > next(
+        i for i, line in enumerate(lines) if line.startswith("connecting to")
+    )
+    down = [line for line in lines if line.startswith(("robot link LOST", "robot link STALE"))]
+    assert down, text
+    assert lines.index(down[0]) < lines.index("robot link UP again"), text
 
 
 async def test_the_example_drives_two_vehicles(broker: Broker) -> None:

@@ -119,11 +119,21 @@ def test_progress_new_order_resent_lower_and_stitch() -> None:
     other = order("p", [node("z", 9, 9)])
     with pytest.raises(Rejection, match="still running") as running:
         progress.decide(other, (2.0, 0.0), 0.5)
-    assert running.value.error.errorType == "orderError"
+    assert running.value.error.errorType == "orderUpdateError"  # Figure 8, step 3
     progress.clear()
+    with pytest.raises(Rejection, match="neither FINISHED nor FAILED") as acting:
+        progress.decide(other, (9.0, 9.0), 0.5, actions_running=True)
+    assert acting.value.error.errorType == "orderUpdateError"
     with pytest.raises(Rejection) as far:
         progress.decide(other, (2.0, 0.0), 0.5)
     assert far.value.error.errorType == "noRouteError"
+    assert "the vehicle is at x 2.000 m, y 0.000 m; the nearest node is c" in str(far.value)
+    with pytest.raises(Rejection) as placed:
+        progress.decide(other, (8.0, 9.0), 0.5, theta=7.0, map_id="map")
+    assert "x 8.000 m, y 9.000 m, theta 0.717 rad on map map" in str(placed.value)
+    assert "the nearest node is z, 1.00 m away" in str(placed.value)
+    with pytest.raises(Rejection, match="position is unknown"):
+        progress.decide(other, None, 0.5)
     assert progress.decide(order("p", [node("b")]), None, 0.5) == "new"  # its last node
 
 
