@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import time
 from collections.abc import Iterator
 
 import pytest
@@ -31,11 +30,12 @@ def served() -> Iterator[ServedSim]:
 
 
 def test_goto_an_unknown_id_on_a_fresh_simulator_is_rejected_at_once() -> None:
-    began = time.monotonic()
+    # Rejected, not timed out waiting to be accepted (that is another exit code and message):
+    # no wall-clock bound, which a loaded machine's process start alone can exceed.
     result = galileo("--port", "sim://?speed=5", "goto", "42")
     assert result.returncode == ExitCode.REJECTED, result.stderr
     assert "rejected goal 42" in result.stderr
-    assert time.monotonic() - began < 5.0  # the accept timeout is 5 s
+    assert "accept" not in result.stderr.lower(), result.stderr
 
 
 def test_goto_an_unknown_id_on_a_shared_robot_is_rejected_every_time(served: ServedSim) -> None:

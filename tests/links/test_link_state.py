@@ -235,8 +235,10 @@ async def test_following_stops_on_every_cancellation_route(how: str) -> None:
             assert await next_state(states) is LinkState.UP
             await robot.close()
             rest = [state async for state in states]  # ends after CLOSED
-            # A loaded machine may let the short stale_timeout pass before the close.
-            assert rest in ([LinkState.CLOSED], [LinkState.STALE, LinkState.CLOSED]), rest
+            # A loaded machine may let the short stale_timeout pass (and frames come again)
+            # before the close: whatever came first, the stream ends with CLOSED.
+            assert rest[-1] is LinkState.CLOSED, rest
+            assert set(rest[:-1]) <= {LinkState.STALE, LinkState.UP}, rest
         finally:
             await robot.close()
 

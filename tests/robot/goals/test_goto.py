@@ -428,12 +428,12 @@ async def test_silent_link_mid_goal_fails_the_waiter_once_the_link_is_given_up()
         task = asyncio.create_task(robot.goto(3))
         await working(robot, 3)
         fake.sending = False
-        with anyio.fail_after(2.0):
+        with anyio.fail_after(10.0):  # bounds only: a loaded machine may be slow
             async for event in events:
                 if isinstance(event, ev.LinkStaleEvent):
                     break
         assert not task.done()
-        with anyio.fail_after(2.0), pytest.raises(ConnectionLost):
+        with anyio.fail_after(10.0), pytest.raises(ConnectionLost):
             await task
         with pytest.raises(ConnectionLost, match="nothing was sent"):
             await robot.goto(3, timeout=1)
