@@ -57,6 +57,7 @@ class _Member:
         #: Why the robot is not (or no longer) a vehicle: the last connect error or the end.
         self.error: BaseException | None = None
         self.ended = False
+        self.tried = anyio.Event()
 
 
 class VehicleFleet:
@@ -117,6 +118,10 @@ class VehicleFleet:
         """True once robot ``name``'s vehicle ended for good (its error says why)."""
         return self._members[name].ended
 
+    async def wait_tried(self, name: str) -> None:
+        """Return once robot ``name``'s link was tried once: opened, or failed (error says why)."""
+        await self._members[name].tried.wait()
+
     @property
     def vehicles(self) -> dict[str, Vehicle]:
         """The vehicles whose robots are connected, by robot name."""
@@ -134,14 +139,18 @@ class VehicleFleet:
         while True:
             try:
                 async with self._limit:
-                    return await connect(member.spec.url, **member.spec.options)
+                    robot = await connect(member.spec.url, **member.spec.options)
+                member.tried.set()
+                return robot
             except _RETRIED as exc:
                 new = str(exc) != str(member.error)
                 member.error = exc
+                member.tried.set()
                 _log.log(logging.WARNING if new else logging.INFO,
                          "robot %s: %s; next try in %.1f s", member.name, exc, delay)  # fmt: skip
             except Exception as exc:  # bad options: every try would fail alike
                 member.error, member.ended = exc, True
+                member.tried.set()
                 _log.error("robot %s: %s: %s", member.name, type(exc).__name__, exc)
                 return None
             await anyio.sleep(delay)
