@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import asyncio
+import signal
+import subprocess
+import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -16,6 +20,7 @@ from galileo_async.events import GoalAccepted
 from galileo_async.robot import Robot
 from galileo_async.vda5050 import FleetVehicle, Vehicle, VehicleConfig, VehicleFleet
 from tests.support.ports import refused_port
+from tests.support.ros_support import stop_process
 from tests.support.vda5050_support import (
     WAIT,
     Broker,
@@ -25,6 +30,8 @@ from tests.support.vda5050_support import (
     make_order,
     node,
 )
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def config(broker: Broker, serial: str, *fallbacks: Broker, **options: Any) -> VehicleConfig:
@@ -179,3 +186,62 @@ async def test_a_broker_lost_mid_order(tmp_path: Path) -> None:
         assert robot.status is not None
         assert not robot.status.goal_active
         group.cancel_scope.cancel()
+
+
+FLEET_FILE = """
+[robots.alpha]
+port = "sim://?speed=20"
+serial_number = "A-1"
+
+[robots.beta]
+port = "sim://?speed=20"
+"""
+
+
+async def test_the_cli_runs_a_fleet_and_sigterm_shuts_every_vehicle_down(
+    broker: Broker, tmp_path: Path
+) -> None:
+    fleet_file = tmp_path / "fleet.toml"
+    fleet_file.write_text(FLEET_FILE)
+    log_path = tmp_path / "cli.log"
+    async with (
+        Master.connected(broker, serial="A-1") as alpha,
+        Master.connected(broker, serial="beta") as beta,
+    ):
+        with log_path.open("ab") as log:
+            proc = await asyncio.create_subprocess_exec(
+                sys.executable, "-m", "galileo_async", "vda5050", "--fleet", str(fleet_file),
+                "--shard", "1/1", "--broker", broker.url, "--manufacturer", "acme",
+                stdin=asyncio.subprocess.DEVNULL, stdout=log, stderr=log, cwd=ROOT,
+            )  # fmt: skip
+        try:
+            for master in (alpha, beta):
+                await master.wait_for("connection", online)
+            proc.send_signal(signal.SIGTERM)
+            with anyio.fail_after(WAIT):
+                code = await proc.wait()
+        finally:
+            await stop_process(proc)
+        for master in (alpha, beta):
+            await master.wait_for("connection", lambda m: m["connectionState"] == "OFFLINE")
+    text = log_path.read_text()
+    assert code == 0, text
+    assert "VDA 5050 fleet: 2 vehicles of" in text
+    assert "stopped by SIGTERM: 2 of 2 vehicles shut down; OFFLINE published by 2" in text
+
+
+def test_the_cli_needs_one_robot_or_a_fleet(tmp_path: Path) -> None:
+    base = [sys.executable, "-m", "galileo_async", "vda5050", "--broker", "mqtt://127.0.0.1"]
+    both = subprocess.run(
+        [*base, "--manufacturer", "m", "--serial-number", "s", "--fleet", str(tmp_path / "f")],
+        capture_output=True, text=True, timeout=WAIT, cwd=ROOT,
+    )  # fmt: skip
+    assert both.returncode == 2
+    assert "give --serial-number (one robot) or --fleet FILE" in both.stderr
+    (tmp_path / "f.toml").write_text(FLEET_FILE)
+    bad_shard = subprocess.run(
+        [*base, "--manufacturer", "m", "--fleet", str(tmp_path / "f.toml"), "--shard", "3/2"],
+        capture_output=True, text=True, timeout=WAIT, cwd=ROOT,
+    )  # fmt: skip
+    assert bad_shard.returncode == 2
+    assert "shard must be K/N" in bad_shard.stderr
