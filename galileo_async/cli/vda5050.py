@@ -195,6 +195,7 @@ def vda5050(
             broker_loss_stop_delay=broker_loss_stop, width=width, length=length,
             height_max=height,
         )  # fmt: skip
+        # With --fleet: the options shared by every vehicle, checked once before any opens.
         config = VehicleConfig(serial_number=serial_number or "fleet", **common)
         tls_context(config)  # unreadable certificate files: a usage error before connecting
     except InvalidArgument as exc:

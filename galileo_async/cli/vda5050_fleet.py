@@ -6,6 +6,7 @@ its order cancelled, the robot stopped, a last state, OFFLINE), then exit 0.
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -43,6 +44,7 @@ def fleet_vehicles(spec: FleetSpec, common: dict[str, Any]) -> dict[str, FleetVe
 
     InvalidArgument naming the robot whose configuration is wrong.
     """
+    from ..robot import connect
     from ..vda5050 import VehicleConfig
     from ..vda5050.fleet import FleetVehicle
 
@@ -56,7 +58,7 @@ def fleet_vehicles(spec: FleetSpec, common: dict[str, Any]) -> dict[str, FleetVe
             config = VehicleConfig(**{**common, **identity})
         except InvalidArgument as exc:
             raise InvalidArgument(f"robot {name!r}: {exc}") from None
-        result[name] = FleetVehicle(port, config, _options(spec, name))
+        result[name] = FleetVehicle(partial(connect, port, **_options(spec, name)), config)
     return result
 
 

@@ -8,14 +8,13 @@ capped back-off; its vehicle joins the broker once the robot is connected.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Awaitable, Callable, Mapping
+from dataclasses import dataclass
 
 import anyio
 
 from ..errors import GalileoConnectionError, InvalidArgument
-from ..robot import Robot, connect
+from ..robot import Robot
 from .config import VehicleConfig
 from .shutdown import ShutdownReport
 from .vehicle import Vehicle
@@ -42,11 +41,14 @@ _RETRIED = (GalileoConnectionError, OSError, TimeoutError)
 
 @dataclass(frozen=True)
 class FleetVehicle:
-    """One robot of a VehicleFleet: its URL, connect() options and vehicle configuration."""
+    """One robot of a VehicleFleet: how to open its link, and its vehicle's configuration.
 
-    url: str
+    ``connect``: called for each try, e.g. ``functools.partial(galileo_async.connect, url,
+    **options)``; the Robot it returns is closed when its vehicle ends.
+    """
+
+    connect: Callable[[], Awaitable[Robot]]
     config: VehicleConfig
-    options: Mapping[str, Any] = field(default_factory=dict)
 
 
 class _Member:
@@ -139,7 +141,7 @@ class VehicleFleet:
         while True:
             try:
                 async with self._limit:
-                    robot = await connect(member.spec.url, **member.spec.options)
+                    robot = await member.spec.connect()
                 member.tried.set()
                 return robot
             except _RETRIED as exc:

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +18,7 @@ import pytest
 import galileo_async as galileo
 from galileo_async.errors import InvalidArgument
 from galileo_async.events import GoalAccepted
+from galileo_async.fleet.shards import Shard
 from galileo_async.robot import Robot
 from galileo_async.vda5050 import FleetVehicle, Vehicle, VehicleConfig, VehicleFleet
 from tests.support.ports import refused_port
@@ -58,12 +60,14 @@ def online(message: dict[str, Any]) -> bool:
 async def test_a_fleet_runs_every_robot_as_its_own_vehicle(broker: Broker) -> None:
     with refused_port() as port:
         robots = {
-            name: FleetVehicle("sim://?speed=20", config(broker, name))
+            name: FleetVehicle(partial(galileo.connect, "sim://?speed=20"), config(broker, name))
             for name in ("r1", "r2", "r3")
         }
         # Never reachable (tried again), and options every try would reject (ended).
-        robots["away"] = FleetVehicle(f"socket://127.0.0.1:{port}", config(broker, "away"))
-        robots["bad"] = FleetVehicle("sim://", config(broker, "bad"), {"stale_timeout": -1.0})
+        away = partial(galileo.connect, f"socket://127.0.0.1:{port}")
+        robots["away"] = FleetVehicle(away, config(broker, "away"))
+        bad = partial(galileo.connect, "sim://", stale_timeout=-1.0)
+        robots["bad"] = FleetVehicle(bad, config(broker, "bad"))
         fleet = VehicleFleet(robots, retry_initial=0.2, retry_max=0.2)
         async with (
             Master.connected(broker, serial="r1") as m1,
@@ -93,8 +97,9 @@ async def test_a_fleet_runs_every_robot_as_its_own_vehicle(broker: Broker) -> No
 
 def test_a_fleet_refuses_two_robots_with_one_identity(broker: Broker) -> None:
     same = config(broker, "r1")
+    sim = partial(galileo.connect, "sim://")
     with pytest.raises(InvalidArgument, match="'a' and 'b' are both vehicle acme/r1"):
-        VehicleFleet({"a": FleetVehicle("sim://", same), "b": FleetVehicle("sim://", same)})
+        VehicleFleet({"a": FleetVehicle(sim, same), "b": FleetVehicle(sim, same)})
 
 
 def test_fallback_brokers_are_checked() -> None:
@@ -245,3 +250,25 @@ def test_the_cli_needs_one_robot_or_a_fleet(tmp_path: Path) -> None:
     )  # fmt: skip
     assert bad_shard.returncode == 2
     assert "shard must be K/N" in bad_shard.stderr
+    (tmp_path / "twins.toml").write_text(FLEET_FILE.replace('"A-1"', '"beta"'))
+    twins = subprocess.run(
+        [*base, "--manufacturer", "m", "--fleet", str(tmp_path / "twins.toml")],
+        capture_output=True, text=True, timeout=WAIT, cwd=ROOT,
+    )  # fmt: skip
+    assert twins.returncode == 2
+    assert "'alpha' and 'beta' are both vehicle m/beta" in twins.stderr
+    empty = next(k for k in range(1, 17) if not Shard(k, 16).select(["alpha", "beta"]))
+    nobody = subprocess.run(
+        [*base, "--manufacturer", "m", "--fleet", str(tmp_path / "f.toml"),
+         "--shard", f"{empty}/16"],
+        capture_output=True, text=True, timeout=WAIT, cwd=ROOT,
+    )  # fmt: skip
+    assert nobody.returncode == 0
+    assert f"is in shard {empty}/16: nothing to run" in nobody.stderr
+    ported = subprocess.run(
+        [sys.executable, "-m", "galileo_async", "--port", "sim://", "vda5050", "--broker",
+         "mqtt://127.0.0.1", "--manufacturer", "m", "--fleet", str(tmp_path / "f.toml")],
+        capture_output=True, text=True, timeout=WAIT, cwd=ROOT,
+    )  # fmt: skip
+    assert ported.returncode == 2
+    assert "drop --port" in ported.stderr
