@@ -126,7 +126,7 @@ class VehicleFleet:
 
     @property
     def vehicles(self) -> dict[str, Vehicle]:
-        """The vehicles whose robots are connected, by robot name."""
+        """The vehicles of the robots that connected, by robot name (ended ones too: ended())."""
         return {m.name: m.vehicle for m in self._members.values() if m.vehicle is not None}
 
     async def run(self) -> None:
@@ -189,5 +189,6 @@ class VehicleFleet:
         with anyio.CancelScope(shield=True):
             async with anyio.create_task_group() as group:
                 for name, vehicle in self.vehicles.items():
-                    group.start_soon(one, name, vehicle)
+                    if not self.ended(name):  # a vehicle that ended has closed its robot
+                        group.start_soon(one, name, vehicle)
         return {name: reports[name] for name in self._members if name in reports}
