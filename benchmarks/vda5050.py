@@ -6,7 +6,10 @@ once a second (staggered), so ``driving`` flips: a status change that matters.
 
 * **CPU per vehicle**: this process's CPU time over the window / wall time / N (Mosquitto
   runs in its own process and is not counted). Baseline, same run: the same N robots and
-  load with no vehicle.
+  load with no vehicle. **CPU of the adapters**: the difference times N, in cores (the
+  robots and the broker not counted).
+* **RSS per vehicle**: this process's resident memory once every vehicle is ONLINE, less
+  the same with the robots only (just before the vehicles start), / N.
 * **status change → state published**: t0 when a consumer of ``robot.statuses()`` sees
   ``driving`` flip; t1 when a master control (an aiomqtt client in this process) receives
   the first state message showing the new value. Baseline, same run: on the same flip a
@@ -51,6 +54,15 @@ INTERFACE = "bench"
 #: The shared baseline client has many publishes in flight at once, which aiomqtt logs.
 _QUIET = logging.getLogger("benchmarks.vda5050.echo")
 _QUIET.setLevel(logging.ERROR)
+
+
+def _rss() -> int:
+    """This process's resident set size in bytes (Linux /proc; 0 elsewhere)."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
 
 
 def _free_port() -> int:
@@ -182,7 +194,9 @@ async def measure(count: int, seconds: float, port: int, vehicles: bool) -> dict
         await master.subscribe(f"{INTERFACE}/v2/bench/+/state")
         await master.subscribe(f"{INTERFACE}/echo/+")
         group.start_soon(_master, master, probe)
+        rss = 0.0
         if vehicles:
+            before = _rss()
             configs = [
                 VehicleConfig(
                     broker=f"mqtt://127.0.0.1:{port}",
@@ -197,9 +211,10 @@ async def measure(count: int, seconds: float, port: int, vehicles: bool) -> dict
                 for index, (robot, config) in enumerate(zip(robots, configs, strict=True))
             ]
             group.start_soon(run_vehicles, fleet)
-            with anyio.fail_after(60):
+            with anyio.fail_after(60 + count / 10):
                 for vehicle in fleet:
                     await vehicle.wait_online()
+            rss = (_rss() - before) / count
         for index, robot in enumerate(robots):
             group.start_soon(_watch, robot, index, probe, None if vehicles else echo)
             group.start_soon(_toggle, robot, index, count)
@@ -214,6 +229,7 @@ async def measure(count: int, seconds: float, port: int, vehicles: bool) -> dict
         "cpu_per_robot": cpu / wall / count,
         "latencies": probe.latencies,
         "in_vehicle": probe.in_vehicle,
+        "rss_per_vehicle": rss,
     }
 
 
@@ -248,9 +264,14 @@ def run(
                    extra=extra, **target)  # fmt: skip
 
     change = "status change → state at master"
+    adapters = (driven["cpu_per_robot"] - bare["cpu_per_robot"]) * count
     return [
         Row("vda5050", f"CPU per vehicle ({count} vehicles)", driven["cpu_per_robot"] * 100,
             "% core", bare["cpu_per_robot"] * 100, "sim robot, no vehicle", extra=extra),
+        Row("vda5050", f"CPU of the {count} adapters (robots, broker not counted)", adapters,
+            "cores", extra=extra),
+        Row("vda5050", "RSS per vehicle", driven["rss_per_vehicle"] / 1024, "KiB",
+            extra=extra),
         latency(change, driven["latencies"], 50),
         latency(change, driven["latencies"], 99, target=f"≤ {GOAL_P99 * ms:g} ms",
                 ok=p99 <= GOAL_P99),

@@ -13,7 +13,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import anyio
 import typer
@@ -130,16 +130,30 @@ def _warnings_on_stderr(verbose: int) -> Iterator[None]:
 def vda5050(
     ctx: typer.Context,
     broker: Annotated[
-        str,
+        list[str],
         typer.Option(
-            help="MQTT broker: mqtt://[user@]host[:port] or mqtts://… (TLS). The password: "
+            help="MQTT broker: mqtt://[user@]host[:port] or mqtts://… (TLS); repeat it for "
+            "brokers to move to when one is lost (round robin). The password: "
             f"{PASSWORD_ENV} or --password-file (in the URL, other users can read it)."
         ),
     ],
     manufacturer: Annotated[str, typer.Option(help="The vehicle's manufacturer (topic level).")],
     serial_number: Annotated[
-        str, typer.Option("--serial-number", help="The vehicle's serial number (topic level).")
-    ],
+        str | None,
+        typer.Option(
+            "--serial-number", help="The vehicle's serial number (topic level); not with --fleet."
+        ),
+    ] = None,
+    fleet: Annotated[
+        Path | None,
+        typer.Option(
+            "--fleet", help="Every robot of this fleet file as its own vehicle (docs/vda5050.md)."
+        ),
+    ] = None,
+    shard: Annotated[
+        str | None,
+        typer.Option("--shard", help="With --fleet: only shard K of N of its robots (K/N)."),
+    ] = None,
     interface_name: Annotated[
         str, typer.Option("--interface-name", help="First topic level.")
     ] = "uagv",
@@ -193,17 +207,25 @@ def vda5050(
         fail("the vda5050 command needs the extra: pip install 'galileo-async[vda5050]'")
     from ..errors import DuplicateVehicle, InvalidArgument
 
+    if fleet is None and serial_number is None and settings.fleet is not None:
+        fleet = settings.fleet  # galileo --fleet FILE vda5050
+    if (fleet is None) == (serial_number is None):
+        fail("give --serial-number (one robot) or --fleet FILE (every robot of it)", ExitCode.USAGE)
+    if shard is not None and fleet is None:
+        fail("--shard splits a fleet: give --fleet FILE", ExitCode.USAGE)
     try:
-        in_url = parse_broker_url(broker).password is not None
+        in_url = any(parse_broker_url(url).password is not None for url in broker)
         password = _password(password_file)
-        config = VehicleConfig(
-            broker=broker, manufacturer=manufacturer, serial_number=serial_number,
+        common: dict[str, Any] = dict(
+            broker=broker[0], fallback_brokers=tuple(broker[1:]), manufacturer=manufacturer,
             interface_name=interface_name, map_id=map_id, start_navigation=start_navigation,
             visualization_rate=visualization_rate, tls_ca_file=ca_file, tls_cert_file=tls_cert,
             tls_key_file=tls_key, password=password, vda_version=vda_version,
             broker_loss_stop_delay=broker_loss_stop, width=width, length=length,
             height_max=height,
         )  # fmt: skip
+        # With --fleet: the options shared by every vehicle, checked once before any opens.
+        config = VehicleConfig(serial_number=serial_number or "fleet", **common)
         tls_context(config)  # unreadable certificate files: a usage error before connecting
     except InvalidArgument as exc:
         fail(str(exc), ExitCode.USAGE)
@@ -213,7 +235,12 @@ def vda5050(
             f"can read (process list, shell history); use {PASSWORD_ENV} or --password-file",
             markup=False, style="yellow",
         )  # fmt: skip
-    shown = redact_url(broker)
+    shown = ", ".join(redact_url(url) for url in broker)
+    if fleet is not None:
+        from .vda5050_fleet import run_fleet
+
+        with _warnings_on_stderr(settings.verbose):
+            run_fleet(settings, fleet, shard, common)
 
     async def body(robot: Robot) -> int:
         vehicle = Vehicle(robot, config)

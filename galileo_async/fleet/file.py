@@ -13,6 +13,8 @@ map_targets = 6
 [robots.beta]
 port = "/dev/ttyUSB0"
 layout = "v1"
+serial_number = "B-0042"       # optional: its VDA 5050 serialNumber (default: its name)
+manufacturer = "acme"          # optional: its VDA 5050 manufacturer (default: --manufacturer)
 ```
 """
 
@@ -37,6 +39,7 @@ else:  # pragma: no cover - Python 3.10
 
 __all__ = [
     "OPTION_TYPES",
+    "VEHICLE_KEYS",
     "FleetFileError",
     "FleetSpec",
     "fleet_file_robots",
@@ -62,6 +65,8 @@ OPTION_TYPES: dict[str, tuple[type, ...]] = {
     name: _toml_types(option.type) for name, option in OPTIONS.items()
 }
 _TOP_LEVEL = ("robots", "defaults", "targets")
+#: Keys of a robot's table that are not connect() options: the VDA 5050 identity.
+VEHICLE_KEYS = ("serial_number", "manufacturer")
 
 
 class FleetFileError(InvalidArgument):
@@ -76,6 +81,26 @@ class FleetSpec:
     robot_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     defaults: dict[str, Any] = field(default_factory=dict)
     targets: Path | None = None
+    #: VDA 5050 identity keys given in robots' tables: {name: {"serial_number": …, …}}.
+    vehicle_ids: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    def serial_number(self, name: str) -> str:
+        """Robot ``name``'s VDA 5050 serialNumber: its ``serial_number`` key, else its name."""
+        return self.vehicle_ids.get(name, {}).get("serial_number", name)
+
+    def manufacturer(self, name: str, default: str) -> str:
+        """Robot ``name``'s VDA 5050 manufacturer: its ``manufacturer`` key, else ``default``."""
+        return self.vehicle_ids.get(name, {}).get("manufacturer", default)
+
+    def only(self, names: Collection[str]) -> FleetSpec:
+        """This fleet with only the robots of ``names`` (in the file's order)."""
+        keep = [name for name in self.ports if name in names]
+        return FleetSpec(
+            {name: self.ports[name] for name in keep},
+            {name: self.robot_options[name] for name in keep if name in self.robot_options},
+            self.defaults, self.targets,
+            {name: self.vehicle_ids[name] for name in keep if name in self.vehicle_ids},
+        )  # fmt: skip
 
     def connect(self, **options: Any) -> Any:
         """``connect_fleet`` for this fleet (``options`` override the file's defaults)."""
@@ -134,6 +159,7 @@ def parse_fleet(
         raise FleetFileError(f"{source}: [defaults] must be a table")
     ports: dict[str, str] = {}
     robot_options: dict[str, dict[str, Any]] = {}
+    vehicle_ids: dict[str, dict[str, str]] = {}
     for name, table in robots.items():
         where = f"{source}: robot {name!r}"
         if not isinstance(table, Mapping):
@@ -142,8 +168,15 @@ def parse_fleet(
         if not isinstance(port, str) or not port:
             raise FleetFileError(f'{where}: port must be a non-empty string (port = "…")')
         ports[name] = port
+        ids = {key: table[key] for key in VEHICLE_KEYS if key in table}
+        for key, value in ids.items():
+            if not isinstance(value, str) or not value:
+                raise FleetFileError(f"{where}: {key} must be a non-empty string, got {value!r}")
+        if ids:
+            vehicle_ids[name] = ids
         extra = _scheme_options([port])
-        options = _options(where, {k: v for k, v in table.items() if k != "port"}, extra)
+        own = {k: v for k, v in table.items() if k != "port" and k not in VEHICLE_KEYS}
+        options = _options(where, own, extra)
         if options:
             robot_options[name] = options
     targets = data.get("targets")
@@ -151,7 +184,7 @@ def parse_fleet(
         raise FleetFileError(f"{source}: targets must be a path string, got {targets!r}")
     path = None if targets is None else (base or Path()) / targets
     shared = _options(f"{source}: [defaults]", defaults, _scheme_options(ports.values()))
-    return FleetSpec(ports, robot_options, shared, path)
+    return FleetSpec(ports, robot_options, shared, path, vehicle_ids)
 
 
 def _read(file: Path) -> dict[str, Any]:

@@ -12,6 +12,7 @@ from .config import (
     parse_broker_url,
     redact_url,
 )
+from .fleet import FleetVehicle, VehicleFleet
 from .order import OrderProgress, Rejection, check_order
 from .shutdown import ShutdownReport
 from .vehicle import Vehicle, run_vehicles
@@ -19,11 +20,13 @@ from .vehicle import Vehicle, run_vehicles
 __all__ = [
     "MAX_VISUALIZATION_RATE",
     "BrokerAddress",
+    "FleetVehicle",
     "OrderProgress",
     "Rejection",
     "ShutdownReport",
     "Vehicle",
     "VehicleConfig",
+    "VehicleFleet",
     "check_order",
     "parse_broker_url",
     "redact_url",

@@ -154,10 +154,13 @@ class VehicleConfig:
     height_max: float = 0.0
     acceleration_max: float = 0.0
     deceleration_max: float = 0.0
+    #: More broker URLs: when the session is lost or a connect fails, the vehicle moves to
+    #: the next of ``broker``, these, ``broker`` again … (round robin, with the back-off).
+    fallback_brokers: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        url = parse_broker_url(self.broker)
-        self._check_credentials(url)
+        self._check_fallbacks()
+        self._check_credentials()
         _check_name("manufacturer", self.manufacturer)
         _check_name("serial_number", self.serial_number)
         _check_name("interface_name", self.interface_name)
@@ -189,39 +192,67 @@ class VehicleConfig:
         if self.keepalive < 1:
             raise InvalidArgument(f"keepalive must be >= 1 s, got {self.keepalive!r}")
 
-    def _check_credentials(self, url: BrokerAddress) -> None:
+    def _check_fallbacks(self) -> None:
+        if isinstance(self.fallback_brokers, str) or not isinstance(
+            self.fallback_brokers, (tuple, list)
+        ):
+            kind = type(self.fallback_brokers).__name__
+            raise InvalidArgument(f"fallback_brokers must be a tuple of URLs, got a {kind}")
+        object.__setattr__(self, "fallback_brokers", tuple(self.fallback_brokers))  # frozen
+        seen = {self._where(parse_broker_url(self.broker))}
+        for url in self.fallback_brokers:
+            where = self._where(parse_broker_url(url))
+            if where in seen:
+                raise InvalidArgument(f"broker {redact_url(url)!r} is given twice")
+            seen.add(where)
+
+    @staticmethod
+    def _where(address: BrokerAddress) -> tuple[str, int]:
+        return address.host, address.port
+
+    def _check_credentials(self) -> None:
         if isinstance(self.password, str):
             object.__setattr__(self, "password", SecretStr(self.password))  # frozen
         elif self.password is not None and not isinstance(self.password, SecretStr):
             kind = type(self.password).__name__
             raise InvalidArgument(f"password must be a str or a SecretStr, got a {kind}")
-        if self.password is not None and url.password is not None:
-            raise InvalidArgument("the broker URL has a password and password is given too")
-        if (self.password is not None or url.password is not None) and not url.username:
-            raise InvalidArgument(
-                "a broker password needs a user name in the URL: mqtt://user@host"
-            )
+        for each in self.urls():
+            if self.password is not None and each.password is not None:
+                raise InvalidArgument("the broker URL has a password and password is given too")
+            if (self.password is not None or each.password is not None) and not each.username:
+                raise InvalidArgument(
+                    "a broker password needs a user name in the URL: mqtt://user@host"
+                )
         for name in ("tls_ca_file", "tls_cert_file", "tls_key_file"):
             _check_file(name, getattr(self, name))
         if self.tls_key_file is not None and self.tls_cert_file is None:
             raise InvalidArgument("tls_key_file needs tls_cert_file (the client certificate)")
         tls_files = (self.tls_ca_file, self.tls_cert_file, self.tls_key_file)
-        if not url.tls and any(path is not None for path in tls_files):
+        if not any(each.tls for each in self.urls()) and any(p is not None for p in tls_files):
             raise InvalidArgument("TLS files need an mqtts:// broker URL (mqtt:// is plain TCP)")
 
     def __repr__(self) -> str:
         values = {field.name: getattr(self, field.name) for field in fields(self)}
         values["broker"] = redact_url(self.broker)
+        values["fallback_brokers"] = tuple(redact_url(url) for url in self.fallback_brokers)
         return f"VehicleConfig({', '.join(f'{k}={v!r}' for k, v in values.items())})"
+
+    def urls(self) -> list[BrokerAddress]:
+        """The parsed URLs of ``broker`` and the ``fallback_brokers``, in turn order."""
+        return [parse_broker_url(url) for url in (self.broker, *self.fallback_brokers)]
 
     @property
     def address(self) -> BrokerAddress:
-        """The broker to connect to: the URL's host and user, the password from either place."""
-        url = parse_broker_url(self.broker)
+        """The first broker to connect to (``broker``): see addresses."""
+        return self.addresses[0]
+
+    @property
+    def addresses(self) -> list[BrokerAddress]:
+        """Every broker in turn order: each URL's host and user, the password from either place."""
         if self.password is None:
-            return url
+            return self.urls()
         password = self.password if isinstance(self.password, SecretStr) else None
-        return BrokerAddress(url.host, url.port, url.tls, url.username, password)
+        return [BrokerAddress(u.host, u.port, u.tls, u.username, password) for u in self.urls()]
 
     def topic(self, name: str) -> str:
         """``{interfaceName}/v2/{manufacturer}/{serialNumber}/{name}`` (VDA 5050 §6.1)."""

@@ -14,7 +14,7 @@ import anyio
 from pydantic import BaseModel
 
 from ..errors import DuplicateVehicle, InvalidArgument
-from .config import VehicleConfig
+from .config import BrokerAddress, VehicleConfig
 from .models import Connection, ConnectionState
 
 __all__ = [
@@ -62,8 +62,8 @@ def _no_key_password() -> str:
 
 
 def tls_context(config: VehicleConfig) -> ssl.SSLContext | None:
-    """The TLS context of an mqtts:// broker (CA, client certificate); InvalidArgument."""
-    if not config.address.tls:
+    """The TLS context of the mqtts:// brokers (CA, client certificate); InvalidArgument."""
+    if not any(address.tls for address in config.addresses):
         return None
     try:
         context = ssl.create_default_context(cafile=config.tls_ca_file)
@@ -124,6 +124,9 @@ class Session:
         #: True once OFFLINE went to the broker (a clean stop while connected).
         self.offline_published = False
         self._tls = tls_context(config)
+        self._addresses = config.addresses
+        #: The index in config.addresses of the broker tried or connected now.
+        self._turn = 0
         #: Why the last connection attempt failed; None once connected.
         self.last_error: str | None = None
         self._client: aiomqtt.Client | None = None
@@ -132,6 +135,22 @@ class Session:
         self._offline.set()
         #: The ONLINE message of the current (or last) session, as published.
         self._online_sent = b""
+
+    @property
+    def address(self) -> BrokerAddress:
+        """The broker the session is connected to, or tries next."""
+        return self._addresses[self._turn]
+
+    def _next_broker(self) -> None:
+        """Move to the next broker of the config (round robin); the same one when alone."""
+        if len(self._addresses) > 1:
+            self._turn = (self._turn + 1) % len(self._addresses)
+            address = self.address
+            _log.info("%s: moving to the broker %s:%d", self.config.serial_number,
+                      address.host, address.port)  # fmt: skip
+
+    def _tls_for(self, address: BrokerAddress) -> ssl.SSLContext | None:
+        return self._tls if address.tls else None
 
     @property
     def connected(self) -> bool:
@@ -168,11 +187,11 @@ class Session:
         return True
 
     def _password(self) -> str | None:
-        password = self.config.address.password
+        password = self.address.password
         return None if password is None else password.get_secret_value()
 
     def _client_for(self, log: logging.Logger) -> aiomqtt.Client:
-        address = self.config.address
+        address = self.address
         password = self._password()
         will = aiomqtt.Will(
             self.config.topic("connection"),
@@ -182,7 +201,8 @@ class Session:
         return aiomqtt.Client(
             address.host, address.port, username=address.username, password=password,
             identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
-            keepalive=self.config.keepalive, tls_context=self._tls, timeout=CONNECT_TIMEOUT,
+            keepalive=self.config.keepalive, tls_context=self._tls_for(address),
+            timeout=CONNECT_TIMEOUT,
             logger=log,
         )  # fmt: skip
 
@@ -192,7 +212,8 @@ class Session:
         DuplicateVehicle when the session is lost within YOUNG_SESSION s of connecting and
         another vehicle with this identity is ONLINE meanwhile: the broker gives a client
         identifier to the newest connection, and that one took it back, so it was there
-        first and keeps the broker.
+        first and keeps the broker. A failed connect or a lost session moves to the next
+        broker of the config (round robin) after the back-off delay.
         """
         delay = self.config.reconnect_initial
         while True:
@@ -205,6 +226,7 @@ class Session:
                 await asyncio.shield(connecting)
             except aiomqtt.MqttError as exc:
                 self._failed(f"{exc} ({log.last_error})" if log.last_error else str(exc), delay)
+                self._next_broker()
             except asyncio.CancelledError:
                 await self._abandon(client, connecting)
                 raise
@@ -216,6 +238,7 @@ class Session:
                 age = anyio.current_time() - connected_at
                 if age < YOUNG_SESSION and await self._another_online():
                     raise self._duplicate(age)
+                self._next_broker()
             await anyio.sleep(delay)
             delay = min(delay * 2, self.config.reconnect_max)
 
@@ -223,18 +246,18 @@ class Session:
         config = self.config
         return DuplicateVehicle(
             f"another vehicle {config.manufacturer}/{config.serial_number} is connected to "
-            f"the broker {config.address.host}:{config.address.port}: it took the session "
+            f"the broker {self.address.host}:{self.address.port}: it took the session "
             f"back {age:.1f} s after this one connected; two vehicles must not share a "
             "manufacturer and serial number"
         )
 
     async def _another_online(self) -> bool:
         """True when the retained connection message is an ONLINE this session did not send."""
+        address = self.address
         client = aiomqtt.Client(
-            self.config.address.host, self.config.address.port,
-            username=self.config.address.username, password=self._password(),
+            address.host, address.port, username=address.username, password=self._password(),
             identifier=f"{self.config.manufacturer}-{self.config.serial_number}-check",
-            tls_context=self._tls, timeout=CONNECT_TIMEOUT, logger=_Recorder(),
+            tls_context=self._tls_for(address), timeout=CONNECT_TIMEOUT, logger=_Recorder(),
         )  # fmt: skip
         with contextlib.suppress(aiomqtt.MqttError):
             async with client:
@@ -251,7 +274,7 @@ class Session:
         level = logging.INFO if reason == self.last_error else logging.WARNING
         self.last_error = reason
         _log.log(level, "%s: cannot connect to the broker %s:%d: %s%s; retry in %.1f s",
-                 self.config.serial_number, self.config.address.host, self.config.address.port,
+                 self.config.serial_number, self.address.host, self.address.port,
                  reason, _hint(reason), delay)  # fmt: skip
 
     async def _abandon(self, client: aiomqtt.Client, connecting: asyncio.Future[Any]) -> None:

@@ -100,3 +100,26 @@ async def test_a_value_connect_rejects_names_the_robot(tmp_path: Path) -> None:
     with anyio.fail_after(10), pytest.raises(InvalidArgument, match=r"robot 'a': .*map_targets"):
         async with spec.connect():
             pass  # pragma: no cover
+
+
+def test_vehicle_identities_are_not_connect_options(tmp_path: Path) -> None:
+    text = GOOD.replace(
+        "map_targets = 4", 'map_targets = 4\nserial_number = "A-1"\nmanufacturer = "zeta"'
+    )
+    spec = load_fleet_file(write(tmp_path, text))
+    assert spec.robot_options["alpha"] == {"map_targets": 4}
+    assert spec.serial_number("alpha") == "A-1"
+    assert spec.manufacturer("alpha", "acme") == "zeta"
+    assert spec.serial_number("beta") == "beta"  # its name by default
+    assert spec.manufacturer("beta", "acme") == "acme"
+    only = spec.only(["beta"])
+    assert list(only.ports) == ["beta"]
+    assert only.vehicle_ids == {}
+    assert only.defaults == spec.defaults
+
+
+@pytest.mark.parametrize("value", ['""', "7"])
+def test_a_bad_serial_number_is_named(tmp_path: Path, value: str) -> None:
+    text = GOOD.replace("map_targets = 4", f"serial_number = {value}")
+    with pytest.raises(FleetFileError, match="robot 'alpha': serial_number must be a non-empty"):
+        load_fleet_file(write(tmp_path, text))

@@ -131,11 +131,12 @@ class Broker:
 
     ``mutual``: TLS that requires a client certificate signed by its CA. ``logins``: only
     these users (user: password) may connect; the master logs in as the first one.
+    ``extra``: more lines of its configuration (a bridge).
     """
 
     def __init__(
         self, directory: Path, *, tls: bool = False, mutual: MutualTls | None = None,
-        logins: dict[str, str] | None = None,
+        logins: dict[str, str] | None = None, extra: tuple[str, ...] = (),
     ) -> None:  # fmt: skip
         self.executable = require_mosquitto()
         self.directory = directory
@@ -143,6 +144,7 @@ class Broker:
         self.tls = tls or mutual is not None
         self.mutual = mutual
         self.logins = logins
+        self.extra = extra
         self.cert: Path | None = None if mutual is None else mutual.ca
         self.proc: asyncio.subprocess.Process | None = None
 
@@ -167,6 +169,7 @@ class Broker:
         elif self.tls:
             self.cert, key = make_certificate(self.directory)
             lines += [f"certfile {self.cert}", f"keyfile {key}"]
+        lines += self.extra
         path = self.directory / f"mosquitto-{self.port}.conf"
         path.write_text("\n".join(lines) + "\n")
         return path
@@ -194,10 +197,10 @@ class Broker:
     @contextlib.asynccontextmanager
     async def running(
         cls, directory: Path, *, tls: bool = False, mutual: MutualTls | None = None,
-        logins: dict[str, str] | None = None,
+        logins: dict[str, str] | None = None, extra: tuple[str, ...] = (),
     ) -> AsyncIterator[Broker]:  # fmt: skip
         """A started broker, stopped on exit whatever happens."""
-        broker = cls(directory, tls=tls, mutual=mutual, logins=logins)
+        broker = cls(directory, tls=tls, mutual=mutual, logins=logins, extra=extra)
         try:
             await broker.start()
             yield broker
@@ -352,6 +355,14 @@ def make_order(
     return {"orderId": order_id, "orderUpdateId": update, "nodes": nodes, "edges": edges}
 
 
+def bridge_to(central: Broker, name: str = "site") -> tuple[str, ...]:
+    """Configuration lines that bridge a broker's VDA 5050 topics both ways to ``central``."""
+    return (
+        f"connection {name}", f"address 127.0.0.1:{central.port}", "topic uagv/# both 1",
+        "cleansession true", "restart_timeout 1", "bridge_protocol_version mqttv311",
+    )  # fmt: skip
+
+
 def error_types(state: dict[str, Any]) -> list[str]:
     """The errorTypes of a state message."""
     return [error["errorType"] for error in state["errors"]]
@@ -363,6 +374,7 @@ __all__ = [
     "Broker",
     "Master",
     "MutualTls",
+    "bridge_to",
     "broker_fixture",
     "error_types",
     "make_certificate",
