@@ -5,8 +5,10 @@ supersession, reconnect, the stale watchdog and the one LinkState; a channel onl
 
 - ``await open(feed)``: connects (GalileoConnectionError if it cannot) and from then on
   reports to ``feed``: decoded statuses (``feed.received(statuses)`` once per read, or
-  ``feed.status(status)`` once per status for a channel without a decoder) and the loss
-  of its connection (``feed.lost(exc)``, once). The Link calls it again to reconnect;
+  ``feed.status(status)`` once per status for a channel without a decoder; a byte
+  channel's protocol writes ``received`` out: it stamps ``feed.stats.last_frame_at`` and
+  calls ``feed.deliver(status)`` per status) and the loss of its connection
+  (``feed.lost(exc)``, once). The Link calls it again to reconnect;
 - ``accepts(command)``: raises InvalidArgument or NotSupported for a command it cannot
   write, before anything is queued (the Link's ``enqueue`` and ``send`` call it);
 - ``await write(command)``: writes one command and returns its answer (None on a byte
@@ -27,7 +29,7 @@ from __future__ import annotations
 
 import abc
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -62,6 +64,9 @@ class Feed(Protocol):
 
     #: The link's counters: a channel counts ``bytes_received`` into them.
     stats: LinkStats
+    #: Takes one valid status once ``stats.last_frame_at`` is stamped for its read:
+    #: ``received`` written out, for a channel's per-read hot path.
+    deliver: Callable[[GalileoStatus], None]
 
     def received(self, statuses: Sequence[GalileoStatus]) -> None:
         """Valid statuses of one read, in order, already counted by the channel's decoder."""

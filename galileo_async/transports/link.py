@@ -35,8 +35,8 @@ class Link:
     __slots__ = (
         "__weakref__", "_backoff", "_closed", "_closing", "_error", "_followers",
         "_opened", "_reconnect_task", "_state", "_update", "_writer_task", "channel",
-        "queue", "reconnect", "reconnect_initial", "reconnect_max", "stats", "store",
-        "watchdog", "writer",
+        "deliver", "queue", "reconnect", "reconnect_initial", "reconnect_max", "stats",
+        "store", "watchdog", "writer",
     )  # fmt: skip
 
     def __init__(
@@ -87,6 +87,9 @@ class Link:
         )
         self._opened = False
         self._state = LinkState.CONNECTING
+        #: Takes each valid status of a read (channel.Feed.deliver): the store's update
+        #: while UP, else _deliver_fresh, which ends the spell first (_set_state swaps it).
+        self.deliver: Callable[[GalileoStatus], None] = self._deliver_fresh
         #: The error that goes with the state (LOST, STALE), else None.
         self._error: GalileoConnectionError | None = None
         self._followers = LinkStateFollowers()
@@ -149,6 +152,8 @@ class Link:
     def _set_state(self, state: LinkState, error: GalileoConnectionError | None = None) -> None:
         """The one place the link's state changes: kept, counted in stats, told to followers."""
         self._state = self.stats.state = state
+        # Swapped here, not tested per read: a byte channel calls deliver with no check.
+        self.deliver = self._update if state is _UP else self._deliver_fresh
         if state is not LinkState.CLOSED:
             self._error = error
         self._followers.publish(state)
@@ -258,11 +263,9 @@ class Link:
         stats = self.stats
         # Only a timestamp per read: the watchdog re-arms itself from it (_check_stale).
         stats.last_frame_at = stats.clock()
-        if self._state is not _UP:
-            self._fresh_again()
-        update = self._update
+        deliver = self.deliver
         for status in statuses:
-            update(status)
+            deliver(status)
 
     def status(self, status: GalileoStatus) -> None:
         """Count one valid status and hand it to the store (channels without a decoder)."""
@@ -270,6 +273,10 @@ class Link:
         stats.decoder.frames += 1
         stats.decoder.layout = status.layout
         stats.last_frame_at = stats.clock()
+        self.deliver(status)
+
+    def _deliver_fresh(self, status: GalileoStatus) -> None:
+        """``deliver`` while not UP: the first valid status ends the spell, then the store."""
         if self._state is not _UP:
             self._fresh_again()
         self._update(status)

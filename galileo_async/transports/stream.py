@@ -59,14 +59,14 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
     """
 
     __slots__ = (
-        "_buffer", "_channel", "_decoder", "_received", "_stats", "_view", "current", "lost"
+        "_buffer", "_channel", "_decoder", "_feed", "_stats", "_view", "current", "lost"
     )  # fmt: skip
 
     def __init__(self, channel: StreamChannel, feed: Feed, loop: asyncio.AbstractEventLoop) -> None:
         self._channel = channel
         self._decoder = channel.decoder
+        self._feed = feed
         self._stats = feed.stats
-        self._received = feed.received
         #: False once the channel has replaced or dropped this protocol: late reads are ignored.
         self.current = True
         self.lost: asyncio.Future[None] = loop.create_future()
@@ -89,7 +89,12 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         # Read in place: the decoder copies whatever it holds back, never keeps the buffer.
         statuses = self._decoder.feed_from(buffer, nbytes)  # counts into the link's stats
         if statuses:
-            self._received(statuses)
+            # feed.received written out (one call fewer per read): stamp, then deliver.
+            stats = self._stats
+            stats.last_frame_at = stats.clock()
+            deliver = self._feed.deliver
+            for status in statuses:
+                deliver(status)
 
     def data_received(self, data: bytes | bytearray) -> None:
         if not self.current:
@@ -99,7 +104,11 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
             frames_log.debug("rx %s", data.hex(" "))
         statuses = self._decoder.feed_from(data, len(data))
         if statuses:
-            self._received(statuses)
+            stats = self._stats
+            stats.last_frame_at = stats.clock()
+            deliver = self._feed.deliver
+            for status in statuses:
+                deliver(status)
 
     def eof_received(self) -> bool | None:
         return None  # let the transport close itself: EOF is a drop
