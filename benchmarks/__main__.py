@@ -1,4 +1,6 @@
-"""``python -m benchmarks [--quick] [ingest latency fleet fleet_merged virtual] [--fleet N,…]``.
+"""``python -m benchmarks [--quick] [NAME …] [--fleet N,…]``: NAME among BENCHMARKS below.
+
+``python -m benchmarks fleet_merged --traffic burst|spread|both``: how the robots' frames arrive.
 
 ``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
 
@@ -21,7 +23,7 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual")
+BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual", "imports")
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -69,6 +71,14 @@ def main(argv: list[str] | None = None) -> int:
         "or leave it as it is (benchmarks/common.py pin_malloc)",
     )
     parser.add_argument(
+        "--traffic",
+        choices=["burst", "spread", "both"],
+        default=None,
+        help="fleet, fleet_merged: every robot's frame of a tick written together (burst: "
+        "reads batched), or the frames staggered over the period (spread); default: "
+        "fleet burst, fleet_merged both",
+    )
+    parser.add_argument(
         "--instructions",
         action="store_true",
         help="breakdown: also count instructions and L2 misses per frame (valgrind)",
@@ -99,6 +109,11 @@ def main(argv: list[str] | None = None) -> int:
             options["vehicles"] = args.vehicles
         if name == "breakdown":
             options["instructions"] = args.instructions
+        if name in ("fleet", "fleet_merged"):
+            traffic = args.traffic or ("both" if name == "fleet_merged" else "burst")
+            for each in ("burst", "spread") if traffic == "both" else (traffic,):
+                rows += module.run(**options, traffic=each)
+            continue
         rows += module.run(**options)
     print()
     print(render_table(rows))

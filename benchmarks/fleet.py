@@ -73,9 +73,11 @@ SERVER_WARMUP = 3.0
 class _Server:
     """The fleet server process and its control pipe."""
 
-    def __init__(self, count: int, env: dict[str, str] | None = None) -> None:
+    def __init__(
+        self, count: int, env: dict[str, str] | None = None, traffic: str = "burst"
+    ) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "benchmarks.fleet_server", str(count)],
+            [sys.executable, "-m", "benchmarks.fleet_server", str(count), "--traffic", traffic],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
         )  # fmt: skip
         assert self.process.stdout is not None
@@ -83,6 +85,8 @@ class _Server:
         self.ports: list[int] = self.info["ports"]
         self.origin: float = self.info["origin"]
         self.period: float = self.info["period"]
+        #: Robot i's frame t is due at origins[i] + t * period (traffic "spread" staggers them).
+        self.origins: list[float] = [self.origin + o for o in self.info["offsets"]]
 
     def cpu(self) -> dict[str, Any]:
         """The server's CPU seconds and counters (blocks briefly: call between windows)."""
@@ -241,7 +245,7 @@ async def _connect(server: _Server) -> list[Robot]:
 async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase:
     """Robots with a statuses() task each, or (consumers=False) sampled at SAMPLE_RATE."""
     phase = _Phase()
-    origin, period = server.origin, server.period
+    origins, period = server.origins, server.period
     recording = False
     ages = phase.ages
     monotonic = time.monotonic
@@ -250,7 +254,7 @@ async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase
         async for _status in robot.statuses():
             pass
 
-    async def consume_timed(robot: Robot) -> None:
+    async def consume_timed(robot: Robot, origin: float) -> None:
         status: GalileoStatus
         async for status in robot.statuses():
             if recording:
@@ -270,7 +274,7 @@ async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase
                     continue
                 if seen.get(index) != status.time_stamp:
                     seen[index] = status.time_stamp
-                    ages.append(arrived - (origin + status.time_stamp * period))
+                    ages.append(arrived - (origins[index] + status.time_stamp * period))
 
     gc.collect()
     rss0 = rss_bytes()
@@ -280,7 +284,9 @@ async def _driver(server: _Server, seconds: float, *, consumers: bool) -> _Phase
         # bookkeeping (a clock read and a list append per status) is not the driver's cost.
         every = max(1, len(robots) // AGE_ROBOTS)
         tasks = [
-            asyncio.create_task((consume_timed if index % every == 0 else consume)(robot))
+            asyncio.create_task(
+                consume_timed(robot, origins[index]) if index % every == 0 else consume(robot)
+            )
             for index, robot in enumerate(robots)
         ]
     else:
@@ -333,9 +339,11 @@ async def _traced(server: _Server) -> float:
     return traced
 
 
-async def _measure(count: int, seconds: float, repeats: int) -> list[tuple[_Phase, ...]]:
+async def _measure(
+    count: int, seconds: float, repeats: int, traffic: str = "burst"
+) -> list[tuple[_Phase, ...]]:
     """``repeats`` rounds of (bare, driver with tasks, driver sampled) on one server."""
-    server = _Server(count)
+    server = _Server(count, traffic=traffic)
     rounds: list[tuple[_Phase, ...]] = []
     try:
         # Untimed: the first phase after the server starts warms both processes up.
@@ -360,8 +368,12 @@ def run(
     seconds: float = 10.0,
     repeats: int | None = None,
     malloc: str = "heap",
+    traffic: str = "burst",
 ) -> list[Row]:
-    """Measure the fleet for each N in ``sizes`` (``malloc``: see common.pin_malloc)."""
+    """Measure the fleet for each N in ``sizes`` (``malloc``: see common.pin_malloc).
+
+    ``traffic``: "burst" (every robot's frame of a tick written together) or "spread".
+    """
     raise_fd_limit()
     pinned = malloc == "heap" and pin_malloc()
     print(f"  glibc read buffers: {'pinned to the heap' if pinned else 'not pinned'}", flush=True)
@@ -371,10 +383,10 @@ def run(
         # by up to a third between rounds (BENCHMARKS.md §2): three rounds at least, five
         # at the size the targets are set at, whose ratio lies near its line.
         rounds_wanted = repeats or (1 if quick else TARGET_ROUNDS if count >= TARGET_N else 3)
-        print(f"  fleet N={count}, {rounds_wanted} round(s) …", flush=True)
-        rounds = asyncio.run(_measure(count, seconds, rounds_wanted))
+        print(f"  fleet N={count}, {traffic}, {rounds_wanted} round(s) …", flush=True)
+        rounds = asyncio.run(_measure(count, seconds, rounds_wanted, traffic))
         bares = [r[0] for r in rounds]
-        name = f"fleet N={count}"
+        name = f"fleet N={count}" + ("" if traffic == "burst" else f" {traffic}")
         rows += _rows(name, count, bares, [r[1] for r in rounds], "statuses() task per robot")
         rows += _rows(name, count, bares, [r[2] for r in rounds], "no task, app samples status",
                       memory=False)  # fmt: skip

@@ -8,8 +8,14 @@ The same server and phases as ``fleet`` (benchmarks/fleet.py), per round:
 * **fleet.statuses()**: ``connect_fleet`` with the N ``socket://`` robots and one task
   iterating ``fleet.statuses()``: every robot's newest status, coalesced, no task per
   robot. AGE_ROBOTS robots (evenly spread) time every status the consumer gets;
-* **a statuses() task per robot** (a reference): ``fleet``'s driver phase, N ``connect()``
-  robots each with a task iterating ``robot.statuses()``, what the merged stream replaces.
+* **a statuses() task per robot**: ``fleet``'s driver phase, N ``connect()`` robots each
+  with a task iterating ``robot.statuses()``, what the merged stream replaces;
+* **driver alone**: ``fleet``'s sampled phase, N ``connect()`` robots and no task per robot
+  (one task reads every robot's ``status`` ten times a second).
+
+``traffic`` "burst" (default): the server writes every robot's frame of a tick back to back,
+so the driver finds them ready together (reads batched); "spread": the robots' frames are
+staggered over the period (benchmarks/fleet_server.py).
 
 Status age and memory per robot are measured as in ``fleet``; the CPU ratio is taken per
 round against the BufferedProtocol floor of that round, then the median. After each
@@ -59,10 +65,10 @@ async def merged_phase(server: _Server, seconds: float, renders: list[float]) ->
     the seconds each drawing took.
     """
     phase = _Phase()
-    origin, period = server.origin, server.period
+    period = server.period
     ports = {f"r{index}": f"socket://127.0.0.1:{port}" for index, port in enumerate(server.ports)}
     every = max(1, len(ports) // AGE_ROBOTS)
-    timed = frozenset(name for index, name in enumerate(ports) if index % every == 0)
+    timed = {name: server.origins[index] for index, name in enumerate(ports) if index % every == 0}
     recording = False
     ages = phase.ages
     monotonic = time.monotonic
@@ -74,7 +80,7 @@ async def merged_phase(server: _Server, seconds: float, renders: list[float]) ->
             count += 1
             if recording and name in timed:
                 assert status.time_stamp is not None
-                ages.append(monotonic() - (origin + status.time_stamp * period))
+                ages.append(monotonic() - (timed[name] + status.time_stamp * period))
             received[0] = count
 
     gc.collect()
@@ -128,10 +134,10 @@ async def _render_times(fleet: Fleet) -> list[float]:
 
 
 async def _measure(
-    count: int, seconds: float, repeats: int, renders: list[float]
+    count: int, seconds: float, repeats: int, renders: list[float], traffic: str = "burst"
 ) -> list[tuple[_Phase, ...]]:
-    """``repeats`` rounds of (bare Protocol, bare BufferedProtocol, merged, a task per robot)."""
-    server = _Server(count)
+    """``repeats`` rounds of (bare Protocol, BufferedProtocol, merged, task per robot, alone)."""
+    server = _Server(count, traffic=traffic)
     rounds: list[tuple[_Phase, ...]] = []
     try:
         await _bare(server, SERVER_WARMUP)  # untimed: warms both processes up
@@ -140,7 +146,8 @@ async def _measure(
             buffered = await _bare(server, seconds, kind="buffered")
             merged = await merged_phase(server, seconds, renders)
             tasks = await _driver(server, seconds, consumers=True)
-            rounds.append((bare, buffered, merged, tasks))
+            alone = await _driver(server, seconds, consumers=False)
+            rounds.append((bare, buffered, merged, tasks, alone))
     finally:
         await asyncio.get_running_loop().run_in_executor(None, server.close)
     return rounds
@@ -153,23 +160,37 @@ def run(
     seconds: float = 6.0,
     repeats: int | None = None,
     malloc: str = "heap",
+    traffic: str = "burst",
 ) -> list[Row]:
-    """Measure one merged consumer for each N in ``sizes`` against the bare floors."""
+    """Measure one merged consumer for each N in ``sizes`` against the bare floors.
+
+    ``traffic``: "burst" (every robot's frame of a tick written together) or "spread".
+    """
     raise_fd_limit()
     if malloc == "heap":
         pin_malloc()
     rows: list[Row] = []
     for count in sizes or [TARGET_N]:
         wanted = repeats or (1 if quick else 3)
-        print(f"  fleet.statuses() N={count}, {wanted} round(s) …", flush=True)
+        print(f"  fleet.statuses() N={count}, {traffic}, {wanted} round(s) …", flush=True)
         renders: list[float] = []
-        rounds = asyncio.run(_measure(count, seconds, wanted, renders))
-        rows += _rows(count, rounds, renders)
+        rounds = asyncio.run(_measure(count, seconds, wanted, renders, traffic))
+        rows += _rows(count, rounds, renders, traffic)
     return rows
 
 
-def _rows(count: int, rounds: list[tuple[_Phase, ...]], renders: list[float]) -> list[Row]:
-    name = f"fleet.statuses() N={count}"
+#: The three ways application code gets statuses, by their index in a round.
+VARIANTS = (
+    (2, "one fleet.statuses() consumer"),
+    (3, "a statuses() task per robot"),
+    (4, "driver alone (no task per robot)"),
+)
+
+
+def _rows(
+    count: int, rounds: list[tuple[_Phase, ...]], renders: list[float], traffic: str = "burst"
+) -> list[Row]:
+    name = f"fleet.statuses() N={count} {traffic}"
     held = count >= TARGET_N
 
     def target(text: str, met: bool) -> tuple[str, bool | None]:
@@ -178,43 +199,49 @@ def _rows(count: int, rounds: list[tuple[_Phase, ...]], renders: list[float]) ->
     def load(phase: _Phase) -> float:
         return phase.cpu / phase.wall
 
-    merged = [r[2] for r in rounds]
-    vs_buffered = [load(r[2]) / load(r[1]) for r in rounds]
-    vs_protocol = [load(r[2]) / load(r[0]) for r in rounds]
-    ratio = statistics.median(vs_buffered)
-    ages = [age for phase in merged for age in phase.ages]
-    frames, lost = sum(p.frames for p in merged), sum(p.lost for p in merged)
-    kept = frames / max(1, frames + lost)
-    first = merged[0]
-    extra = {
-        "ratios_vs_buffered": [round(r, 2) for r in vs_buffered],
-        "ratios_vs_protocol": [round(r, 2) for r in vs_protocol],
-        "us_per_frame_rounds": [round(1e6 * p.cpu / max(1, p.frames), 2) for p in merged],
-        "buffered_us_per_frame_rounds": [round(1e6 * r[1].cpu / max(1, r[1].frames), 2)
-                                         for r in rounds],
-        "statuses_received_per_frame": round(sum(p.seen for p in merged) / max(1, frames), 3),
-        "rounds": len(rounds),
-    }  # fmt: skip
-    return [
-        Row(name, "frames kept", 100 * kept, "%", None, "", *target("≥ 99.9 %", kept >= 0.999),
-            {"frames": frames, "lost": lost}),
-        Row(name, "driver CPU, one fleet.statuses() consumer",
-            100 * statistics.median(load(p) for p in merged), "% of a core",
-            100 * statistics.median(load(r[1]) for r in rounds), "bare BufferedProtocol",
-            *target("≤ 2.0× bare (aim 1.5×)", ratio <= 2.0), {"ratio_median": ratio, **extra}),
-        Row(name, "a statuses() task per robot CPU (for reference)",
-            100 * statistics.median(load(r[3]) for r in rounds), "% of a core",
-            100 * statistics.median(load(r[1]) for r in rounds), "bare BufferedProtocol", "",
-            None, {"ratio_median": statistics.median(load(r[3]) / load(r[1]) for r in rounds),
-                   "ratios_vs_buffered": [round(load(r[3]) / load(r[1]), 2) for r in rounds],
-                   "us_per_frame_rounds": [round(1e6 * r[3].cpu / max(1, r[3].frames), 2)
-                                           for r in rounds]}),
-        Row(name, "status age p99", 1000 * percentile(ages, 99), "ms",
-            1000 * percentile(ages, 50), "p50", *target("≤ 100 ms", percentile(ages, 99) <= 0.1),
-            {"samples": len(ages)}),
-        Row(name, "memory per robot: RSS growth", first.rss_per_robot / 1024, "KiB", None, "",
-            *target("≤ 32 KiB", first.rss_per_robot <= 32 * 1024)),
+    def per_frame(phases: list[_Phase]) -> list[float]:
+        return [round(1e6 * p.cpu / max(1, p.frames), 2) for p in phases]
+
+    buffered = [r[1] for r in rounds]
+    rows: list[Row] = []
+    for index, how in VARIANTS:
+        phases = [r[index] for r in rounds]
+        ratios = [load(p) / load(b) for p, b in zip(phases, buffered, strict=True)]
+        ratio = statistics.median(ratios)
+        ages = [age for phase in phases for age in phase.ages]
+        frames, lost = sum(p.frames for p in phases), sum(p.lost for p in phases)
+        kept = frames / max(1, frames + lost)
+        p99 = percentile(ages, 99)
+        extra = {
+            "ratio_median": ratio,
+            "ratios_vs_buffered": [round(r, 2) for r in ratios],
+            "ratios_vs_protocol": [round(load(p) / load(r[0]), 2)
+                                   for p, r in zip(phases, rounds, strict=True)],
+            "us_per_frame_rounds": per_frame(phases),
+            "buffered_us_per_frame_rounds": per_frame(buffered),
+            "rounds": len(rounds),
+            "traffic": traffic,
+        }  # fmt: skip
+        if index == 2:
+            extra["statuses_received_per_frame"] = round(
+                sum(p.seen for p in phases) / max(1, frames), 3
+            )
+        rss = phases[0].rss_per_robot
+        rows += [
+            Row(name, f"frames kept, {how}", 100 * kept, "%", None, "",
+                *target("= 100 %", lost == 0), {"frames": frames, "lost": lost}),
+            Row(name, f"driver CPU, {how}", 100 * statistics.median(load(p) for p in phases),
+                "% of a core", 100 * statistics.median(load(b) for b in buffered),
+                "bare BufferedProtocol", *target("≤ 1.5× bare BufferedProtocol", ratio <= 1.5),
+                extra),
+            Row(name, f"status age p99, {how}", 1000 * p99, "ms", 1000 * percentile(ages, 50),
+                "p50", *target("≤ 100 ms", p99 <= 0.1), {"samples": len(ages)}),
+            Row(name, f"memory per robot: RSS growth, {how}", rss / 1024, "KiB", None, "",
+                *target("≤ 32 KiB", rss <= 32 * 1024)),
+        ]  # fmt: skip
+    rows.append(
         Row(name, "fleet monitor: one screen drawn (median)", 1000 * statistics.median(renders),
             "ms", 1000 * max(renders), "max", f"< {1000 / FLEET_REFRESH:.0f} ms (its period)",
             None, {"renders": len(renders)}),
-    ]  # fmt: skip
+    )  # fmt: skip
+    return rows

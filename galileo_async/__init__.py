@@ -8,22 +8,21 @@ import types
 from typing import TYPE_CHECKING, Any
 
 from . import errors, protocol
-from .errors import *  # noqa: F403
-from .models import (
+from ._wire import (
     AngleGoalStatus,
     ChargeStatus,
-    GalileoStatus,
     LinkState,
     MapStatus,
     NavStatus,
-    Pose,
     StatusLayout,
     TargetStatus,
     VisualStatus,
 )
+from .errors import *  # noqa: F403
 
 if TYPE_CHECKING:
     from .fleet import Fleet, FleetResult, connect_fleet
+    from .models import GalileoStatus, Pose
     from .robot import Connection, GoalResult, Robot, StopReport, connect
     from .ros.discovery import DiscoveredRobot, discover
 
@@ -59,8 +58,11 @@ __all__ = [
     *errors.__all__,
 ]
 
-# The asyncio layers load on first use, so ``import galileo_async.protocol`` stays I/O-free.
+# The asyncio layers load on first use, so ``import galileo_async.protocol`` stays I/O-free;
+# the pydantic models too, so that ``import galileo_async`` costs no pydantic.
 _LAZY: dict[str, str] = {
+    "GalileoStatus": "models",
+    "Pose": "models",
     "DiscoveredRobot": "ros.discovery",
     "discover": "ros.discovery",
     "Fleet": "fleet",

@@ -6,10 +6,10 @@ import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .._wire import STATUS_FIELDS, StatusLayout
 from ..errors import InvalidArgument
-from ..models import STATUS_FIELDS, GalileoStatus, StatusLayout
 from .commands import (
     COMMAND_TYPES,
     MAX_COMMAND_PAYLOAD,
@@ -26,6 +26,9 @@ from .commands import (
 )
 from .layouts import HEADER, LAYOUTS, V2_DEFAULTS
 from .udp import UDP_LAYOUTS, UDP_SOURCE_FIELDS, pack_udp_payload
+
+if TYPE_CHECKING:
+    from ..models import GalileoStatus
 
 __all__ = [
     "CommandDecoder",

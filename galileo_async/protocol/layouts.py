@@ -6,7 +6,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from ..models import (
+from .._wire import (
     AngleGoalStatus,
     ChargeStatus,
     MapStatus,

@@ -6,11 +6,13 @@ import enum
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..models import GalileoStatus, StatusLayout
-from ._build import status_builder
+from .._wire import StatusLayout
 from .layouts import ENUM_FIELDS, HEADER, LAYOUTS, LENGTH_V1, LENGTH_V2, Layout
+
+if TYPE_CHECKING:
+    from ..models import GalileoStatus
 
 __all__ = [
     "MAX_BUFFER",
@@ -64,9 +66,13 @@ class _EnumMap(dict[int, Any]):
 
 
 class _Converter:
-    """Precomputed per-layout decode path: unpack, then build the status in one call."""
+    """Precomputed per-layout decode path: unpack, then build the status in one call.
 
-    __slots__ = ("build", "fields", "layout", "name", "stamp_index", "unpack_from")
+    ``build`` loads the status builders (and pydantic with GalileoStatus) on the first frame
+    any layout decodes, not at import (docs/architecture.md, "Import cost").
+    """
+
+    __slots__ = ("build", "fields", "layout", "maps", "name", "stamp_index", "unpack_from")
 
     def __init__(self, layout: Layout) -> None:
         self.layout = layout
@@ -74,8 +80,22 @@ class _Converter:
         self.fields = fields = layout.fields
         self.unpack_from = layout.struct.unpack_from
         self.stamp_index = fields.index("time_stamp") if "time_stamp" in fields else None
-        maps = {field: _EnumMap(ENUM_FIELDS[field]) for field in fields if field in ENUM_FIELDS}
-        self.build: Callable[[Values], GalileoStatus] = status_builder(layout.name, fields, maps)
+        self.maps = {f: _EnumMap(ENUM_FIELDS[f]) for f in fields if f in ENUM_FIELDS}
+        self.build: Callable[[Values], GalileoStatus] = self._first_build
+
+    def _first_build(self, values: Values) -> GalileoStatus:
+        _load_builders()
+        return self.build(values)
+
+
+def _load_builders() -> None:
+    """Give every converter its status builder (the first frame decoded calls this)."""
+    global _V2_BUILD
+    from ._build import status_builder
+
+    for converter in _CONVERTERS.values():
+        converter.build = status_builder(converter.name, converter.fields, converter.maps)
+    _V2_BUILD = _V2.build
 
 
 _CONVERTERS = {name: _Converter(layout) for name, layout in LAYOUTS.items()}

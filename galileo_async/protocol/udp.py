@@ -9,15 +9,17 @@ into one flags byte; fields it does not carry decode as None.
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..models import ChargeStatus, GalileoStatus, MapStatus, NavStatus, StatusLayout, TargetStatus
-from ..models import VisualStatus as Visual
-from ._build import trusted_status
+from .._wire import ChargeStatus, MapStatus, NavStatus, StatusLayout, TargetStatus
+from .._wire import VisualStatus as Visual
 from .layouts import HEADER
 from .status import DecoderStats
+
+if TYPE_CHECKING:
+    from ..models import GalileoStatus
 
 __all__ = [
     "ENV_FRAME_SIZE",
@@ -149,7 +151,19 @@ def _status(layout: UdpLayout, values: tuple[Any, ...]) -> GalileoStatus:
     }
     if len(values) > 10:
         fields["target_distance"] = values[10]
+    return _trusted(fields)
+
+
+def _first_trusted(fields: dict[str, Any]) -> GalileoStatus:
+    """Load the status builder (and pydantic with GalileoStatus) on the first datagram."""
+    global _trusted
+    from ._build import trusted_status
+
+    _trusted = trusted_status
     return trusted_status(fields)
+
+
+_trusted: Callable[[dict[str, Any]], GalileoStatus] = _first_trusted
 
 
 class UdpStatusDecoder:

@@ -109,6 +109,7 @@ def test_import_scan_finds_imports() -> None:
 #: Each part of the package, by the dotted prefix of its modules (longest prefix wins).
 PARTS = {
     "galileo_async.models": "base",
+    "galileo_async._wire": "base",
     "galileo_async.errors": "base",
     "galileo_async._checks": "base",
     "galileo_async.protocol": "protocol",

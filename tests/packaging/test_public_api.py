@@ -71,17 +71,23 @@ def test_errors_are_grouped_under_one_root() -> None:
 
 
 def test_dir_lists_the_public_names_and_no_implementation_names() -> None:
-    # A fresh interpreter: the lazy names (connect, connect_fleet, Fleet) not loaded yet.
-    script = "import json, galileo_async; print(json.dumps(dir(galileo_async)))"
-    shown = json.loads(
+    # A fresh interpreter: the lazy names (connect, connect_fleet, Fleet, GalileoStatus) not
+    # loaded yet; models (pydantic's) is listed once GalileoStatus has loaded it.
+    script = (
+        "import json, galileo_async; before = dir(galileo_async); galileo_async.GalileoStatus; "
+        "print(json.dumps([before, dir(galileo_async)]))"
+    )
+    shown, after = json.loads(
         subprocess.run(
             [sys.executable, "-c", script], capture_output=True, text=True, check=True, timeout=60
         ).stdout
     )
     assert set(galileo.__all__) <= set(shown)
     assert shown == sorted(shown)
-    for name in ("__doc__", "__name__", "__version__", "__all__", "__path__", "models"):
+    for name in ("__doc__", "__name__", "__version__", "__all__", "__path__", "protocol"):
         assert name in shown, name
+    assert "models" not in shown
+    assert set(after) - set(shown) == {"models"}
     for name in ("TYPE_CHECKING", "Any", "annotations", "importlib", "logging", "types", "_LAZY",
                  "_checks", "__getattr__", "__dir__"):  # fmt: skip
         assert name not in shown, name

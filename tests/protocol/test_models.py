@@ -33,7 +33,7 @@ ENUMS = [NavStatus, VisualStatus, MapStatus, ChargeStatus, TargetStatus, AngleGo
 
 def test_field_order_is_the_v2_struct_order() -> None:
     assert STATUS_FIELDS == v.V2_NAMES
-    assert "layout" in GalileoStatus.model_fields
+    assert tuple(GalileoStatus.model_fields) == ("layout", *STATUS_FIELDS)
 
 
 def test_wire_values_of_the_enums() -> None:
