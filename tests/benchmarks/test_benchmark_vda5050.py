@@ -26,6 +26,8 @@ def test_vda5050_benchmark_phases_measure_cpu_and_latency() -> None:
 def test_vda5050_benchmark_rows() -> None:
     require_mosquitto()
     rows = vda5050.run(quick=True, vehicles=2, seconds=0.5)
-    assert [row.unit for row in rows] == ["% core", "ms", "ms", "ms", "ms", "ms"]
+    units = ["% core", "cores", "KiB", "ms", "ms", "ms", "ms", "ms"]
+    assert [row.unit for row in rows] == units
     assert all(math.isfinite(row.value) for row in rows)
-    assert rows[2].target == "≤ 50 ms"
+    assert rows[2].value > 0  # RSS per vehicle
+    assert rows[4].target == "≤ 50 ms"
