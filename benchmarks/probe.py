@@ -14,11 +14,14 @@ by this checkout's package (the frames file, the fleet server), the same for bot
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import gc
 import json
 import os
 import pickle
+import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
@@ -337,6 +340,163 @@ async def _http_latency(samples: int) -> tuple[list[float], list[float]]:
     return status, command
 
 
+ROS_NODE = Path(__file__).with_name("ros_node.py")
+#: Debian's ROS 1 runs under the system interpreter, not the project's venv.
+SYSTEM_PYTHON = "/usr/bin/python3"
+
+
+class NotRun(Exception):
+    """A link's peer is missing here: its figures are "not run" rather than numbers."""
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+async def _stop(proc: asyncio.subprocess.Process) -> None:
+    """Terminate, kill after STEP_TIMEOUT; always reaps."""
+    if proc.returncode is None:
+        with contextlib.suppress(ProcessLookupError):
+            proc.terminate()
+        try:
+            await asyncio.wait_for(proc.wait(), STEP_TIMEOUT)
+        except asyncio.TimeoutError:
+            with contextlib.suppress(ProcessLookupError):
+                proc.kill()
+            await proc.wait()
+
+
+async def _listening(port: int) -> None:
+    """Wait, at most STEP_TIMEOUT, until 127.0.0.1:port accepts connections."""
+    deadline = time.monotonic() + STEP_TIMEOUT
+    while True:
+        try:
+            _, writer = await asyncio.open_connection("127.0.0.1", port)
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"rosmaster does not listen on 127.0.0.1:{port}") from None
+            await asyncio.sleep(0.05)  # another process's port: there is no event to await
+            continue
+        writer.close()
+        return
+
+
+def _log_file(path: Path) -> Any:
+    """The ROS processes' output file (the caller closes it once they have it)."""
+    return path.open("ab")
+
+
+def _tail(path: Path) -> str:
+    return path.read_text(errors="replace")[-3000:]
+
+
+async def _ros_latency(samples: int) -> tuple[list[float], list[float]]:
+    """A real rosmaster and benchmarks/ros_node.py (rospy); the driver on ros://.
+
+    Status: the node's time.monotonic() just before ``publish()`` → ``wait_until`` returns.
+    Command: ``robot.forward()`` called → the node's rospy callback entered. One clock
+    (CLOCK_MONOTONIC) on both sides; the node reports its times after the samples.
+    """
+    from .latency_loops import COMMAND_GAP
+
+    rosmaster = shutil.which("rosmaster")
+    if rosmaster is None or not os.access(SYSTEM_PYTHON, os.X_OK):
+        raise NotRun("ROS 1 (rosmaster, rospy) is not installed: run .ci/setup (as root)")
+    port = _free_port()
+    with tempfile.TemporaryDirectory(prefix="galileo-ros-") as home:
+        env = {key: value for key, value in os.environ.items() if not key.startswith("ROS")}
+        env.update(ROS_MASTER_URI=f"http://127.0.0.1:{port}/", ROS_IP="127.0.0.1",
+                   ROS_HOSTNAME="127.0.0.1", ROS_HOME=home, ROS_LOG_DIR=f"{home}/log",
+                   PYTHONDONTWRITEBYTECODE="1")  # fmt: skip
+        env.pop("PYTHONPATH", None)
+        log_path = Path(home, "processes.log")
+        log = _log_file(log_path)
+        processes: list[asyncio.subprocess.Process] = []
+        try:
+            processes.append(await asyncio.create_subprocess_exec(
+                rosmaster, "--core", "-p", str(port), stdin=asyncio.subprocess.DEVNULL,
+                stdout=log, stderr=log, env=env))  # fmt: skip
+            await _listening(port)
+            node = await asyncio.create_subprocess_exec(
+                SYSTEM_PYTHON, str(ROS_NODE), stdin=asyncio.subprocess.PIPE,
+                stdout=asyncio.subprocess.PIPE, stderr=log, env=env)  # fmt: skip
+            processes.append(node)
+            assert node.stdin is not None
+            assert node.stdout is not None
+            stdin, stdout = node.stdin, node.stdout
+            ready = await asyncio.wait_for(stdout.readline(), STEP_TIMEOUT)
+            if not ready.startswith(b"READY"):
+                raise RuntimeError(f"the ROS node did not start:\n{_tail(log_path)}")
+            robot = await _ros_connect(port, stdin)
+            try:
+                returned = await _ros_wakeups(robot, stdin, samples)
+                called = []
+                for _ in range(samples):
+                    await asyncio.sleep(COMMAND_GAP)
+                    t0 = time.monotonic()
+                    await robot.forward(20)
+                    called.append(t0)
+                stdin.write(f"dump {samples}\n".encode())
+                await stdin.drain()
+                report = json.loads(await asyncio.wait_for(stdout.readline(), 2 * STEP_TIMEOUT))
+            finally:
+                await robot.close()
+            stdin.write(b"quit\n")
+            await stdin.drain()
+        finally:
+            for proc in reversed(processes):
+                await _stop(proc)
+            log.close()
+    sent = {int(k): t for k, t in report["sent"].items()}
+    status = [returned[k] - sent[k] for k in returned]
+    seen = [when for when, op in report["commands"] if op == ord("f")]
+    if len(seen) != samples:
+        raise RuntimeError(f"the ROS node saw {len(seen)} of {samples} forward commands")
+    return status, [arrived - t0 for arrived, t0 in zip(seen, called, strict=True)]
+
+
+async def _ros_connect(port: int, stdin: asyncio.StreamWriter) -> Any:
+    """connect() on ros://; the node publishes status 1 every 50 ms until it returns."""
+    import galileo_async
+
+    connecting = asyncio.ensure_future(galileo_async.connect(
+        f"ros://127.0.0.1:{port}", stale_timeout=None, connect_timeout=STEP_TIMEOUT))  # fmt: skip
+    try:
+        # The driver's subscription has no event to await: a status once is not enough.
+        while not connecting.done():
+            stdin.write(b"status 1\n")
+            await stdin.drain()
+            await asyncio.wait([connecting], timeout=0.05)
+    except BaseException:
+        connecting.cancel()
+        with contextlib.suppress(BaseException):
+            robot = await connecting
+            await robot.close()
+        raise
+    return await connecting
+
+
+async def _ros_wakeups(robot: Any, stdin: asyncio.StreamWriter, samples: int) -> dict[int, float]:
+    """The node publishes status k (told on stdin); when ``wait_until(target == k)`` returns."""
+    returned: dict[int, float] = {}
+    for k in range(2, samples + 2):
+
+        def wanted(status: Any, k: int = k) -> bool:
+            return bool(status.target_num_id == k)
+
+        waiter = asyncio.create_task(robot.wait_until(wanted, timeout=STEP_TIMEOUT))
+        await asyncio.sleep(0)  # registered before the status is published
+        stdin.write(f"status {k}\n".encode())
+        await stdin.drain()
+        await waiter
+        returned[k] = time.monotonic()
+    return returned
+
+
 #: The link kinds latency covers: (URL scheme, status path, command path, measurement).
 LINKS: tuple[tuple[str, str, str, Callable[[int], Any]], ...] = (
     ("socket://", "status frame → wait_until", "robot.forward() → bytes at device",
@@ -344,18 +504,31 @@ LINKS: tuple[tuple[str, str, str, Callable[[int], Any]], ...] = (
     ("udp://", "status datagram → wait_until", "robot.forward() → datagram at device",
      _udp_latency),
     ("http://", "WebSocket status → wait_until", "send(Velocity) → PUT at device", _http_latency),
+    ("ros://", "status published → wait_until", "robot.forward() → rospy callback at node",
+     _ros_latency),
 )  # fmt: skip
 
 
 def latency(options: dict[str, Any]) -> Figures:
-    """Status → waiter and command → device, p50 and p99, on every link kind of LINKS."""
+    """Status → waiter and command → device, p50 and p99, on every link kind of LINKS.
+
+    ros:// takes ``ros_samples`` of each (its commands are COMMAND_GAP apart); a link whose
+    peer is missing gives one figure, "latency SCHEME not run: why", with no value.
+    """
     from .common import percentile
 
     samples = int(options.get("samples", 2000))
     figures: Figures = {}
     ms = 1000
     for scheme, status_path, command_path, measure_link in LINKS:
-        status, command = asyncio.run(measure_link(samples))
+        try:
+            if scheme == "ros://":
+                status, command = asyncio.run(measure_link(int(options.get("ros_samples", 300))))
+            else:
+                status, command = asyncio.run(measure_link(samples))
+        except NotRun as exc:
+            figures[f"latency {scheme} not run: {exc}"] = (float("nan"), "")
+            continue
         for q in (50, 99):
             figures[f"latency {scheme} {status_path} p{q}"] = (percentile(status, q) * ms, "ms")
         for q in (50, 99):
