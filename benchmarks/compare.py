@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import pickle
 import re
@@ -52,9 +53,11 @@ INSTRUCTION_FRAMES = {"decode": 1000, "path": 300}
 INSTRUCTION_TOLERANCE = 0.01
 #: Probe options: a full run, and --quick.
 FULL: dict[str, Any] = {"frames": 10_000, "repeats": 5, "path_frames": 3000,
-                        "samples": 2000, "fleet": 1000, "seconds": 6.0}  # fmt: skip
+                        "samples": 2000, "ros_samples": 300, "fleet": 1000,
+                        "seconds": 6.0}  # fmt: skip
 QUICK: dict[str, Any] = {"frames": 3000, "repeats": 3, "path_frames": 1000,
-                         "samples": 400, "fleet": 1000, "seconds": 3.0}  # fmt: skip
+                         "samples": 400, "ros_samples": 100, "fleet": 1000,
+                         "seconds": 3.0}  # fmt: skip
 #: Longest one probe process may run.
 PROBE_TIMEOUT = 900.0
 
@@ -161,9 +164,12 @@ def instructions(
 def verdict(before: Sequence[float], after: Sequence[float]) -> str:
     """Lower is better; "slower", "faster", "within spread", or "n/a" under 2 rounds a side.
 
-    "slower" only when the after median lies above the before side's max and exceeds the
-    before median by more than the larger side's spread (max - min); "faster" the mirror.
+    "not run" when a value is NaN (a probe that could not measure it). "slower" only when
+    the after median lies above the before side's max and exceeds the before median by
+    more than the larger side's spread (max - min); "faster" the mirror.
     """
+    if any(math.isnan(value) for value in (*before, *after)):
+        return "not run"
     if len(before) < 2 or len(after) < 2:
         return "n/a"
     spread = max(max(before) - min(before), max(after) - min(after))

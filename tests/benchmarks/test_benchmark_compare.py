@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
 import pytest
 
+from benchmarks import probe
 from benchmarks.compare import (
     THIS_CHECKOUT,
     Comparison,
@@ -21,10 +23,11 @@ from benchmarks.compare import (
     stage,
     verdict,
 )
+from tests.support.peers import missing_peer
 
 #: A round small enough for a test: what matters is that every probe runs, not its figures.
-TINY = {"frames": 200, "repeats": 1, "path_frames": 50, "samples": 20, "fleet": 4,
-        "seconds": 0.2, "warmup": 0.1, "server_warmup": 0.1}  # fmt: skip
+TINY = {"frames": 200, "repeats": 1, "path_frames": 50, "samples": 20, "ros_samples": 10,
+        "fleet": 4, "seconds": 0.2, "warmup": 0.1, "server_warmup": 0.1}  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -40,6 +43,8 @@ TINY = {"frames": 200, "repeats": 1, "path_frames": 50, "samples": 20, "fleet": 
         ([10.0], [20.0], "n/a"),
         ([10.0, 10.0], [10.0, 10.0], "within spread"),
         ([10.0, 10.0], [10.1, 10.1], "slower"),
+        ([float("nan")], [float("nan")], "not run"),
+        ([float("nan"), float("nan")], [float("nan"), float("nan")], "not run"),
     ],
 )
 def test_verdict_slower_only_above_the_before_max_by_more_than_the_spread(
@@ -122,7 +127,7 @@ def test_a_probe_that_imports_another_trees_package_is_refused(tmp_path: Path) -
     work = tmp_path / "work"
     work.mkdir()
     with pytest.raises(RuntimeError, match="imported"):
-        run_probe(Tree("before", other), "latency", {"samples": 8}, env, work)
+        run_probe(Tree("before", other), "latency", {"samples": 8, "ros_samples": 4}, env, work)
 
 
 def test_a_real_tiny_round_runs_every_probe_on_two_trees() -> None:
@@ -140,11 +145,52 @@ def test_a_real_tiny_round_runs_every_probe_on_two_trees() -> None:
         assert sum(figure.startswith(f"latency {scheme}") for figure in figures) == 4
     assert any(figure.startswith("ingest:") for figure in figures)
     assert any(figure.startswith("fleet N=4:") for figure in figures)
-    for row in rows:
+    ros = [row for row in rows if row["figure"].startswith("latency ros://")]
+    measured = [row for row in rows if row not in ros]
+    if _ros_installed():
+        assert [row["figure"] for row in ros] == [
+            "latency ros:// status published → wait_until p50",
+            "latency ros:// status published → wait_until p99",
+            "latency ros:// robot.forward() → rospy callback at node p50",
+            "latency ros:// robot.forward() → rospy callback at node p99",
+        ]
+        measured += ros
+    for row in measured:
         assert len(row["before"]) == len(row["after"]) == 1, row
         assert row["before_median"] > 0, row
+        assert row["after_median"] > 0, row
         assert row["verdict"] == "n/a"
     assert len(render_comparison(comparison).splitlines()) == len(rows) + 2
+    if not _ros_installed():
+        assert [(row["figure"].split(":")[0], row["verdict"]) for row in ros] == [
+            ("latency ros:// not run", "not run")
+        ]
+        missing_peer("ROS 1")  # the other links were measured; ros:// was not
+
+
+def _ros_installed() -> bool:
+    return shutil.which("rosmaster") is not None and os.access(probe.SYSTEM_PYTHON, os.X_OK)
+
+
+def test_a_link_whose_peer_is_missing_gives_a_not_run_figure(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    ros = [link for link in probe.LINKS if link[0] == "ros://"]
+    assert len(ros) == 1
+    monkeypatch.setattr(probe, "LINKS", tuple(ros))
+    figures = probe.latency({"ros_samples": 5})
+    assert list(figures) == [
+        "latency ros:// not run: ROS 1 (rosmaster, rospy) is not installed: run .ci/setup (as root)"
+    ]
+    value, unit = next(iter(figures.values()))
+    assert value != value  # NaN: no number stands in for a measurement
+    assert unit == ""
+    comparison = Comparison(Tree("before", Path("/b")), Tree("after", Path("/a")))
+    for side in ("before", "after"):
+        comparison.add(side, {key: [value, unit] for key, (value, unit) in figures.items()})
+    assert [row["verdict"] for row in comparison.rows()] == ["not run"]
+    assert "not run" in render_comparison(comparison)
 
 
 def test_a_probe_imports_its_trees_package_and_writes_no_bytecode_into_it(
@@ -157,7 +203,7 @@ def test_a_probe_imports_its_trees_package_and_writes_no_bytecode_into_it(
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # bytecode is written, but not into the tree
     work = tmp_path / "work"
     work.mkdir()
-    result = run_probe(Tree("after", tree), "latency", {"samples": 8}, env, work)
+    result = run_probe(Tree("after", tree), "latency", {"samples": 8, "ros_samples": 4}, env, work)
     assert Path(result["package"]).is_relative_to(tree / "galileo_async")
     assert not list(tree.rglob("__pycache__"))
     assert list((tmp_path / "pyc").rglob("*.pyc"))
