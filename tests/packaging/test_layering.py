@@ -125,6 +125,7 @@ PARTS = {
     "galileo_async.robot": "robot",
     "galileo_async.fleet": "fleet",
     "galileo_async.vda5050": "vda5050",
+    "galileo_async.missions": "missions",
     "galileo_async.cli": "cli",
     "galileo_async.testing": "testing",
 }
@@ -147,8 +148,10 @@ MAY_IMPORT = {
     "robot": {"base", "protocol", "transitions", "state", "transports", "links", "options"},
     "fleet": {"base", "transitions", "state", "robot", "links", "options"},
     "vda5050": {"base", "transitions", "robot"},
+    # Plans of steps on the public Robot and Fleet API (docs/missions.md).
+    "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
     # Tests of applications: a Robot on the simulator, from both sides.
-    "testing": {"base", "protocol", "options", "sim", "robot", "fleet"},
+    "testing": {"base", "protocol", "options", "sim", "robot", "fleet", "missions"},
 }
 #: The only imports beyond MAY_IMPORT: the scheme table loads the simulator for sim://, and
 #: the optional http and ros links for their URLs, inside the functions that need them (or
@@ -405,7 +408,7 @@ LINK_SOURCES = [
 
 @pytest.mark.parametrize("path", LINK_SOURCES, ids=lambda p: p.relative_to(PACKAGE_DIR).as_posix())
 def test_transports_import_nothing_from_robot_or_state(path: Path) -> None:
-    upper = ("robot", "state", "events", "transitions", "fleet", "cli", "vda5050")
+    upper = ("robot", "state", "events", "transitions", "fleet", "cli", "vda5050", "missions")
     found = within(imports_of(path), *package_modules(*upper))
     assert not found, f"{module_name(path)} imports {found}"
 
