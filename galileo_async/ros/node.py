@@ -244,22 +244,26 @@ class RosNode:
             "type": STATUS_TYPE,
             "tcp_nodelay": "1",
         }
-        transport, reply = await subscribe(
-            host, port, header, self._on_message, self._on_status_closed, timeout=timeout
+        self.decoder = None
+        transport, _ = await subscribe(
+            host,
+            port,
+            header,
+            self._on_message,
+            self._on_status_closed,
+            timeout=timeout,
+            on_handshake=self._set_decoder,
         )
-        try:
-            kind = reply.get("type", STATUS_TYPE)
-            if kind.rsplit("/", 1)[-1] != "GalileoStatus":
-                raise MessageDefinitionError(f"{STATUS_TOPIC} carries {kind}, not GalileoStatus")
-            self.decoder = StatusMessageDecoder(
-                reply.get("message_definition"), reply.get("md5sum")
-            )
-        except BaseException:
-            transport.abort()
-            raise
         self._status_transport = transport
         self.publisher_uri = slave_uri
         self._last_seq = None
+
+    def _set_decoder(self, reply: dict[str, str]) -> None:
+        """Set the decoder from the publisher's header, before its first message arrives."""
+        kind = reply.get("type", STATUS_TYPE)
+        if kind.rsplit("/", 1)[-1] != "GalileoStatus":
+            raise MessageDefinitionError(f"{STATUS_TOPIC} carries {kind}, not GalileoStatus")
+        self.decoder = StatusMessageDecoder(reply.get("message_definition"), reply.get("md5sum"))
 
     def _on_message(self, data: bytes) -> None:
         stats = self.stats

@@ -246,17 +246,24 @@ class TcprosPublisher:
 
 
 class _SubscriberProtocol(asyncio.Protocol):
-    """Client side of a subscription: send our header, await theirs, then deliver messages."""
+    """Client side of a subscription: send our header, await theirs, then deliver messages.
+
+    ``on_handshake`` takes the publisher's header before any message is delivered, in the
+    same call, so a message that arrives in the same read as the header is not lost to a
+    receiver that is set up from the header (the status decoder is).
+    """
 
     def __init__(
         self,
         header: dict[str, str],
         on_message: Callable[[bytes], None],
         on_closed: Callable[[Exception | None], None],
+        on_handshake: Callable[[dict[str, str]], None] | None = None,
     ) -> None:
         self._header = header
         self._on_message = on_message
         self._on_closed = on_closed
+        self._on_handshake = on_handshake
         self._framer = Framer()
         self.handshake: asyncio.Future[dict[str, str]] = asyncio.get_running_loop().create_future()
         self.transport: asyncio.Transport | None = None
@@ -275,9 +282,11 @@ class _SubscriberProtocol(asyncio.Protocol):
                 header = decode_header(frames.pop(0))
                 if "error" in header:
                     raise TcprosError(f"publisher refused: {header['error']}")
+                if self._on_handshake is not None:
+                    self._on_handshake(header)
                 self.handshake.set_result(header)
                 self._established = True
-        except TcprosError as exc:
+        except (TcprosError, ValueError) as exc:
             if not self.handshake.done():
                 self.handshake.set_exception(exc)
             if self.transport is not None:
@@ -305,15 +314,20 @@ async def subscribe(
     on_closed: Callable[[Exception | None], None],
     *,
     timeout: float,
+    on_handshake: Callable[[dict[str, str]], None] | None = None,
 ) -> tuple[asyncio.Transport, dict[str, str]]:
-    """Connect to a publisher, exchange headers; then every message goes to on_message."""
+    """Connect to a publisher, exchange headers; then every message goes to on_message.
+
+    ``on_handshake(header)`` runs before the first message is delivered; a ValueError it
+    raises fails the subscription with that error.
+    """
     loop = asyncio.get_running_loop()
     transport: asyncio.BaseTransport | None = None
 
     async def handshake() -> dict[str, str]:
         nonlocal transport
         transport, protocol = await loop.create_connection(
-            lambda: _SubscriberProtocol(header, on_message, on_closed), host, port
+            lambda: _SubscriberProtocol(header, on_message, on_closed, on_handshake), host, port
         )
         return await protocol.handshake
 

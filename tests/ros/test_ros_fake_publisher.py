@@ -6,6 +6,7 @@ import asyncio
 import struct
 from collections.abc import AsyncIterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -192,6 +193,52 @@ async def test_wrong_message_type_is_refused(master: RosMaster) -> None:
     try:
         with pytest.raises(GalileoConnectionError, match="std_msgs/String"):
             await link.open()
+    finally:
+        await link.close()
+        await robot.close()
+
+
+class LatchedPublisher(TcprosPublisher):
+    """Writes its last message to a new subscriber right behind the handshake reply.
+
+    ROS latched topics do this; on loopback the reply and the message reach the subscriber
+    in one read.
+    """
+
+    def __init__(self, latched: bytes, **kwargs: str) -> None:
+        super().__init__(**kwargs)
+        self.latched = latched
+
+    def added(self, connection: Any) -> None:
+        super().added(connection)
+        connection.transport.write(struct.pack("<I", len(self.latched)) + self.latched)
+
+
+async def test_a_status_in_the_same_read_as_the_handshake_reply_is_kept(
+    master: RosMaster,
+) -> None:
+    """The only status the robot sends arrives with the header: it must reach the store."""
+    status = header(1) + struct.pack("<iI", 1, 4) + b"r2d2" + struct.pack("<fi", 24.0, 6)
+    publisher = LatchedPublisher(
+        status,
+        topic=STATUS_TOPIC,
+        msg_type=STATUS_TYPE,
+        md5sum="f" * 32,
+        definition=full_definition(NEWER),
+        caller_id="/fake_robot",
+    )
+    robot = FakeRobot(master, publisher)
+    await robot.start()
+    store = StatusStore()
+    link = open_link(master.url, store, node_name="/driver", connect_timeout=3)
+    try:
+        await link.open()
+        first = await store.wait_until(lambda s: True, timeout=3)
+        assert first.power == 24.0
+        assert first.target_num_id == 6
+        channel = link.channel
+        assert isinstance(channel, RosChannel)
+        assert link.stats.decoder.frames == 1
     finally:
         await link.close()
         await robot.close()

@@ -248,3 +248,43 @@ async def test_slave_server_on_ipv6_loopback() -> None:
         ]
     finally:
         await server.close()
+
+
+async def test_a_message_in_the_same_read_as_the_reply_comes_after_on_handshake() -> None:
+    """on_handshake runs before any message is delivered, even one read with the header."""
+    reply = encode_header({"callerid": "/pub", "type": "pkg/Msg", "md5sum": "*"})
+
+    class Latched(asyncio.Protocol):
+        def connection_made(self, transport: asyncio.BaseTransport) -> None:
+            self.transport = transport
+
+        def data_received(self, data: bytes) -> None:
+            assert isinstance(self.transport, asyncio.Transport)
+            self.transport.write(reply + frame(b"latched"))
+
+    server = await asyncio.get_running_loop().create_server(Latched, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    seen: list[str] = []
+    header = {"callerid": "/sub", "topic": TOPIC, "md5sum": "*", "type": "*"}
+    try:
+        transport, got = await subscribe(
+            "127.0.0.1", port, header, lambda m: seen.append(m.decode()), print,
+            timeout=2, on_handshake=lambda h: seen.append(f"header {h['type']}"),
+        )  # fmt: skip
+        transport.abort()
+        assert got["type"] == "pkg/Msg"
+        assert seen == ["header pkg/Msg", "latched"]
+
+        def refuse(h: dict[str, str]) -> None:
+            raise ValueError(f"not this type: {h['type']}")
+
+        seen.clear()
+        with pytest.raises(ValueError, match="not this type: pkg/Msg"):
+            await subscribe(
+                "127.0.0.1", port, header, lambda m: seen.append("message"), print,
+                timeout=2, on_handshake=refuse,
+            )  # fmt: skip
+        assert seen == []
+    finally:
+        server.close()
+        await server.wait_closed()
