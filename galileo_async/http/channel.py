@@ -17,7 +17,7 @@ from ..errors import (
     HttpTimeout,
     InvalidArgument,
 )
-from ..protocol import Command, DecoderStats
+from ..protocol import ApiCall, Command, DecoderStats
 from ..transports.channel import Capabilities, Channel, Feed
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
 from .calls import rest_call
@@ -38,6 +38,11 @@ _log = logging.getLogger(__name__)
 
 #: The WebSocket path of the status topic (http.md, "Websocket相关API").
 STATUS_TOPIC = "/galileo/status"
+
+
+def _read(command: Command) -> bool:
+    """A call that only reads a task (GET /task): pause and resume keep to the one started."""
+    return isinstance(command, ApiCall) and command.method == "GET" and command.endpoint == "/task"
 
 
 class HttpChannel(Channel):
@@ -164,7 +169,7 @@ class HttpChannel(Channel):
             self.failed_calls += 1
             _log.warning("%s: %s", self.name, exc)
             raise
-        if isinstance(answer, dict) and isinstance(answer.get("id"), str):
+        if isinstance(answer, dict) and isinstance(answer.get("id"), str) and not _read(command):
             self.task_id = answer["id"]
         return answer
 

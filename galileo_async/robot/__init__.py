@@ -30,6 +30,18 @@ from .robot import (
     RobotDefault,
 )
 from .stopping import DEFAULT_STOP_TIMEOUT, StopReport
+from .task_chain import (
+    TASK_ENDINGS,
+    Action,
+    CallbackAction,
+    ChargeAction,
+    LocalMoveAction,
+    NavAction,
+    SleepAction,
+    Task,
+    TaskAction,
+    WaitReqAction,
+)
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -48,18 +60,28 @@ __all__ = [
     "NAVIGATION_TIMEOUT",
     "ROBOT_DEFAULT",
     "ROTATE_TIMEOUT",
+    "TASK_ENDINGS",
+    "Action",
+    "CallbackAction",
+    "ChargeAction",
     "Connection",
     "DriveSession",
     "GoalResult",
     "HttpPart",
     "LinkState",
     "LinkStateStream",
+    "LocalMoveAction",
     "MapPath",
+    "NavAction",
     "NavPoint",
     "Robot",
     "RobotDefault",
     "RobotInfo",
+    "SleepAction",
     "SpeedLimits",
     "StopReport",
+    "Task",
+    "TaskAction",
+    "WaitReqAction",
     "connect",
 ]

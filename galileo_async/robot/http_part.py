@@ -6,6 +6,7 @@ every other link). Each call goes through Operations (its checks and the link's 
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -15,6 +16,7 @@ from ..protocol import ApiCall, Goto, PoseGoal
 from .goal import GoalResult
 from .operations import Operations
 from .runtime import ROBOT_DEFAULT, RobotDefault
+from .task_chain import Action, Task, action_json
 
 __all__ = ["HttpPart", "MapPath", "NavPoint", "RobotInfo"]
 
@@ -62,11 +64,17 @@ class _Goals(Protocol):
 class HttpPart:
     """``robot.http``: the vendor's REST API calls, each sent as an ApiCall; goals by pose."""
 
-    __slots__ = ("_goals", "_ops")
+    __slots__ = ("_chains", "_goals", "_ops")
 
     def __init__(self, ops: Operations, goals: _Goals) -> None:
         self._ops = ops
         self._goals = goals
+        self._chains: set[str] = set()
+
+    @property
+    def started_tasks(self) -> frozenset[str]:
+        """Ids of the task chains this part started or resumed and has not seen end."""
+        return frozenset(self._chains)
 
     def __repr__(self) -> str:
         return f"<HttpPart of {self._ops.link!r}>"
@@ -167,3 +175,83 @@ class HttpPart:
             x=check_number("x", x), y=check_number("y", y), theta=check_number("theta", theta)
         )
         return await self._goals(command, timeout, accept_timeout, progress_timeout, cancel_on_exit)
+
+    # --- task chains (docs/protocol.md §5.5) ----------------------------------------------
+
+    async def _task(self, what: str, endpoint: str, params: dict[str, Any]) -> Task:
+        answer = await self._call(what, "GET", endpoint, params)
+        task = Task.model_validate(answer)
+        if task.ended:
+            self._chains.discard(task.id)
+        return task
+
+    async def create_task(
+        self, name: str, sub_tasks: Sequence[Action | Mapping[str, Any]], loop_flag: bool = False
+    ) -> Task:
+        """A task of ``sub_tasks`` run in order (POST /task), WAITTING until start_task().
+
+        Each action a model (NavAction, SleepAction, …) or its JSON; InvalidArgument, with
+        nothing sent, for a bad name, action or flag. ``loop_flag``: run again after each pass.
+        """
+        if not isinstance(name, str) or not name:
+            raise InvalidArgument(f"create_task: name must be a non-empty string, got {name!r}")
+        if isinstance(sub_tasks, (str, bytes, Mapping)) or not isinstance(sub_tasks, Sequence):
+            raise InvalidArgument("create_task: sub_tasks must be a sequence of actions")
+        if not isinstance(loop_flag, bool):
+            raise InvalidArgument(f"create_task: loop_flag must be a bool, got {loop_flag!r}")
+        actions = [action_json(a, f"create_task: sub_tasks[{i}]") for i, a in enumerate(sub_tasks)]
+        body = {"name": name, "sub_tasks": actions, "loop_flag": loop_flag}
+        return Task.model_validate(await self._call("create_task()", "POST", "/task", body=body))
+
+    async def get_task(self, task_id: str) -> Task:
+        """The task ``task_id`` as the robot reports it now (GET /task)."""
+        return await self._task("get_task()", "/task", {"id": _task_id(task_id)})
+
+    async def list_tasks(self) -> list[Task]:
+        """Every task the robot holds (GET /task), nav tasks of goals among them."""
+        answer = await self._call("list_tasks()", "GET", "/task")
+        return [Task.model_validate(task) for task in answer]
+
+    async def start_task(self, task_id: str) -> Task:
+        """Run the task from its first action (GET /task/start); stop() stops it."""
+        task_id = _task_id(task_id)
+        self._chains.add(task_id)  # before the call: a stop() meanwhile must know it
+        return await self._task("start_task()", "/task/start", {"id": task_id})
+
+    async def pause_task(self, task_id: str) -> Task:
+        """Pause the running task where it is (GET /task/pause): a goal paused, wheels stopped."""
+        return await self._task("pause_task()", "/task/pause", {"id": _task_id(task_id)})
+
+    async def resume_task(self, task_id: str) -> Task:
+        """Resume a paused task (GET /task/resume)."""
+        task_id = _task_id(task_id)
+        self._chains.add(task_id)
+        return await self._task("resume_task()", "/task/resume", {"id": task_id})
+
+    async def stop_task(self, task_id: str) -> Task:
+        """Cancel the task (GET /task/stop): its action ends and the robot stops."""
+        return await self._task("stop_task()", "/task/stop", {"id": _task_id(task_id)})
+
+    async def set_task_loop(self, task_id: str, loop: bool) -> Task:
+        """Run the task again after each pass, or not (GET /task/loop)."""
+        if not isinstance(loop, bool):
+            raise InvalidArgument(f"set_task_loop: loop must be a bool, got {loop!r}")
+        params = {"id": _task_id(task_id), "loop_flag": "true" if loop else "false"}
+        return await self._task("set_task_loop()", "/task/loop", params)
+
+    async def delete_task(self, task_id: str) -> None:
+        """Delete the task (DELETE /task); the robot stops it first if it runs."""
+        task_id = _task_id(task_id)
+        await self._call("delete_task()", "DELETE", "/task", {"id": task_id})
+        self._chains.discard(task_id)
+
+    async def release_wait(self) -> bool:
+        """End the wait_req_action that waits (GET /action/update_wait_req); False if none did."""
+        answer = await self._call("release_wait()", "GET", "/action/update_wait_req")
+        return isinstance(answer, dict) and bool(answer)
+
+
+def _task_id(task_id: str) -> str:
+    if not isinstance(task_id, str) or not task_id:
+        raise InvalidArgument(f"task id must be a non-empty string, got {task_id!r}")
+    return task_id

@@ -342,7 +342,9 @@ class Robot:
         at once (goto, goto_point, goto_pose: GoalCancelled; rotate_to, turn_to: CommandSuperseded;
         each naming "stop()"), then writes, even while busy or stale: ``m 6`` (stop patrol)
         unless the status shows none, ``i 2`` (cancel the goal; on http:// the nav task), and
-        a stop of both speeds with ``brake`` (0-100). Returns a StopReport once a status shows
+        a stop of both speeds with ``brake`` (0-100); on http:// each task chain this Robot
+        started is stopped first (GET /task/stop) and, after the rest, every other task the
+        robot shows WORKING or PAUSED (StopReport.chains). Returns a StopReport once a status shows
         no goal working or paused, no patrol and no speed (a layout without speeds, UDP,
         cannot show one); StopUnconfirmed naming each part still shown after ``timeout`` s,
         or at once on a stale link. ConnectionLost: the link is lost and nothing was sent.
@@ -355,7 +357,10 @@ class Robot:
         ops.user_stopped("stop()")
         self._goals.cancelling()  # the running goal's end is a cancel, not a planner abort
         tasks = ops.supersession.halt_motions("stop()")
-        return await stop_motion(ops, command, timeout, goal=goal, drive=drive, tasks=tasks)
+        chains = None if self.http is None else self.http.started_tasks
+        return await stop_motion(
+            ops, command, timeout, goal=goal, drive=drive, tasks=tasks, chains=chains
+        )
 
     # --- navigation --------------------------------------------------------------------
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import logging
+from collections.abc import Collection
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import (
     ConnectionLost,
@@ -16,7 +17,7 @@ from ..errors import (
     StopUnconfirmed,
 )
 from ..models import ChargeStatus, GalileoStatus
-from ..protocol import Cancel, Command, Stop, StopCharging, StopPatrol
+from ..protocol import ApiCall, Cancel, Command, Stop, StopCharging, StopPatrol
 
 if TYPE_CHECKING:
     from .operations import Operations
@@ -45,7 +46,8 @@ class StopReport:
     ``patrol``: a patrol was running and was stopped. ``docking``: the robot was finding or
     docking onto its charger (``j 0``) and that was stopped. ``drive``: a drive() or turn_to()
     session of this Robot was ended. ``task``: the id of the HTTP nav task stopped
-    (http:// only). ``moving``: the status showed a speed when stop() was called.
+    (http:// only). ``chains``: the ids of the task chains (http:// only) that were WORKING
+    or PAUSED and were stopped. ``moving``: the status showed a speed when stop() was called.
     """
 
     goal: int | None = None
@@ -53,6 +55,7 @@ class StopReport:
     docking: bool = False
     drive: bool = False
     task: str | None = None
+    chains: tuple[str, ...] = ()
     moving: bool = False
     status: GalileoStatus | None = None
 
@@ -64,6 +67,7 @@ class StopReport:
             parts.append(f"goal {self.goal} cancelled")
         if self.task is not None:
             parts.append(f"task {self.task} stopped")
+        parts += [f"task chain {chain} stopped" for chain in self.chains]
         if self.patrol:
             parts.append("patrol stopped")
         if self.docking:
@@ -120,10 +124,13 @@ async def stop_motion(
     goal: int | None,
     drive: bool,
     tasks: list[str | None],
+    chains: Collection[str] | None = None,
 ) -> StopReport:
     """Write stop()'s commands and wait for a status showing the robot stopped; see Robot.stop.
 
     The user stop (supersession, drive sessions, halted calls) is done by the caller.
+    ``chains`` (http:// only; None elsewhere): the task chains this Robot started, stopped
+    first; after the other commands every task the robot shows WORKING or PAUSED is too.
     """
     before = ops.store.status
     # (command, needed): a command not needed is sent only in case the status is behind,
@@ -138,8 +145,9 @@ async def stop_motion(
     commands += [(Cancel(), goal_shown), (stop, True)]
     # Its own task, held by the Supersession: a caller cancelled meanwhile (a timeout, Ctrl-C, a
     # failing sibling) cannot keep the rest of the stop from being written.
-    sending = ops.supersession.hold(_send(ops, commands))
-    failed = await asyncio.shield(sending)
+    nav_task = next((task for task in tasks if task is not None), None)
+    sending = ops.supersession.hold(_send(ops, commands, chains, nav_task))
+    failed, stopped = await asyncio.shield(sending)
     if failed is not None:
         raise failed
     report = StopReport(
@@ -147,7 +155,8 @@ async def stop_motion(
         patrol=before is not None and before.patrolling,
         docking=before is not None and before.charge_status in _DOCKING,
         drive=drive,
-        task=next((task for task in tasks if task is not None), None),
+        task=nav_task,
+        chains=stopped,
         moving=before is not None and standing_still(before) is False,
     )
     try:
@@ -158,9 +167,65 @@ async def stop_motion(
 
 
 async def _send(
+    ops: Operations,
+    commands: list[tuple[Command, bool]],
+    chains: Collection[str] | None,
+    nav_task: str | None,
+) -> tuple[GalileoConnectionError | None, tuple[str, ...]]:
+    """Send each command in order; the first failure of a needed one (ConnectionLost raises).
+
+    With ``chains`` (http://), the known chains are stopped before, the ones GET /task shows
+    running after: (the failure, the chains stopped).
+    """
+    stopped: list[str] = []
+    if chains is not None:
+        for chain in sorted(chains):
+            if await _stop_chain(ops, chain):
+                stopped.append(chain)
+    failed = await _send_commands(ops, commands)
+    if chains is not None:
+        for chain in await _running_chains(ops):
+            if chain not in stopped and chain != nav_task and await _stop_chain(ops, chain):
+                stopped.append(chain)
+    return failed, tuple(stopped)
+
+
+async def _stop_chain(ops: Operations, chain: str) -> bool:
+    """GET /task/stop of ``chain``: True if it was running (WORKING or PAUSED) before."""
+    try:
+        before = await ops.ask(ApiCall("GET", "/task", {"id": chain}), what="stop")
+        if not _running(before):
+            return False
+        await ops.ask(ApiCall("GET", "/task/stop", {"id": chain}), what="stop")
+    except ConnectionLost:
+        raise
+    except GalileoConnectionError as exc:  # no such task (deleted): nothing to stop
+        _log.warning("stop: task chain %s was not stopped: %s", chain, exc)
+        return False
+    return True
+
+
+async def _running_chains(ops: Operations) -> list[str]:
+    """The ids of the tasks GET /task shows WORKING or PAUSED (none if it fails)."""
+    try:
+        tasks = await ops.ask(ApiCall("GET", "/task"), what="stop")
+    except ConnectionLost:
+        raise
+    except GalileoConnectionError as exc:
+        _log.warning("stop: GET /task failed, running task chains not looked for: %s", exc)
+        return []
+    if not isinstance(tasks, list):
+        return []
+    return [str(task["id"]) for task in tasks if _running(task) and "id" in task]
+
+
+def _running(task: Any) -> bool:
+    return isinstance(task, dict) and task.get("state") in ("WORKING", "PAUSED")
+
+
+async def _send_commands(
     ops: Operations, commands: list[tuple[Command, bool]]
 ) -> GalileoConnectionError | None:
-    """Send each command in order; the first failure of a needed one (ConnectionLost raises)."""
     failed: GalileoConnectionError | None = None
     for command, needed in commands:
         try:

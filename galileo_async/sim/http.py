@@ -13,6 +13,7 @@ import uuid
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+import aiohttp
 from aiohttp import WSMsgType, web
 
 from ..protocol import commands as cmd
@@ -20,6 +21,7 @@ from ..protocol.names import ROS_FIELD_NAMES
 from .config import FRAME_RATE
 from .device import SimDevice
 from .robot_model import WIRE_FIELDS, WireValues
+from .tasks import TaskEngine, TaskError
 
 __all__ = ["MAPS", "VERSION", "HttpFace"]
 
@@ -47,6 +49,14 @@ def _task(name: str, action: dict[str, Any]) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def _refused(exc: TaskError) -> web.HTTPException:
+    """The answer to a refused task request: 404 or 400, the reason as its phrase and JSON."""
+    reason = str(exc).encode("ascii", "replace").decode()[:200]
+    kind = web.HTTPNotFound if exc.status == 404 else web.HTTPBadRequest
+    text = json.dumps({"status": "error", "description": str(exc)})
+    return kind(reason=reason, text=text, content_type="application/json")
+
+
 class HttpFace:
     """REST on one port, /galileo/status as JSON on a WebSocket port; tasks follow the model.
 
@@ -55,7 +65,8 @@ class HttpFace:
     a goal error or a goal refused, CANCELLED when stopped or replaced. The status shows a
     task as the vendor's does (system_monitor noetic, galileo_status_service.py L251-264,
     L305-317): looked at once every ``task_refresh`` s, until then the goal fields from before
-    it. Token checking is off unless ``token_check``.
+    it. Token checking is off unless ``token_check``. Task chains (/task, /action) run in
+    ``engine`` (sim/tasks.py); a callback_action's request gets ``callback_timeout`` s.
     """
 
     def __init__(
@@ -76,6 +87,9 @@ class HttpFace:
         #: Every task made, by id; the last navigation task and the goal id it waits for.
         self.tasks: dict[str, dict[str, Any]] = {}
         self._nav: tuple[dict[str, Any], int] | None = None
+        self.engine = TaskEngine(device.model, device.execute, callback=self._call_out)
+        self.callback_timeout = 10.0
+        self._callouts: set[asyncio.Task[None]] = set()
         #: Seconds between two looks of the status at the running task (0: every frame).
         self.task_refresh = 1.0
         #: Frames to the next look, the goal fields it saw, and those from before the task.
@@ -105,6 +119,7 @@ class HttpFace:
         self.address = await self._listen(rest, host, port)
         ws_port = self.address[1] + 1 if ws_port is None else ws_port
         self.ws_address = await self._listen(sockets, host, ws_port)
+        self.device.listeners[self] = None  # tasks follow the frames, a WebSocket open or not
 
     async def _listen(self, app: web.Application, host: str, port: int) -> tuple[str, int]:
         runner = web.AppRunner(app, handle_signals=False, access_log=None)
@@ -144,13 +159,15 @@ class HttpFace:
                 query.update(body)
         try:
             answer = handler(query)
+        except TaskError as exc:
+            raise _refused(exc) from None
         except (KeyError, ValueError, TypeError):
             raise web.HTTPBadRequest() from None
         return web.json_response(answer)
 
     def _routes(self) -> dict[tuple[str, str], Callable[[dict[str, Any]], Any]]:
         model = self.device.model
-        run = self._run
+        run, tasks = self._run, self.engine
         return {
             ("GET", "/token"): self._token,
             ("GET", "/system/info"): lambda q: {"battery": self.battery(), **_RATES, "info": _INFO},
@@ -176,15 +193,24 @@ class HttpFace:
             ("POST", "/navigation/start_nav_task"): self._pose_goal,
             ("GET", "/navigation/stop_nav_task"): lambda q: self._stop_task(),
             ("DELETE", "/navigation/loop_task"): lambda q: run(cmd.StopPatrol(), {"result": True}),
-            ("GET", "/navigation/go_charge"): lambda q: run(
-                cmd.StartCharging(), self._keep(_task("charge task", {"type": "charge_action"}))),
+            ("GET", "/navigation/go_charge"): lambda q: self._go_charge(),
             ("GET", "/navigation/stop_charge"):
                 lambda q: run(cmd.StopCharging(), {"status": "OK", "task": None}),
-            ("GET", "/task"):
-                lambda q: self.tasks[q["id"]] if "id" in q else list(self.tasks.values()),
+            ("GET", "/task"): self._get_task,
+            ("POST", "/task"): tasks.create,
+            ("PUT", "/task"): tasks.update,
+            ("DELETE", "/task"): lambda q: tasks.delete(q["id"]),
+            ("GET", "/task/start"): self._start_chain,
             ("GET", "/task/pause"): lambda q: self._task_verb(q, cmd.Pause()),
             ("GET", "/task/resume"): lambda q: self._task_verb(q, cmd.Resume()),
             ("GET", "/task/stop"): lambda q: self._task_verb(q, cmd.Cancel()),
+            ("GET", "/task/loop"): lambda q: tasks.set_loop(q["id"], q["loop_flag"]),
+            ("GET", "/action"):
+                lambda q: tasks.action(q["id"])[0] if "id" in q else tasks.actions(),
+            ("POST", "/action"): tasks.add_action,
+            ("PUT", "/action"): tasks.update_action,
+            ("DELETE", "/action"): lambda q: tasks.delete_action(q["id"]),
+            ("GET", "/action/update_wait_req"): lambda q: tasks.release_wait(),
             ("GET", "/navigation/pose"):
                 lambda q: {"x": model.x, "y": model.y, "angle": math.degrees(model.theta)},
         }  # fmt: skip
@@ -257,6 +283,7 @@ class HttpFace:
         return {"map_name": name, "path_name": path, "path_data": lines}
 
     def _goal(self, goal_id: int, action: dict[str, Any]) -> Any:
+        self.engine.preempt()  # a goal by hand ends the running task chain
         self._end_nav("CANCELLED")
         task = self._keep(_task("navigation task", action))
         model = self.device.model
@@ -284,8 +311,35 @@ class HttpFace:
         self._end_nav("CANCELLED")
         return task or {}
 
+    def _go_charge(self) -> Any:
+        self.engine.preempt()  # docking by hand ends the running task chain
+        task = self._keep(_task("charge task", {"type": "charge_action"}))
+        return self._run(cmd.StartCharging(), task)
+
+    def _get_task(self, query: dict[str, Any]) -> Any:
+        if "id" not in query:
+            return [*self.tasks.values(), *self.engine.tasks.values()]
+        task = self.tasks.get(query["id"])
+        return self.engine.get(query["id"]) if task is None else task
+
+    def _start_chain(self, query: dict[str, Any]) -> Any:
+        task = self.engine.get(query["id"])
+        if self._nav is not None and task["state"] not in ("WORKING", "PAUSED"):
+            self._stop_task()  # one task at a time: the nav task is cancelled
+        return self.engine.start(task["id"])
+
     def _task_verb(self, query: dict[str, Any], command: cmd.Command) -> Any:
-        task = self.tasks[query["id"]]
+        chains = self.engine
+        if query["id"] in chains.tasks:
+            verbs: dict[type[cmd.Command], Callable[[str], dict[str, Any]]] = {
+                cmd.Pause: chains.pause,
+                cmd.Resume: chains.resume,
+                cmd.Cancel: chains.stop,
+            }
+            return verbs[type(command)](query["id"])
+        task = self.tasks.get(query["id"])
+        if task is None:
+            raise TaskError(f"no task {query['id']!r}", 404)
         if isinstance(command, cmd.Cancel):
             self._stop_task()
         elif self._nav is not None and self._nav[0] is task:
@@ -298,6 +352,38 @@ class HttpFace:
             task["state"] = task["current_task"]["state"] = state
             task["progress"] = 100 if state == "COMPLETE" else task["progress"]
             self._nav = None
+
+    def _call_out(
+        self, action: dict[str, Any], done: Callable[[str | None], None]
+    ) -> Callable[[], None]:
+        """callback_action's request, as a task of its own; what cancels it."""
+        callout = asyncio.create_task(self._request(action, done))
+        self._callouts.add(callout)
+        callout.add_done_callback(self._callouts.discard)
+
+        def cancel() -> None:
+            callout.cancel()
+
+        return cancel
+
+    async def _request(self, action: dict[str, Any], done: Callable[[str | None], None]) -> None:
+        """Make the request; an answer of 400 or more, no answer or no connection: failed."""
+        method, url, data = action["method"], action["url"], action["data"]
+        timeout = aiohttp.ClientTimeout(total=self.callback_timeout)
+        error: str | None = None
+        try:
+            async with (
+                aiohttp.ClientSession(timeout=timeout) as session,
+                session.request(method, url, json=data) as response,
+            ):
+                await response.read()
+                if response.status >= 400:
+                    error = f"{method} {url}: HTTP {response.status}"
+        except asyncio.TimeoutError:
+            error = f"{method} {url}: no answer within {self.callback_timeout} s"
+        except (aiohttp.ClientError, OSError) as exc:
+            error = f"{method} {url}: {type(exc).__name__}: {exc}"
+        done(error)
 
     # --- status ------------------------------------------------------------------------
 
@@ -331,7 +417,8 @@ class HttpFace:
                 return
 
     def send_statuses(self, frames: list[WireValues]) -> None:
-        """Each frame as one JSON message to every WebSocket; navigation tasks follow it."""
+        """Each frame as one JSON message to every WebSocket; tasks and chains follow it."""
+        self.engine.step()
         shown = []
         for values in frames:
             self._follow(values)
@@ -387,6 +474,9 @@ class HttpFace:
         """Stop serving at once: every WebSocket dropped, every request refused."""
         self.closed = True
         self.device.listeners.pop(self, None)
+        self.engine.close()
+        for callout in self._callouts:
+            callout.cancel()
         for request, _ in list(self.sockets.values()):
             if request.transport is not None:
                 request.transport.abort()
@@ -394,6 +484,8 @@ class HttpFace:
     async def aclose(self) -> None:
         """close(), then stop listening."""
         self.close()
+        if self._callouts:
+            await asyncio.wait(self._callouts)
         for runner in self._runners:
             await runner.cleanup()
         self._runners.clear()
