@@ -138,7 +138,9 @@ def test_what_is_not_a_mission_file(text: str, line: int | None, message: str) -
 
 
 def test_a_jump_to_a_name_given_twice_is_reported_once_per_cause() -> None:
-    text = "mission: m\nsteps:\n  - {goto: 1, name: a, on_failure: goto b}\n  - {goto: 2, name: a}\n"
+    text = (
+        "mission: m\nsteps:\n  - {goto: 1, name: a, on_failure: goto b}\n  - {goto: 2, name: a}\n"
+    )
     with pytest.raises(MissionFileError) as caught:
         parse_mission(text, source="f")
     assert caught.value.problems == [
@@ -183,9 +185,7 @@ _steps = st.recursive(
 @settings(max_examples=60, deadline=None)
 @given(steps=st.lists(_steps, min_size=1, max_size=5), description=st.none() | _names)
 def test_dump_round_trips_any_mission(steps: list[object], description: str | None) -> None:
-    mission = Mission.model_validate(
-        {"mission": "m", "description": description, "steps": steps}
-    )
+    mission = Mission.model_validate({"mission": "m", "description": description, "steps": steps})
     assert parse_mission(dump_mission(mission)) == mission
 
 
