@@ -61,7 +61,8 @@ def test_a_jump_backwards_is_unbounded() -> None:
         {"goto": 2, "on_failure": {"retry": 1, "then": "goto", "goto": "a"}},
     )
     (problem,) = check_static(plan)
-    assert problem.severity == "warning" and problem.step == "steps[1]"
+    assert problem.severity == "warning"
+    assert problem.step == "steps[1]"
     assert "on_failure goes back to 'a'" in problem.message
     assert (
         check_static(mission({"goto": 1, "name": "a", "on_failure": "goto a"}))[0].step
@@ -135,8 +136,10 @@ async def test_a_loop_that_drains_the_battery_is_warned_of() -> None:
     plan = mission(loop)
     async with simulated_robot(sim_options={"power": 23.0}) as (robot, _):
         (problem,) = await check_mission(plan, robot=robot)
-        assert problem.severity == "warning" and problem.step == "steps[0]"
-        assert "for 40 passes" in problem.message and "the robot has 1.00 V left" in problem.message
+        assert problem.severity == "warning"
+        assert problem.step == "steps[0]"
+        assert "for 40 passes" in problem.message
+        assert "the robot has 1.00 V left" in problem.message
         short = mission({**loop, "loop": {**loop["loop"], "count": 1}})
         assert await check_mission(short, robot=robot) == []
     async with simulated_robot(sim_options={"power": 27.0}) as (robot, _):

@@ -40,14 +40,16 @@ def test_check_of_a_broken_file_names_every_problem_and_exits_2() -> None:
     result = invoke("mission", "check", str(DATA / "broken.yaml"), port=None)
     assert result.exit_code == ExitCode.USAGE
     lines = [line for line in result.stderr.splitlines() if line.startswith("error: ")]
-    assert len(lines) == 14 and f"{DATA / 'broken.yaml'}:3: steps[0]: goto:" in lines[0]
+    assert len(lines) == 14
+    assert f"{DATA / 'broken.yaml'}:3: steps[0]: goto:" in lines[0]
 
 
 def test_check_json() -> None:
     broken = invoke("--json", "mission", "check", str(DATA / "broken.yaml"), port=None)
     assert broken.exit_code == ExitCode.USAGE
     data = json.loads(broken.stdout)
-    assert data["ok"] is False and len(data["problems"]) == 14
+    assert data["ok"] is False
+    assert len(data["problems"]) == 14
     assert data["problems"][0] == {
         "severity": "error", "line": 3, "step": "steps[0]", "name": None,
         "message": "goto: Input should be a valid integer, unable to parse string as an "
@@ -55,7 +57,9 @@ def test_check_json() -> None:
     }  # fmt: skip
     good = invoke("mission", "check", "--json", str(DATA / "every_step.yaml"), port=None)
     data = json.loads(good.stdout)
-    assert good.exit_code == 0 and data["ok"] is True and "port" not in data
+    assert good.exit_code == 0
+    assert data["ok"] is True
+    assert "port" not in data
     assert {"mission": "lobby patrol", "severity": "note", "step": "steps[2]", "name": None,
             "message": "say needs an http:// link"} in data["problems"]  # fmt: skip
 
@@ -64,7 +68,8 @@ def test_check_against_the_simulator() -> None:
     result = invoke("--json", "mission", "check", str(DATA / "every_step.yaml"), port="sim://")
     assert result.exit_code == ExitCode.USAGE, result.output
     data = json.loads(result.stdout)
-    assert data["port"] == "sim://" and data["ok"] is False
+    assert data["port"] == "sim://"
+    assert data["ok"] is False
     errors = [(p["step"], p["message"]) for p in data["problems"] if p["severity"] == "error"]
     assert errors == [
         ("steps[2]", "say needs an http:// link"),
@@ -83,7 +88,8 @@ def test_check_of_an_imported_format(tmp_path: Path) -> None:
     assert missing.exit_code == ExitCode.USAGE
     assert "needs the points of its paths" in missing.stderr
     absent = invoke("mission", "check", str(tmp_path / "none.yaml"), port=None)
-    assert absent.exit_code == ExitCode.ERROR and "cannot read" in absent.stderr
+    assert absent.exit_code == ExitCode.ERROR
+    assert "cannot read" in absent.stderr
 
 
 def test_import_prints_mission_files(tmp_path: Path) -> None:
@@ -100,24 +106,28 @@ def test_import_prints_mission_files(tmp_path: Path) -> None:
                   str(DATA / "nav2_panel_waypoints.yaml"), port=None)  # fmt: skip
     mission = parse_mission(nav2.stdout)
     assert yaml.safe_load(nav2.stdout)["steps"][0]["loop"]["count"] == 2
-    assert "goto_point" in nav2.stdout and mission.mission == "nav2_panel_waypoints"
+    assert "goto_point" in nav2.stdout
+    assert mission.mission == "nav2_panel_waypoints"
     out = tmp_path / "patrol.yaml"
     out.write_text(nav2.stdout, encoding="utf-8")
     assert load_mission(out) == mission
 
 
 def test_import_json() -> None:
-    result = invoke("mission", "import", "--json", str(DATA / "timeTask.json"),
-                    "--points", str(DATA / "maps" / "floor1" / "nav_route1.csv"), port=None)  # fmt: skip
+    points = DATA / "maps" / "floor1" / "nav_route1.csv"
+    timetask = str(DATA / "timeTask.json")
+    result = invoke("mission", "import", "--json", timetask, "--points", str(points), port=None)
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert [w["start"] for w in data["windows"]] == ["07:30", "08:00", "13:00"]
-    assert data["windows"][1]["mission"] == data["missions"][1] and data["notes"] == []
+    assert data["windows"][1]["mission"] == data["missions"][1]
+    assert data["notes"] == []
 
 
 def test_import_rejects_a_format_it_does_not_know() -> None:
     result = invoke("mission", "import", "--format", "csv", str(DATA / "timeTask.json"), port=None)
-    assert result.exit_code == ExitCode.USAGE and "--format" in result.output
+    assert result.exit_code == ExitCode.USAGE
+    assert "--format" in result.output
 
 
 class _HttpSim(ServedSim):

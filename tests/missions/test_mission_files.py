@@ -47,20 +47,36 @@ def test_every_step_kind_and_shorthand_loads() -> None:
         "goto_point", "goto_pose", "loop",
     ]  # fmt: skip
     goto, _, say, wait, call, switch, charge, move, point, pose, loop = mission.steps
-    assert isinstance(goto, GotoStep) and goto.goto == 3 and goto.name == "lobby"
-    assert goto.on_failure.retry == 2 and goto.on_failure.then == "abort" and goto.timeout == 120
-    assert isinstance(say, SayStep) and say.say == "hello"
-    assert isinstance(wait, WaitStep) and wait.wait.release == "operator"
-    assert isinstance(call, CallStep) and call.call.json_body == {"door": 1}
-    assert call.call.expect_status == [200] and call.call.expect_json == {"ok": True}
-    assert isinstance(switch, SwitchMapStep) and switch.switch_map.path == "route1"
-    assert isinstance(charge, ChargeStep) and charge.charge.until_percent == 90
-    assert isinstance(move, LocalMoveStep) and move.local_move.distance == -0.5
-    assert isinstance(point, GotoPointStep) and point.on_failure.goto == "dock"
-    assert isinstance(pose, GotoPoseStep) and pose.goto_pose.theta == 1.57
-    assert isinstance(loop, LoopStep) and loop.loop.count == 3
-    assert loop.loop.steps[1].on_failure.then == "skip" and loop.loop.steps[1].on_failure.retry == 1
-    assert mission.on_link_loss.then == "wait" and mission.on_link_loss.wait == 30
+    assert isinstance(goto, GotoStep)
+    assert goto.goto == 3
+    assert goto.name == "lobby"
+    assert goto.on_failure.retry == 2
+    assert goto.on_failure.then == "abort"
+    assert goto.timeout == 120
+    assert isinstance(say, SayStep)
+    assert say.say == "hello"
+    assert isinstance(wait, WaitStep)
+    assert wait.wait.release == "operator"
+    assert isinstance(call, CallStep)
+    assert call.call.json_body == {"door": 1}
+    assert call.call.expect_status == [200]
+    assert call.call.expect_json == {"ok": True}
+    assert isinstance(switch, SwitchMapStep)
+    assert switch.switch_map.path == "route1"
+    assert isinstance(charge, ChargeStep)
+    assert charge.charge.until_percent == 90
+    assert isinstance(move, LocalMoveStep)
+    assert move.local_move.distance == -0.5
+    assert isinstance(point, GotoPointStep)
+    assert point.on_failure.goto == "dock"
+    assert isinstance(pose, GotoPoseStep)
+    assert pose.goto_pose.theta == 1.57
+    assert isinstance(loop, LoopStep)
+    assert loop.loop.count == 3
+    assert loop.loop.steps[1].on_failure.then == "skip"
+    assert loop.loop.steps[1].on_failure.retry == 1
+    assert mission.on_link_loss.then == "wait"
+    assert mission.on_link_loss.wait == 30
 
 
 def test_bare_and_named_shorthands() -> None:
@@ -73,10 +89,14 @@ steps:
   - loop: {count: forever, steps: [{dwell: 1, on_failure: skip}]}
 """
     charge, wait, switch, loop = parse_mission(text).steps
-    assert isinstance(charge, ChargeStep) and charge.charge.until_percent is None
-    assert isinstance(wait, WaitStep) and wait.wait.timeout == 5
-    assert isinstance(switch, SwitchMapStep) and switch.switch_map.map == "floor2"
-    assert isinstance(loop, LoopStep) and loop.loop.count is None
+    assert isinstance(charge, ChargeStep)
+    assert charge.charge.until_percent is None
+    assert isinstance(wait, WaitStep)
+    assert wait.wait.timeout == 5
+    assert isinstance(switch, SwitchMapStep)
+    assert switch.switch_map.map == "floor2"
+    assert isinstance(loop, LoopStep)
+    assert loop.loop.count is None
 
 
 def test_every_problem_is_named_at_once_with_its_line_and_step() -> None:
@@ -84,7 +104,9 @@ def test_every_problem_is_named_at_once_with_its_line_and_step() -> None:
         load_mission(DATA / "broken.yaml")
     error = caught.value
     source = str(DATA / "broken.yaml")
-    assert error.source == source and error.line == 3 and error.step == "steps[0]"
+    assert error.source == source
+    assert error.line == 3
+    assert error.step == "steps[0]"
     assert [problem.removeprefix(f"{source}:") for problem in error.problems] == [
         "3: steps[0]: goto: Input should be a valid integer, unable to parse string as an "
         "integer (got 'x')",
@@ -153,7 +175,8 @@ def test_dump_round_trips_the_example_and_uses_shorthands() -> None:
     mission = load_mission(DATA / "every_step.yaml")
     text = dump_mission(mission)
     assert parse_mission(text) == mission
-    assert "  on_failure: retry 2\n" in text and "- wait: operator\n" in text
+    assert "  on_failure: retry 2\n" in text
+    assert "- wait: operator\n" in text
     assert "  on_failure: goto dock\n" in text
 
 

@@ -73,7 +73,8 @@ def test_timetask_gives_a_window_and_a_mission_per_task() -> None:
     switch, patrol, stop = monday.steps
     assert isinstance(switch, SwitchMapStep)
     assert (switch.switch_map.map, switch.switch_map.path) == ("floor1", "route1")
-    assert isinstance(patrol, LoopStep) and patrol.loop.count is None  # loopCount 0
+    assert isinstance(patrol, LoopStep)
+    assert patrol.loop.count is None
     assert [(type(s), getattr(s, "goto", None)) for s in patrol.loop.steps] == [
         (GotoStep, 0), (DwellStep, None), (GotoStep, 1), (DwellStep, None), (GotoStep, 2),
         (DwellStep, None),
@@ -81,9 +82,12 @@ def test_timetask_gives_a_window_and_a_mission_per_task() -> None:
     assert all(s.dwell == 10 for s in patrol.loop.steps if isinstance(s, DwellStep))
     assert isinstance(stop, ChargeStep)  # stopPose -1: the dock
     _, loop, back = daily.steps
-    assert isinstance(loop, LoopStep) and loop.loop.count == 3
+    assert isinstance(loop, LoopStep)
+    assert loop.loop.count == 3
     assert [type(s) for s in loop.loop.steps] == [GotoStep, GotoStep]  # waitTime 0: no dwell
-    assert isinstance(back, GotoStep) and back.goto == 1 and back.name == "stop pose"
+    assert isinstance(back, GotoStep)
+    assert back.goto == 1
+    assert back.name == "stop pose"
     assert plan.notes == []
     for mission in plan.missions:  # each prints as a mission file
         assert parse_mission(dump_mission(mission)) == mission
@@ -99,14 +103,16 @@ def test_timetask_as_poses_and_with_one_points_list() -> None:
     assert isinstance(first, GotoPoseStep)
     assert (first.goto_pose.x, first.goto_pose.y, first.goto_pose.theta) == (1.0, 2.0, 0.5)
     stop = plan.missions[2].steps[2]
-    assert isinstance(stop, GotoPoseStep) and stop.goto_pose.x == 3.0
+    assert isinstance(stop, GotoPoseStep)
+    assert stop.goto_pose.x == 3.0
 
 
 def test_a_stop_pose_past_the_path_is_skipped_with_a_note() -> None:
     task = {"whichDay": 3, "startTime": "9:05", "stopTime": "10:00", "mapName": "m",
             "pathName": "p", "waitTime": 1, "stopPose": 5, "loopCount": 1}  # fmt: skip
     plan = import_timetask(json.dumps({"autoRunTasks": [task]}), [Waypoint(0, 0)])
-    assert plan.windows[0].start == "09:05" and plan.windows[0].days == (3,)
+    assert plan.windows[0].start == "09:05"
+    assert plan.windows[0].days == (3,)
     assert [type(s) for s in plan.missions[0].steps] == [SwitchMapStep, LoopStep]
     assert "stopPose 5 is past the path's 1 points" in plan.notes[0]
 
@@ -166,7 +172,8 @@ def test_nav2_panel_file_as_poses_with_headings() -> None:
 def test_nav2_poses_with_loops_as_points() -> None:
     mission = load_plan(DATA / "nav2_poses.yaml", headings=False).missions[0]
     (loop,) = mission.steps
-    assert isinstance(loop, LoopStep) and loop.loop.count == 3  # number_of_loops 2: 3 passes
+    assert isinstance(loop, LoopStep)
+    assert loop.loop.count == 3
     assert [(s.goto_point.x, s.goto_point.y) for s in loop.loop.steps
             if isinstance(s, GotoPointStep)] == [(1.0, 0.0), (2.0, 1.0)]  # fmt: skip
     once = import_nav2((DATA / "nav2_poses.yaml").read_text(encoding="utf-8"), loops=0)
@@ -187,4 +194,5 @@ def test_formats_are_detected_by_content() -> None:
     assert detect_format(DATA / "nav2_poses.yaml") == "nav2"
     assert detect_format(DATA / "every_step.yaml") == "mission"
     plan = load_plan(DATA / "every_step.yaml")
-    assert len(plan.missions) == 1 and plan.windows == []
+    assert len(plan.missions) == 1
+    assert plan.windows == []
