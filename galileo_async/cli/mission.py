@@ -345,8 +345,6 @@ def _report(
             console.print(f"{file}: {prefix}{problem}", markup=False, highlight=False)
         counts = {kind: sum(p.severity == kind for _, p in found) for kind in ("error", "warning")}
         verdict = "ok" if ok else "not ok"
-        console.print(
-            f"{file}: {verdict}: {counts['error']} errors, {counts['warning']} warnings",
-            markup=False, highlight=False,
-        )  # fmt: skip
+        tally = ", ".join(f"{n} {kind}{'' if n == 1 else 's'}" for kind, n in counts.items())
+        console.print(f"{file}: {verdict}: {tally}", markup=False, highlight=False)
     return int(ExitCode.OK if ok else ExitCode.USAGE)
