@@ -136,7 +136,9 @@ def _unreachable(steps: Sequence[Any], prefix: str, targets: set[str]) -> list[P
     forever: str | None = None
     for index, step in enumerate(steps):
         path = f"{prefix}[{index}]"
-        if forever is not None and step.name not in targets:
+        if step.name in targets:
+            forever = None  # a failure jumps here: this step and the next are reachable
+        if forever is not None:
             problems.append(Problem(path, step.name, (
                 f"never reached: the loop {forever} before it runs until stopped (a "
                 "schedule's window closing ends it; give the loop a count otherwise)"

@@ -38,6 +38,7 @@ def test_steps_after_a_forever_loop_are_unreachable_unless_a_jump_goes_there() -
         {"loop": {"steps": [{"goto": 1, "on_failure": "goto dock"}, {"dwell": 1}]}},
         {"say": "bye"},
         {"charge": None, "name": "dock"},
+        {"say": "docked"},
     )
     problems = [p for p in check_static(plan) if p.severity == "warning"]
     assert found(problems) == [

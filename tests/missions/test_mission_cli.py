@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -171,3 +172,10 @@ def test_check_against_an_http_robot(http_sim: _HttpSim) -> None:
     errors = [p["message"] for p in data["problems"] if p["severity"] == "error"]
     assert errors == ["map 'floor1' is not on the robot (it has: sim, floor2)"]
     assert check.exit_code == ExitCode.USAGE
+
+
+def test_without_pyyaml_the_command_says_how_to_get_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "yaml", None)
+    result = invoke("mission", "check", str(DATA / "every_step.yaml"), port=None)
+    assert result.exit_code == ExitCode.ERROR
+    assert "pip install 'galileo-async[cli,missions]'" in result.stderr
