@@ -11,7 +11,7 @@ from .. import __version__
 from ..errors import InvalidArgument
 from ..links import URL_SCHEMES, url_forms
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
-from . import capture, demo, fleet_cmd, ops, serve, stopping, teleop, vda5050, watch
+from . import capture, demo, fleet_cmd, mission, ops, serve, stopping, teleop, vda5050, watch
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
     DEFAULT_PORT,
@@ -203,6 +203,8 @@ app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)
 app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
+# Missions (extra [missions]): the module imports yaml only when a command runs.
+app.add_typer(mission.mission_app, name="mission")
 
 
 def main() -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from .check import Problem, check_mission, check_static
+from .files import MissionFileError, dump_mission, load_mission, mission_schema, parse_mission
 from .model import (
     ACTION_KEYS,
     CallOut,
@@ -28,10 +30,18 @@ __all__ = [
     "Loop",
     "MapSwitch",
     "Mission",
+    "MissionFileError",
     "OnFailure",
     "Point",
     "PoseGoal",
+    "Problem",
     "Release",
     "Step",
+    "check_mission",
+    "check_static",
+    "dump_mission",
+    "load_mission",
+    "mission_schema",
+    "parse_mission",
     "walk",
 ]

@@ -276,7 +276,12 @@ ACTION_KEYS: dict[str, type[_StepBase]] = {
 
 def step_action(value: Any) -> str | None:
     """The one action key of a step (a mapping or a model), or None when not exactly one."""
-    keys = value.keys() if isinstance(value, dict) else type(value).model_fields.keys()
+    if isinstance(value, dict):
+        keys = value.keys()
+    elif isinstance(value, BaseModel):
+        keys = type(value).model_fields.keys()
+    else:  # a list, a number, a string where a step belongs
+        return None
     found = [key for key in keys if key in ACTION_KEYS]
     return found[0] if len(found) == 1 else None
 

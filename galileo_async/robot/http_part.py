@@ -107,10 +107,12 @@ class HttpPart:
         answer = await self._call("switch_map()", "GET", "/navigation/reload", params)
         return MapPath(str(answer.get("map", name)), str(answer.get("path", path or "")))
 
-    async def targets(self) -> list[NavPoint]:
-        """The saved targets of the current map and path, in index order (nav_points)."""
-        where = await self._call("targets()", "GET", "/navigation/current_path")
-        params = {"map_name": where["map"], "path_name": where["path"]}
+    async def targets(self, map: str | None = None, path: str | None = None) -> list[NavPoint]:
+        """The saved targets of a map's path (None: the current map, path), in index order."""
+        if map is None or path is None:
+            where = await self._call("targets()", "GET", "/navigation/current_path")
+            map, path = map or str(where["map"]), path or str(where["path"])
+        params = {"map_name": map, "path_name": path}
         answer = await self._call("targets()", "GET", "/navigation/nav_points", params)
         points = []
         for line in str(answer.get("path_data", "")).splitlines():
