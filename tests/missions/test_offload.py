@@ -419,3 +419,20 @@ async def test_nothing_is_sent_for_a_mission_the_chain_cannot_run() -> None:
     async with simulated_robot() as (robot, _device):
         with pytest.raises(NotSupported, match="http:// or https://"):
             await offload_mission(robot, mission({"dwell": 1}))
+
+
+async def test_a_task_the_robot_no_longer_holds_ends_failed() -> None:
+    async with http_robot() as (_, robot, face):
+        started = asyncio.Event()
+        runner = asyncio.ensure_future(
+            offload_mission(robot, mission({"dwell": 60}), on_progress=lambda e: started.set())
+        )
+        with anyio.fail_after(WAIT):
+            await started.wait()
+        (task_id,) = face.engine.tasks
+        face.engine.delete(task_id)  # as after the robot's restart: GET /task answers 404
+        with anyio.fail_after(WAIT):
+            report = await runner
+        assert report.ending == "failed"
+        assert report.error == f"the robot no longer holds task {task_id}"
+        assert [(r.index, r.ended) for r in report.actions] == [(0, None)]
