@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import GalileoConnectionError, GalileoError, HttpError, InvalidArgument, NotSupported
 from ..robot.http_part import HttpPart, NavPoint
 from ..robot.task_chain import (
+    TASK_ENDINGS,
     Action,
     CallbackAction,
     ChargeAction,
@@ -411,7 +412,7 @@ class _Follower:
                 self.update(seen, action.state, now, this_pass, index)
 
     def update(self, run: ActionRun, state: str, now: float, pass_no: int, index: int) -> None:
-        ended = now if state in ("COMPLETE", "CANCELLED", "ERROR") else None
+        ended = now if state in TASK_ENDINGS else None
         if state == run.state and ended is None:
             return
         run = run.model_copy(update={"state": state, "ended": ended})
