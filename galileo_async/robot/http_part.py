@@ -121,6 +121,11 @@ class HttpPart:
                 points.append(NavPoint(float(fields[0]), float(fields[1]), float(fields[3])))
         return points
 
+    async def charge_pose(self) -> NavPoint:
+        """The charger's pose on the current map: metres, radians (GET /navigation/charge_pose)."""
+        answer = await self._call("charge_pose()", "GET", "/navigation/charge_pose")
+        return NavPoint(float(answer["x"]), float(answer["y"]), float(answer.get("theta", 0.0)))
+
     async def info(self) -> RobotInfo:
         """Firmware version, code name and battery (GET /system/info)."""
         answer = await self._call("info()", "GET", "/system/info")

@@ -194,6 +194,8 @@ class HttpFace:
             ("GET", "/navigation/stop_nav_task"): lambda q: self._stop_task(),
             ("DELETE", "/navigation/loop_task"): lambda q: run(cmd.StopPatrol(), {"result": True}),
             ("GET", "/navigation/go_charge"): lambda q: self._go_charge(),
+            ("GET", "/navigation/charge_pose"):
+                lambda q: {"x": model.dock[0], "y": model.dock[1], "theta": 0.0},
             ("GET", "/navigation/stop_charge"):
                 lambda q: run(cmd.StopCharging(), {"status": "OK", "task": None}),
             ("GET", "/task"): self._get_task,
