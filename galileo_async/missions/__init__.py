@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from .capabilities import Unsupported, needs, unsupported
+from .events import LoopStarted, MissionEnded, MissionEvent, StepEnded, StepStarted
+from .journal import Journal, plan_hash
 from .model import (
     ACTION_KEYS,
     CallOut,
@@ -18,20 +21,36 @@ from .model import (
     Step,
     walk,
 )
+from .report import MissionRejected, MissionReport, StepReport
+from .runner import run_mission
 
 __all__ = [
     "ACTION_KEYS",
     "CallOut",
     "ChargeUntil",
+    "Journal",
     "LinkLossPolicy",
     "LocalMove",
     "Loop",
+    "LoopStarted",
     "MapSwitch",
     "Mission",
+    "MissionEnded",
+    "MissionEvent",
+    "MissionRejected",
+    "MissionReport",
     "OnFailure",
     "Point",
     "PoseGoal",
     "Release",
     "Step",
+    "StepEnded",
+    "StepReport",
+    "StepStarted",
+    "Unsupported",
+    "needs",
+    "plan_hash",
+    "run_mission",
+    "unsupported",
     "walk",
 ]
