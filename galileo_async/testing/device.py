@@ -126,6 +126,15 @@ class SimulatedDevice:
         """Make the planner give up half way to the next goal (it ends free, far away)."""
         self._model.abort_next_goal()
 
+    def go_charge(self) -> None:
+        """Head for the dock by itself, as a robot with a low battery does (``j 0`` unsent).
+
+        The running goal ends (free, target -1: the Robot sees a cancel from elsewhere) and
+        patrol stops; the robot finds the dock, docks and charges (charge_status 3, 4, 1,
+        then 2 once full). A mission waits for the charge to end, then goes on.
+        """
+        self._model.go_charge()
+
     def busy(self, seconds: float) -> None:
         """Be busy for ``seconds`` from now (commands wait); 0 ends busy now."""
         self._model.hold_busy(check_seconds("seconds", seconds, allow_zero=True))
