@@ -13,6 +13,7 @@ from ..protocol import Command
 from ..sim import SimState, Simulator
 
 if TYPE_CHECKING:
+    from ..sim.http import HttpFace
     from .clock import VirtualClock
 
 __all__ = ["ReceivedCommand", "SimulatedDevice"]
@@ -39,6 +40,9 @@ class SimulatedDevice:
     def __init__(self, simulator: Simulator, clock: VirtualClock | None) -> None:
         self.simulator = simulator
         self._clock = clock
+        #: The simulator's HTTP face (simulated_robot(link="http")): its ``spoken`` texts,
+        #: its ``current`` map and path, its ``tasks``; None on other links.
+        self.http_face: HttpFace | None = None
         self._log: list[ReceivedCommand] = []
         model = simulator.model
         self._model = model
