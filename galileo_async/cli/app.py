@@ -11,7 +11,7 @@ from .. import __version__
 from ..errors import InvalidArgument
 from ..links import URL_SCHEMES, url_forms
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
-from . import capture, demo, fleet_cmd, ops, serve, stopping, teleop, vda5050, watch
+from . import capture, demo, fleet_cmd, mission_run, ops, serve, stopping, teleop, vda5050, watch
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
     DEFAULT_PORT,
@@ -203,6 +203,11 @@ app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)
 app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
+# Missions: `galileo mission run FILE`, `galileo --fleet F fleet mission run FILE`.
+mission_app = typer.Typer(help="Missions: plans of steps (docs/missions.md).", no_args_is_help=True)
+mission_run.register(mission_app)
+app.add_typer(mission_app, name="mission")
+mission_run.register_fleet(fleet_cmd.fleet_app)
 
 
 def main() -> None:
