@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 from collections.abc import Awaitable, Callable, Mapping
 from datetime import datetime, timezone
@@ -60,6 +61,8 @@ __all__ = [
     "Releases",
     "run_mission",
 ]
+
+_log = logging.getLogger(__name__)
 
 #: A release: called when a ``wait`` step starts; the step ends when the awaitable does.
 Releases = Mapping[str, Callable[[], Awaitable[object]]]
@@ -131,7 +134,8 @@ async def run_mission(
     cannot run, a ``wait`` whose release is not in ``releases``, a journal that does not
     match with ``resume``). ``journal``: a file where the run is recorded at each step;
     ``resume``: start where the journal says the last run was (no file: at the start).
-    ``on_progress(event)``: called synchronously with each MissionEvent. ``http_client``:
+    ``on_progress(event)``: called synchronously with each MissionEvent (one that raises
+    is logged, the run goes on). ``http_client``:
     an aiohttp.ClientSession for call steps (None: one per call). Cancelling the caller
     ends the mission, the robot stopped (bounded), and raises the cancellation.
     """
@@ -208,8 +212,10 @@ class _Run:
                 ending, error = "stopped", f"stopped by {stop.by}"
             except _Ended as end:
                 ending, error = end.ending, end.error
-            except BaseException:
-                self._finish(started, started_at, "cancelled", "cancelled", point)
+            except BaseException as exc:  # cancelled, or a bug: stop the robot, then raise
+                cancelled = isinstance(exc, asyncio.CancelledError)
+                ending = "cancelled" if cancelled else "failed"
+                self._finish(started, started_at, ending, _text(exc), point)
                 await self._exit_stop()
                 raise
         finally:
@@ -279,7 +285,10 @@ class _Run:
 
     def _emit(self, event: MissionEvent) -> None:
         if self.on_progress is not None:
-            self.on_progress(event)
+            try:
+                self.on_progress(event)
+            except Exception:  # as the Robot's listeners: logged, the run goes on
+                _log.exception("on_progress failed on %r", event)
 
     def _record(self, state: str, path: str | None) -> None:
         if self.journal is not None:
@@ -398,8 +407,8 @@ class _Run:
         except _Ended as end:
             report("link lost" if end.ending == "link lost" else "failed", end.error)
             raise
-        except BaseException:
-            report("cancelled", "cancelled")
+        except BaseException as exc:
+            report("cancelled" if isinstance(exc, asyncio.CancelledError) else "failed", _text(exc))
             raise
         then = step.on_failure.then
         if error is None or then == "skip":
@@ -502,8 +511,12 @@ class _Run:
         if action == "dwell":
             await anyio.sleep(step.dwell)
         elif action == "wait":
+            name = step.wait.release
             with anyio.fail_after(step.wait.timeout):
-                await self.releases[step.wait.release]()
+                try:
+                    await self.releases[name]()
+                except Exception as exc:  # the caller's release failed: the step did
+                    raise _Failure("failed", f"release {name!r}: {_text(exc)}") from None
         elif action == "call":
             await call_out(step.call, self.http_client)
         elif action == "charge":
@@ -585,6 +598,12 @@ def _goal_ready(status: GalileoStatus) -> bool:
 
 def _address(path: str) -> tuple[int, ...]:
     return tuple(int(part.split("[")[1].rstrip("]")) for part in path.split(".") if "[" in part)
+
+
+def _text(exc: BaseException) -> str:
+    if isinstance(exc, asyncio.CancelledError):
+        return "cancelled"
+    return f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
 
 
 def _now() -> datetime:

@@ -185,3 +185,26 @@ async def test_a_missing_release_and_http_steps_are_rejected_before_anything_mov
         "steps[2]: no release 'door' was given",
     ]
     assert isinstance(info.value, ValueError)
+
+
+async def test_a_release_that_raises_fails_its_step() -> None:
+    async def broken() -> None:
+        raise RuntimeError("the button is gone")
+
+    plan = mission({"wait": "operator", "on_failure": "skip"}, {"dwell": 1})
+    async with simulated_robot() as (robot, _):
+        report = await run_mission(robot, plan, releases={"operator": broken})
+    assert [s.ending for s in report.steps] == ["skipped", "done"]
+    assert report.steps[0].error == "release 'operator': RuntimeError: the button is gone"
+
+
+async def test_an_on_progress_that_raises_is_logged_and_the_run_goes_on(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    def broken(event: MissionEvent) -> None:
+        raise RuntimeError(event.kind)
+
+    async with simulated_robot() as (robot, _):
+        report = await run_mission(robot, mission({"dwell": 1}), on_progress=broken)
+    assert report.ending == "completed"
+    assert "on_progress failed" in caplog.text
