@@ -185,6 +185,8 @@ class _Run:
         point = None
         if journal is not None:
             self.journal = Journal(journal)
+            if not self.journal.path.parent.is_dir():
+                problems.append(f"journal {journal}: no folder {self.journal.path.parent}")
             if resume:
                 try:
                     point = self.journal.resume_point(self.mission, max_age=max_age)
@@ -215,8 +217,10 @@ class _Run:
             except BaseException as exc:  # cancelled, or a bug: stop the robot, then raise
                 cancelled = isinstance(exc, asyncio.CancelledError)
                 ending = "cancelled" if cancelled else "failed"
-                self._finish(started, started_at, ending, _text(exc), point)
-                await self._exit_stop()
+                try:
+                    self._finish(started, started_at, ending, _text(exc), point)
+                finally:
+                    await self._exit_stop()
                 raise
         finally:
             self.robot.remove_stop_listener(self._user_stop)

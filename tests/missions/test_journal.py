@@ -169,3 +169,11 @@ def _record(
     plan: Mission, state: str, path: str, loops: dict[str, int], at: float | None = None
 ) -> JournalRecord:
     return JournalRecord(plan.mission, plan_hash(plan), state, path, loops, at or time.time())
+
+
+async def test_a_journal_in_a_folder_that_does_not_exist_is_refused(tmp_path: Path) -> None:
+    async with simulated_robot() as (robot, device):
+        device.clear()
+        with pytest.raises(MissionRejected, match="no folder"):
+            await run_mission(robot, patrol(), journal=tmp_path / "nowhere" / "j.json")
+        assert device.commands == []
