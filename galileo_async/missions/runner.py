@@ -55,6 +55,7 @@ from .robot_api import MissionRobot
 
 __all__ = [
     "CHARGE_TIMEOUT",
+    "DEFAULT_JOURNAL_MAX_AGE",
     "EXIT_STOP_TIMEOUT",
     "LOCAL_MOVE_SPEED",
     "NAVIGATION_TIMEOUT",

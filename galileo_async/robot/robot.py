@@ -515,14 +515,20 @@ class Robot:
         journal: str | Path | None = None,
         resume: bool = False,
         on_progress: Callable[[MissionEvent], None] | None = None,
+        http_client: object = None,
+        journal_max_age: float | None = None,
     ) -> MissionReport:
-        """Run ``mission`` on this robot: galileo_async.missions.run_mission (docs/missions.md)."""
-        # The missions layer sits above the Robot: loaded on first use, not with the Robot.
-        from ..missions.runner import run_mission
+        """Run ``mission`` on this robot: galileo_async.missions.run_mission (docs/missions.md).
 
+        ``journal_max_age`` None: the runner's default (a day).
+        """
+        # The missions layer sits above the Robot: loaded on first use, not with the Robot.
+        from ..missions.runner import DEFAULT_JOURNAL_MAX_AGE, run_mission
+
+        max_age = DEFAULT_JOURNAL_MAX_AGE if journal_max_age is None else journal_max_age
         return await run_mission(
             self, mission, releases=releases, journal=journal, resume=resume,
-            on_progress=on_progress,
+            on_progress=on_progress, http_client=http_client, journal_max_age=max_age,
         )  # fmt: skip
 
     def __repr__(self) -> str:

@@ -177,3 +177,13 @@ async def test_a_journal_in_a_folder_that_does_not_exist_is_refused(tmp_path: Pa
         with pytest.raises(MissionRejected, match="no folder"):
             await run_mission(robot, patrol(), journal=tmp_path / "nowhere" / "j.json")
         assert device.commands == []
+
+
+async def test_robot_run_mission_takes_the_journals_max_age(tmp_path: Path) -> None:
+    journal = tmp_path / "patrol.json"
+    Journal(journal).write(_record(patrol(), "stopped", "steps[0]", {}, at=time.time() - 7200))
+    async with simulated_robot() as (robot, _):
+        with pytest.raises(MissionRejected, match=r"2\.0 h old \(more than 1 h\)"):
+            await robot.run_mission(patrol(), journal=journal, resume=True, journal_max_age=3600)
+        report = await robot.run_mission(patrol(), journal=journal, resume=True)
+    assert report.resumed_at == "steps[0]"
