@@ -3,7 +3,15 @@
 from __future__ import annotations
 
 from .capabilities import Unsupported, needs, unsupported
-from .events import LoopStarted, MissionEnded, MissionEvent, StepEnded, StepStarted
+from .events import (
+    LoopStarted,
+    MissionEnded,
+    MissionEvent,
+    MissionEventStream,
+    StepEnded,
+    StepStarted,
+    mission_events,
+)
 from .journal import Journal, plan_hash
 from .model import (
     ACTION_KEYS,
@@ -37,6 +45,7 @@ __all__ = [
     "Mission",
     "MissionEnded",
     "MissionEvent",
+    "MissionEventStream",
     "MissionRejected",
     "MissionReport",
     "OnFailure",
@@ -48,6 +57,7 @@ __all__ = [
     "StepReport",
     "StepStarted",
     "Unsupported",
+    "mission_events",
     "needs",
     "plan_hash",
     "run_mission",

@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
+import asyncio
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .report import MissionReport, StepReport
 
-__all__ = ["LoopStarted", "MissionEnded", "MissionEvent", "StepEnded", "StepStarted"]
+__all__ = [
+    "DEFAULT_EVENT_QUEUE",
+    "LoopStarted",
+    "MissionEnded",
+    "MissionEvent",
+    "MissionEventStream",
+    "StepEnded",
+    "StepStarted",
+    "mission_events",
+]
+
+#: Events a MissionEventStream keeps for a slow reader (the oldest are dropped beyond).
+DEFAULT_EVENT_QUEUE = 1000
 
 
 @dataclass(frozen=True)
@@ -78,3 +92,42 @@ _KINDS: dict[type[MissionEvent], str] = {
     LoopStarted: "loop_started",
     MissionEnded: "mission_ended",
 }
+
+
+class MissionEventStream:
+    """Pass it as ``on_progress``; ``async for event in it`` gets each event, in order.
+
+    Iteration ends after MissionEnded. A reader that falls ``maxlen`` events behind loses
+    the oldest (``dropped`` counts them); the run never waits for it.
+    """
+
+    def __init__(self, maxlen: int = DEFAULT_EVENT_QUEUE) -> None:
+        self._queue: deque[MissionEvent] = deque(maxlen=maxlen)
+        self._ready = asyncio.Event()
+        self._ended = False
+        self.dropped = 0
+
+    def __call__(self, event: MissionEvent) -> None:
+        if len(self._queue) == self._queue.maxlen:
+            self.dropped += 1
+        self._queue.append(event)
+        self._ready.set()
+
+    def __aiter__(self) -> MissionEventStream:
+        return self
+
+    async def __anext__(self) -> MissionEvent:
+        while not self._queue:
+            if self._ended:
+                raise StopAsyncIteration
+            self._ready.clear()
+            await self._ready.wait()
+        event = self._queue.popleft()
+        if isinstance(event, MissionEnded):
+            self._ended = True
+        return event
+
+
+def mission_events(maxlen: int = DEFAULT_EVENT_QUEUE) -> MissionEventStream:
+    """A MissionEventStream: ``run_mission(…, on_progress=stream)``, ``async for e in stream``."""
+    return MissionEventStream(maxlen)

@@ -18,6 +18,7 @@ from galileo_async.missions import (
     MissionRejected,
     StepEnded,
     StepStarted,
+    mission_events,
     run_mission,
 )
 from galileo_async.protocol import StartCharging
@@ -208,3 +209,24 @@ async def test_an_on_progress_that_raises_is_logged_and_the_run_goes_on(
         report = await run_mission(robot, mission({"dwell": 1}), on_progress=broken)
     assert report.ending == "completed"
     assert "on_progress failed" in caplog.text
+
+
+async def test_mission_events_iterates_until_the_mission_ended() -> None:
+    plan = mission({"goto": 1}, {"dwell": 3})
+    stream = mission_events()
+    kinds: list[str] = []
+    async with simulated_robot() as (robot, _), anyio.create_task_group() as group:
+        group.start_soon(lambda: run_mission(robot, plan, on_progress=stream))
+        async for event in stream:
+            kinds.append(event.kind)
+    assert kinds == ["step_started", "step_ended", "step_started", "step_ended", "mission_ended"]
+    assert stream.dropped == 0
+
+
+async def test_a_slow_reader_of_mission_events_loses_the_oldest() -> None:
+    stream = mission_events(maxlen=2)
+    async with simulated_robot() as (robot, _):
+        await run_mission(robot, mission({"dwell": 1}, {"dwell": 1}), on_progress=stream)
+    kinds = [event.kind async for event in stream]
+    assert kinds == ["step_ended", "mission_ended"]
+    assert stream.dropped == 3
