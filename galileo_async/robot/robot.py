@@ -522,6 +522,7 @@ class Robot:
 
         ``journal_max_age`` None: the runner's default (a day).
         """
+        self._ops.ensure_loop()
         # The missions layer sits above the Robot: loaded on first use, not with the Robot.
         from ..missions.runner import DEFAULT_JOURNAL_MAX_AGE, run_mission
 
