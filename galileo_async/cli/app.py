@@ -11,7 +11,19 @@ from .. import __version__
 from ..errors import InvalidArgument
 from ..links import URL_SCHEMES, url_forms
 from ..options import MAX_TARGET_ID, STREAM_LAYOUTS
-from . import capture, demo, fleet_cmd, mission, ops, serve, stopping, teleop, vda5050, watch
+from . import (
+    capture,
+    demo,
+    fleet_cmd,
+    mission,
+    mission_run,
+    ops,
+    serve,
+    stopping,
+    teleop,
+    vda5050,
+    watch,
+)
 from .profiles import ROBOT_ENV, find_profile, profile_names
 from .runner import (
     DEFAULT_PORT,
@@ -205,6 +217,9 @@ app.command("vda5050")(vda5050.vda5050)
 app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
 # Missions (extra [missions]): the module imports yaml only when a command runs.
 app.add_typer(mission.mission_app, name="mission")
+mission_run.register(mission.mission_app)
+# `galileo --fleet F fleet mission run FILE`
+mission_run.register_fleet(fleet_cmd.fleet_app)
 
 
 def main() -> None:

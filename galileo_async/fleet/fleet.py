@@ -7,7 +7,7 @@ import logging
 from collections.abc import Awaitable, Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import anyio
 
@@ -22,6 +22,11 @@ from .streams import (
     FleetHub,
     FleetStatusStream,
 )
+
+if TYPE_CHECKING:
+    from ..missions.events import MissionEvent
+    from ..missions.model import Mission
+    from ..missions.report import MissionReport
 
 __all__ = [
     "DEFAULT_CONNECT_CONCURRENCY",
@@ -202,6 +207,31 @@ class Fleet:
         check_int("brake", brake, 0, 100)
         check_timeout("timeout", timeout)
         return await self.each(lambda robot: robot.stop(brake, timeout=timeout))
+
+    async def run_missions(
+        self,
+        missions: Mapping[str, Mission],
+        *,
+        releases: Mapping[str, Callable[[], Awaitable[object]]] | None = None,
+        on_progress: Callable[[str, MissionEvent], None] | None = None,
+    ) -> dict[str, MissionReport]:
+        """Run ``missions[name]`` on robot ``name``, all at once; each MissionReport by name.
+
+        The first user stop (Fleet.stop(), or one robot's mission ending stopped) stops
+        every robot, so every mission ends. Every mission is checked first, nothing sent
+        (MissionRejected); a robot not connected: NotReady; an unknown name: InvalidArgument.
+        ``on_progress(name, event)``: each MissionEvent with its robot's name.
+        """
+        # The missions layer sits above the fleet: loaded on first use.
+        from ..missions.fleet_run import run_missions
+
+        unknown = [name for name in missions if name not in self._members]
+        if unknown:
+            raise InvalidArgument(f"no robot named {', '.join(map(repr, unknown))} in the fleet")
+        robots = {name: self[name] for name in missions}
+        return await run_missions(
+            robots, missions, stop_all=self.stop, releases=releases, on_progress=on_progress
+        )
 
     # --- lifecycle ---------------------------------------------------------------------
 

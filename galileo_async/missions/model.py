@@ -48,6 +48,7 @@ __all__ = [
     "SwitchMapStep",
     "WaitStep",
     "step_action",
+    "step_paths",
     "walk",
 ]
 
@@ -347,6 +348,17 @@ def walk(steps: list[Any]) -> list[_StepBase]:
         found.append(step)
         if isinstance(step, LoopStep):
             found.extend(walk(step.loop.steps))
+    return found
+
+
+def step_paths(steps: list[Any], prefix: str = "steps") -> list[tuple[str, _StepBase]]:
+    """Every step with its path ("steps[2].loop.steps[0]"), in walk()'s order."""
+    found: list[tuple[str, _StepBase]] = []
+    for index, step in enumerate(steps):
+        path = f"{prefix}[{index}]"
+        found.append((path, step))
+        if isinstance(step, LoopStep):
+            found.extend(step_paths(step.loop.steps, f"{path}.loop.steps"))
     return found
 
 

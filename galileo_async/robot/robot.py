@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import Mapping as AbcMapping
+from pathlib import Path
 from types import TracebackType
+from typing import TYPE_CHECKING
 
 from .._checks import check_bool, check_timeout
 from ..errors import CommandSuperseded, GalileoTimeout, InvalidArgument, UnconfirmedOperation
@@ -72,6 +75,11 @@ from .stopping import DEFAULT_STOP_TIMEOUT, StopReport, stop_motion
 from .supersede import goal_superseded
 from .targets import DynamicTargets, landed_at
 from .turn import ROTATE_TIMEOUT, rotate, turn_in_place
+
+if TYPE_CHECKING:
+    from ..missions.events import MissionEvent
+    from ..missions.model import Mission
+    from ..missions.report import MissionReport
 
 __all__ = [
     "DEFAULT_ACCEPT_TIMEOUT",
@@ -270,6 +278,20 @@ class Robot:
     def remove_event_listener(self, listener: EventListener) -> None:
         """Stop calling ``listener`` (no-op if it is not one)."""
         self._store.remove_event_listener(listener)
+
+    def add_stop_listener(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(name)`` after every user stop of this Robot, synchronously.
+
+        ``name`` is the stop's: "stop()", "cancel()", "pause()", "stop_navigation()",
+        "zero_speed()" or "close()". A listener that raises is logged, the others still run.
+        """
+        self._ops.supersession.stop_listeners.append(listener)
+
+    def remove_stop_listener(self, listener: Callable[[str], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        listeners = self._ops.supersession.stop_listeners
+        if listener in listeners:
+            listeners.remove(listener)
 
     # --- sending ---------------------------------------------------------------------
 
@@ -489,6 +511,31 @@ class Robot:
         except CommandSuperseded as exc:  # a user stop came before the last step was written
             raise goal_superseded(exc, first_id) from exc
         return landed_at(result, x, y, self.arrive_tolerance)
+
+    async def run_mission(
+        self,
+        mission: Mission,
+        *,
+        releases: AbcMapping[str, Callable[[], Awaitable[object]]] | None = None,
+        journal: str | Path | None = None,
+        resume: bool = False,
+        on_progress: Callable[[MissionEvent], None] | None = None,
+        http_client: object = None,
+        journal_max_age: float | None = None,
+    ) -> MissionReport:
+        """Run ``mission`` on this robot: galileo_async.missions.run_mission (docs/missions.md).
+
+        ``journal_max_age`` None: the runner's default (a day).
+        """
+        self._ops.ensure_loop()
+        # The missions layer sits above the Robot: loaded on first use, not with the Robot.
+        from ..missions.runner import DEFAULT_JOURNAL_MAX_AGE, run_mission
+
+        max_age = DEFAULT_JOURNAL_MAX_AGE if journal_max_age is None else journal_max_age
+        return await run_mission(
+            self, mission, releases=releases, journal=journal, resume=resume,
+            on_progress=on_progress, http_client=http_client, journal_max_age=max_age,
+        )  # fmt: skip
 
     def __repr__(self) -> str:
         return f"<Robot on {self._link!r}, link {self.link_state.value}>"

@@ -4,6 +4,7 @@ the calls awaiting motion, and the sends that must finish though their caller wa
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections.abc import Callable, Coroutine
 from typing import Any, Protocol, TypeVar
 
@@ -12,6 +13,7 @@ from ..errors import CommandSuperseded, GalileoError, GoalCancelled
 __all__ = ["DriveSlot", "Supersession", "goal_superseded"]
 
 _R = TypeVar("_R")
+_log = logging.getLogger(__name__)
 
 
 class _Session(Protocol):
@@ -70,6 +72,8 @@ class Supersession:
         self._motions: dict[object, tuple[Callable[[str], None], str | None]] = {}
         #: The drive session inside whose block the caller is, if any; a user stop ends it.
         self.drive = DriveSlot()
+        #: Called with the stop's name after every user stop (Robot.add_stop_listener).
+        self.stop_listeners: list[Callable[[str], None]] = []
 
     @property
     def stopped_by(self) -> str:
@@ -90,6 +94,11 @@ class Supersession:
             if not written.done():
                 written.set_exception(_superseded(sent, what))
         self.drive.end(what)
+        for listener in list(self.stop_listeners):
+            try:
+                listener(what)
+            except Exception:
+                _log.exception("stop listener %r failed", listener)
 
     def withdrawable(self, what: str, stops_at: int | None) -> asyncio.Future[bool]:
         """The write future of drive or goal command ``what``, which a user stop fails.

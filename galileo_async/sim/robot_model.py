@@ -519,6 +519,13 @@ class RobotModel(Body):
         """Make the planner give up half way on the next goal (fault injection)."""
         self._abort_next = True
 
+    def go_charge(self) -> None:
+        """The robot heads for its dock by itself (a low battery): its goal and patrol end."""
+        if self.target_status in ACTIVE:
+            self._drop_goal()
+        self.loop_status = 0
+        self._start_charging(None)
+
     def reject_next_goal(self) -> None:
         """Refuse the next goal as the firmware refuses an unknown target id."""
         self._reject_next = True

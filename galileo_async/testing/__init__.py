@@ -17,16 +17,19 @@ if TYPE_CHECKING:
     from .device import ReceivedCommand, SimulatedDevice
     from .fleet import simulated_fleet
     from .leaks import LeakCheck
+    from .missions import MissionPlay, play_mission
     from .robot import Clock, map_of, simulated_robot
 
 __all__ = [
     "Clock",
     "LeakCheck",
+    "MissionPlay",
     "ReceivedCommand",
     "SimulatedDevice",
     "UnsupportedLoop",
     "VirtualClock",
     "map_of",
+    "play_mission",
     "simulated_fleet",
     "simulated_robot",
 ]
@@ -39,6 +42,8 @@ _LAZY: dict[str, str] = {
     "SimulatedDevice": "device",
     "simulated_fleet": "fleet",
     "LeakCheck": "leaks",
+    "MissionPlay": "missions",
+    "play_mission": "missions",
     "Clock": "robot",
     "map_of": "robot",
     "simulated_robot": "robot",

@@ -13,6 +13,7 @@ from ..protocol import Command
 from ..sim import SimState, Simulator
 
 if TYPE_CHECKING:
+    from ..sim.http import HttpFace
     from .clock import VirtualClock
 
 __all__ = ["ReceivedCommand", "SimulatedDevice"]
@@ -39,6 +40,9 @@ class SimulatedDevice:
     def __init__(self, simulator: Simulator, clock: VirtualClock | None) -> None:
         self.simulator = simulator
         self._clock = clock
+        #: The simulator's HTTP face (simulated_robot(link="http")): its ``spoken`` texts,
+        #: its ``current`` map and path, its ``tasks``; None on other links.
+        self.http_face: HttpFace | None = None
         self._log: list[ReceivedCommand] = []
         model = simulator.model
         self._model = model
@@ -125,6 +129,15 @@ class SimulatedDevice:
     def abort_next_goal(self) -> None:
         """Make the planner give up half way to the next goal (it ends free, far away)."""
         self._model.abort_next_goal()
+
+    def go_charge(self) -> None:
+        """Head for the dock by itself, as a robot with a low battery does (``j 0`` unsent).
+
+        The running goal ends (free, target -1: the Robot sees a cancel from elsewhere) and
+        patrol stops; the robot finds the dock, docks and charges (charge_status 3, 4, 1,
+        then 2 once full). A mission waits for the charge to end, then goes on.
+        """
+        self._model.go_charge()
 
     def busy(self, seconds: float) -> None:
         """Be busy for ``seconds`` from now (commands wait); 0 ends busy now."""

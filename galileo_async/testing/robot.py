@@ -23,10 +23,12 @@ if TYPE_CHECKING:
     else:
         from typing_extensions import Unpack
 
-__all__ = ["Clock", "build_simulator", "map_of", "simulated_robot"]
+__all__ = ["Clock", "SimLink", "build_simulator", "map_of", "simulated_robot"]
 
 #: "virtual": time jumps ahead whenever the loop is idle (VirtualClock); "real": wall time.
 Clock = Literal["virtual", "real"]
+#: "sim": the in-process link (sim://); "http": the simulator's HTTP face on loopback.
+SimLink = Literal["sim", "http"]
 
 
 def map_of(count: int) -> tuple[tuple[float, float], ...]:
@@ -61,6 +63,7 @@ async def simulated_robot(
     navigating: bool = True,
     clock: Clock = "virtual",
     sim_options: Mapping[str, Any] | None = None,
+    link: SimLink = "sim",
     **options: Unpack[ConnectOptions],
 ) -> AsyncIterator[tuple[Robot, SimulatedDevice]]:
     """``async with simulated_robot() as (robot, device)``: a Robot on a simulated robot.
@@ -73,10 +76,14 @@ async def simulated_robot(
     command sent); ``clock``: "virtual" (VirtualClock on the running loop: driver timers and
     the robot on one clock that jumps when idle) or "real"; ``sim_options``: more
     galileo_async.sim.SimConfig fields (``seed``, ``start_pose``, fault names …);
-    ``options``: connect()'s. Everything is checked before anything starts
-    (InvalidArgument); on exit the Robot, the simulator and the clock are released.
+    ``link``: "sim" (in-process) or "http" (the simulator's HTTP face on loopback: the
+    Robot has ``robot.http``; needs aiohttp); ``options``: connect()'s. Everything is
+    checked before anything starts (InvalidArgument); on exit the Robot, the simulator
+    and the clock are released.
     """
     connect_options: dict[str, Any] = dict(options)
+    if link not in ("sim", "http"):
+        raise InvalidArgument(f"link must be 'sim' or 'http', got {link!r}")
     simulator = build_simulator(
         firmware=firmware, targets=targets, navigating=navigating, clock=clock,
         sim_options=sim_options, options=connect_options,
@@ -85,7 +92,11 @@ async def simulated_robot(
     try:
         async with simulator:
             device = SimulatedDevice(simulator, virtual)
-            async with connect(simulator.url, **connect_options) as robot:
+            url = simulator.url
+            if link == "http":
+                face = device.http_face = await simulator.serve_http(ws_port=0)
+                url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+            async with connect(url, **connect_options) as robot:
                 yield robot, device
     finally:
         if virtual is not None:

@@ -6,16 +6,15 @@ import math
 from collections.abc import Hashable, Sequence
 from datetime import datetime, timezone
 
+from ..battery import battery_charge
 from ..models import GalileoStatus, TargetStatus, VisualStatus
 from .config import VehicleConfig
 from .models import AgvPosition, BatteryState, Error, ErrorReference, Velocity
 
 __all__ = [
-    "BATTERY_CURVE",
     "ERROR_HINTS",
     "INSTANT_ACTIONS",
     "agv_position",
-    "battery_charge",
     "battery_state",
     "driving",
     "factsheet_sections",
@@ -26,17 +25,6 @@ __all__ = [
     "velocity",
     "with_hints",
 ]
-
-#: Volts → percent of a 24 V pack at rest, linear between the points. The robot reports
-#: voltage only (docs/protocol.md §1 ``power``), so batteryCharge is an estimate.
-BATTERY_CURVE: tuple[tuple[float, float], ...] = (
-    (22.0, 0.0),
-    (23.5, 10.0),
-    (24.5, 30.0),
-    (25.5, 60.0),
-    (26.5, 85.0),
-    (28.0, 100.0),
-)
 
 #: instantActions this vehicle runs, with what each does (also the factsheet's agvActions).
 INSTANT_ACTIONS: dict[str, str] = {
@@ -80,20 +68,6 @@ def timestamp() -> str:
     """Now as ISO 8601 UTC with milliseconds (``2026-11-24T22:00:00.000Z``)."""
     now = datetime.now(timezone.utc)
     return now.strftime("%Y-%m-%dT%H:%M:%S.") + f"{now.microsecond // 1000:03d}Z"
-
-
-def battery_charge(volts: float) -> float:
-    """Estimated charge in percent (0..100) for ``volts`` on BATTERY_CURVE."""
-    if not math.isfinite(volts):
-        return 0.0
-    (low_v, low_p), *rest = BATTERY_CURVE
-    if volts <= low_v:
-        return low_p
-    for high_v, high_p in rest:
-        if volts <= high_v:
-            return round(low_p + (high_p - low_p) * (volts - low_v) / (high_v - low_v), 1)
-        low_v, low_p = high_v, high_p
-    return 100.0
 
 
 def battery_state(status: GalileoStatus | None) -> BatteryState:

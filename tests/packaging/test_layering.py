@@ -112,6 +112,7 @@ PARTS = {
     "galileo_async._wire": "base",
     "galileo_async.errors": "base",
     "galileo_async._checks": "base",
+    "galileo_async.battery": "base",
     "galileo_async.protocol": "protocol",
     "galileo_async.options": "options",
     "galileo_async.sim": "sim",
@@ -155,8 +156,13 @@ MAY_IMPORT = {
 }
 #: The only imports beyond MAY_IMPORT: the scheme table loads the simulator for sim://, and
 #: the optional http and ros links for their URLs, inside the functions that need them (or
-#: for type checking).
-LAZY_ONLY = {"galileo_async.links": {"sim", "ros", "http"}}
+#: for type checking); the Robot and the Fleet load the mission runner likewise.
+LAZY_ONLY = {
+    "galileo_async.links": {"sim", "ros", "http"},
+    # Robot.run_mission and Fleet.run_missions load the missions layer above them on use.
+    "galileo_async.robot.robot": {"missions"},
+    "galileo_async.fleet.fleet": {"missions"},
+}
 #: Modules that open or speak to a transport: state must do no I/O and know no transport.
 TRANSPORT_MODULES = (
     "socket",

@@ -11,6 +11,7 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.errors import GalileoError, WrongEventLoop
+from galileo_async.missions import Mission
 from galileo_async.protocol import Stop
 from tests.support.scripted_robot import connected, nothing_was_sent_before_marker
 
@@ -33,6 +34,9 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "remove_update_listener": (print,),
     "add_event_listener": (print,),
     "remove_event_listener": (print,),
+    "add_stop_listener": (print,),
+    "remove_stop_listener": (print,),
+    "run_mission": (Mission.model_validate({"mission": "m", "steps": [{"dwell": 1}]}),),
 }
 KEYWORDS: dict[str, dict[str, Any]] = {"shutdown_host": {"confirm": True}}
 

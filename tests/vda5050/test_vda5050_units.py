@@ -6,6 +6,7 @@ from typing import Any
 
 import pytest
 
+from galileo_async.battery import battery_charge
 from galileo_async.errors import InvalidArgument
 from galileo_async.models import ChargeStatus, GalileoStatus, NavStatus, VisualStatus
 from galileo_async.vda5050 import (
@@ -148,10 +149,10 @@ def status(**fields: Any) -> GalileoStatus:
 
 
 def test_battery_curve() -> None:
-    assert report.battery_charge(21.0) == 0.0
-    assert report.battery_charge(29.0) == 100.0
-    assert report.battery_charge(25.0) == 45.0
-    charges = [report.battery_charge(v / 10) for v in range(200, 300)]
+    assert battery_charge(21.0) == 0.0
+    assert battery_charge(29.0) == 100.0
+    assert battery_charge(25.0) == 45.0
+    charges = [battery_charge(v / 10) for v in range(200, 300)]
     assert charges == sorted(charges)
     battery = report.battery_state(status(charge_status=ChargeStatus.CHARGING))
     assert battery.charging

@@ -1,0 +1,347 @@
+"""``galileo mission run`` and ``galileo fleet mission run``: a mission with live progress.
+
+The command functions and ``register``/``register_fleet``, which add them to the
+``galileo mission`` group and to ``galileo fleet`` (a ``mission`` group with ``run``).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import anyio
+import anyio.lowlevel
+import anyio.to_thread
+import typer
+
+from ..errors import InvalidArgument
+from ..fleet.file import load_fleet_file
+from ..missions.capabilities import REST_API, needs
+from ..missions.events import LoopStarted, MissionEnded, MissionEvent, StepEnded
+from ..missions.model import Mission, WaitStep, step_paths
+from ..missions.report import MissionRejected, MissionReport
+from .output import out_console, timestamp
+from .runner import ExitCode, fail, is_sim, print_error, run, run_robot, settings_of
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+    from ..testing.robot import SimLink
+
+__all__ = [
+    "FILE_RELEASE_PERIOD",
+    "SIM_UNTIL",
+    "fleet_mission_run",
+    "load_mission_file",
+    "mission_exit_code",
+    "mission_run",
+    "register",
+    "register_fleet",
+]
+
+#: Seconds between two looks for the file of a ``file:PATH`` release.
+FILE_RELEASE_PERIOD = 0.5
+#: Simulated seconds after which ``--sim`` stops a mission that is still running (a day).
+SIM_UNTIL = 24 * 3600.0
+
+#: Exit codes by how the mission ended; "failed" goes by the failed step's ending.
+_ENDING_CODES = {
+    "completed": ExitCode.OK,
+    "stopped": ExitCode.CANCELLED,
+    "cancelled": ExitCode.INTERRUPTED,
+    "link lost": ExitCode.CONNECTION,
+}
+_STEP_CODES = {
+    "rejected": ExitCode.REJECTED,
+    "aborted": ExitCode.ABORTED,
+    "stalled": ExitCode.ABORTED,
+    "timeout": ExitCode.TIMEOUT,
+}
+
+FileArgument = Annotated[
+    Path, typer.Argument(help="The mission file (YAML; JSON is YAML too).", dir_okay=False)
+]
+ReleaseOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--release",
+        metavar="NAME=key|file:PATH",
+        help="What releases the wait NAME: key (Enter on stdin) or file:PATH (once PATH "
+        "exists). Repeatable.",
+    ),
+]
+JsonOption = Annotated[bool, typer.Option("--json", help="A JSON line per progress event.")]
+
+
+def load_mission_file(path: Path) -> Mission:
+    """The Mission in ``path`` (JSON, or YAML when pyyaml is installed); InvalidArgument."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InvalidArgument(f"{path}: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except ValueError:
+        try:
+            import yaml  # type: ignore[import-untyped, unused-ignore]
+        except ImportError:
+            raise InvalidArgument(f"{path}: not JSON, and pyyaml is not installed") from None
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise InvalidArgument(f"{path}: {exc}") from None
+    try:
+        return Mission.model_validate(data)
+    except ValueError as exc:
+        raise InvalidArgument(f"{path}: {exc}") from None
+
+
+def mission_exit_code(report: MissionReport) -> int:
+    """0 completed, 5 stopped, 7 link lost, 130 cancelled; a failure by its step's ending."""
+    if report.ending != "failed":
+        return int(_ENDING_CODES[report.ending])
+    last = report.steps[-1].ending if report.steps else "failed"
+    return int(_STEP_CODES.get(last, ExitCode.ERROR))
+
+
+def _releases(specs: list[str] | None) -> dict[str, Callable[[], Awaitable[object]]]:
+    releases: dict[str, Callable[[], Awaitable[object]]] = {}
+    for spec in specs or []:
+        name, _, how = spec.partition("=")
+        if not name or not how:
+            fail(f"--release {spec!r}: give NAME=key or NAME=file:PATH", ExitCode.USAGE)
+        if how == "key":
+            releases[name] = _key
+        elif how.startswith("file:") and how[5:]:
+            releases[name] = _file_release(Path(how[5:]))
+        else:
+            fail(f"--release {spec!r}: {how!r} is neither key nor file:PATH", ExitCode.USAGE)
+    return releases
+
+
+async def _key() -> None:
+    await anyio.to_thread.run_sync(sys.stdin.readline, abandon_on_cancel=True)
+
+
+def _file_release(path: Path) -> Callable[[], Awaitable[object]]:
+    async def appears() -> None:
+        # A file's appearance has no event to await without inotify: look now and then.
+        while not await anyio.Path(path).exists():  # noqa: ASYNC110
+            await anyio.sleep(FILE_RELEASE_PERIOD)
+
+    return appears
+
+
+def _line(event: MissionEvent) -> str | None:
+    """The text line of a progress event (None: no line)."""
+    if isinstance(event, StepEnded):
+        step = event.step
+        name = f" ({step.name})" if step.name else ""
+        error = f": {step.error}" if step.error else ""
+        return (
+            f"{step.path}{name} {step.action} {step.ending} in {step.duration:.1f} s, "
+            f"{step.distance_m:.1f} m{error}"
+        )
+    if isinstance(event, LoopStarted):
+        count = "" if event.count is None else f" of {event.count}"
+        return f"{event.path} loop {event.iteration}{count}"
+    if isinstance(event, MissionEnded):
+        report = event.report
+        took = report.ended - report.started
+        return (
+            f"mission {report.mission!r} {report.ending}: {len(report.steps)} steps, "
+            f"{report.loops_done} loops, {report.distance_m:.1f} m in {took:.1f} s"
+        )
+    return None
+
+
+def _printer(as_json: bool, robot: str | None = None) -> Callable[[MissionEvent], None]:
+    console = out_console()
+
+    def show(event: MissionEvent) -> None:
+        if as_json:
+            named = {} if robot is None else {"robot": robot}
+            line = json.dumps({"time": timestamp(), **named, **event.to_json()})
+            console.print(line, markup=False, soft_wrap=True, highlight=False)
+            return
+        text = _line(event)
+        if text is not None:
+            prefix = "" if robot is None else f"{robot}: "
+            console.print(prefix + text, markup=False, soft_wrap=True, highlight=False)
+
+    return show
+
+
+def _rejected(exc: MissionRejected) -> int:
+    for problem in exc.problems:
+        print_error(f"mission {exc.mission!r}: {problem}", kind="usage", code=ExitCode.USAGE)
+    return int(ExitCode.USAGE)
+
+
+def mission_run(
+    ctx: typer.Context,
+    file: FileArgument,
+    sim: Annotated[
+        bool,
+        typer.Option(
+            "--sim",
+            help="Play it on the built-in simulator on a virtual clock (hours in seconds) and "
+            "print the timeline; every wait is released at once.",
+        ),
+    ] = False,
+    until: Annotated[
+        float,
+        typer.Option("--until", min=1.0, help="--sim: stop it after this many simulated s."),
+    ] = SIM_UNTIL,
+    journal: Annotated[
+        Path | None, typer.Option("--journal", help="Record the run in this file.")
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Start where the --journal file says the run was.")
+    ] = False,
+    release: ReleaseOption = None,
+    json_output: JsonOption = False,
+) -> None:
+    """Run a mission with a line per step; the exit code tells how it ended.
+
+    0 completed, 2 rejected before anything moved, 3/4/6 a step failed (rejected, aborted
+    or stalled, timeout), 1 another failure, 5 stopped by a user stop, 7 link lost; Ctrl-C,
+    SIGTERM: the robot is stopped, 130/143.
+    """
+    settings = settings_of(ctx)
+    settings.json = settings.json or json_output
+    try:
+        mission = load_mission_file(file)
+    except InvalidArgument as exc:
+        fail(str(exc), ExitCode.USAGE)
+    releases = _releases(release)
+    show = _printer(settings.json)
+    if sim:
+
+        async def simulated() -> int:
+            return await _play(mission, show, until, settings.json)
+
+        run(settings, simulated)
+
+    async def body(robot: Robot) -> int:
+        from ..missions.runner import run_mission
+
+        try:
+            report = await run_mission(
+                robot, mission, releases=releases, journal=journal, resume=resume,
+                on_progress=show,
+            )  # fmt: skip
+        except MissionRejected as exc:
+            return _rejected(exc)
+        return mission_exit_code(report)
+
+    run_robot(settings, body, navigation=None, moving=True)
+
+
+async def _play(
+    mission: Mission, show: Callable[[MissionEvent], None], until: float, as_json: bool
+) -> int:
+    """``--sim``: the mission on simulated_robot() (http:// when a step needs it)."""
+    import asyncio
+
+    from ..testing import play_mission, simulated_robot
+
+    steps = [step for _, step in step_paths(mission.steps)]
+    link: SimLink = "http" if any(REST_API in needs(step) for step in steps) else "sim"
+    waits = {step.wait.release for step in steps if isinstance(step, WaitStep)}
+    released: dict[str, Callable[[], Awaitable[object]]] = dict.fromkeys(
+        waits, anyio.lowlevel.checkpoint
+    )
+    async with simulated_robot(link=link) as (robot, _):
+        stopping: list[asyncio.Task[Any]] = []
+
+        def stop() -> None:
+            stopping.append(asyncio.ensure_future(robot.stop()))
+
+        try:
+            play = await play_mission(robot, mission, faults={until: stop}, releases=released)
+        except MissionRejected as exc:
+            return _rejected(exc)
+        finally:
+            if stopping:
+                await asyncio.wait(stopping)
+    if as_json:
+        for event in play.events:
+            show(event)
+    else:
+        console = out_console()
+        for line in play.timeline():
+            console.print(line, markup=False, soft_wrap=True, highlight=False)
+    return mission_exit_code(play.report)
+
+
+def fleet_mission_run(
+    ctx: typer.Context,
+    file: FileArgument,
+    per_robot: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--per-robot",
+            metavar="NAME=FILE",
+            help="Robot NAME runs the mission in FILE instead of the shared one. Repeatable.",
+        ),
+    ] = None,
+    release: ReleaseOption = None,
+    json_output: JsonOption = False,
+) -> None:
+    """Run a mission on every robot of the fleet at once; the first stop stops them all.
+
+    A line per step, prefixed by the robot's name (--json: a JSON line per event with
+    "robot"). The exit code is the first robot's (in file order) that did not complete.
+    """
+    settings = settings_of(ctx)
+    settings.json = settings.json or json_output
+    if settings.fleet is None:
+        fail("fleet commands need a fleet file: galileo --fleet fleet.toml fleet …", ExitCode.USAGE)
+    try:
+        spec = load_fleet_file(settings.fleet)
+        shared = load_mission_file(file)
+        missions = dict.fromkeys(spec.ports, shared)
+        for entry in per_robot or []:
+            name, _, path = entry.partition("=")
+            if name not in spec.ports or not path:
+                raise InvalidArgument(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet")
+            missions[name] = load_mission_file(Path(path))
+    except InvalidArgument as exc:
+        fail(str(exc), ExitCode.USAGE)
+    releases = _releases(release)
+    shows = {name: _printer(settings.json, name) for name in missions}
+
+    async def main() -> int:
+        async with spec.connect() as fleet:
+            # As run_robot's navigation=None: a sim:// robot is a fresh one, navigation closed.
+            simulated = [name for name in missions if is_sim(spec.ports[name])]
+            opened = await fleet.each(lambda robot: robot.start_navigation(), simulated)
+            for result in opened.values():
+                if result.error is not None:
+                    raise result.error
+            try:
+                reports = await fleet.run_missions(
+                    missions, releases=releases,
+                    on_progress=lambda name, event: shows[name](event),
+                )  # fmt: skip
+            except MissionRejected as exc:
+                return _rejected(exc)
+        codes = [mission_exit_code(report) for report in reports.values()]
+        return next((code for code in codes if code != 0), 0)
+
+    run(settings, main)
+
+
+def register(mission_app: typer.Typer) -> None:
+    """Add ``run`` to the ``galileo mission`` group."""
+    mission_app.command("run")(mission_run)
+
+
+def register_fleet(fleet_app: typer.Typer) -> None:
+    """Add the group ``mission`` with ``run`` to ``galileo fleet``."""
+    group = typer.Typer(help="Missions on every robot of the fleet.", no_args_is_help=True)
+    group.command("run")(fleet_mission_run)
+    fleet_app.add_typer(group, name="mission")

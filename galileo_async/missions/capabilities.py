@@ -1,0 +1,54 @@
+"""What each step needs of the robot's link, and the steps of a mission a link cannot run."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from .model import Mission, step_action, step_paths
+
+if TYPE_CHECKING:
+    from .robot_api import MissionRobot
+
+__all__ = ["HTTP_ONLY", "REST_API", "Unsupported", "capabilities_of", "needs", "unsupported"]
+
+#: The capability of a link that speaks the robot's HTTP API (http://, https://).
+REST_API = "rest_api"
+#: The step kinds only the HTTP API can run (docs/protocol.md §5.3).
+HTTP_ONLY = frozenset({"goto_pose", "say", "switch_map"})
+
+
+@dataclass(frozen=True)
+class Unsupported:
+    """A step (by path and name) the link cannot run, and the capabilities it lacks."""
+
+    path: str
+    name: str | None
+    action: str
+    missing: frozenset[str]
+
+    def __str__(self) -> str:
+        where = self.path if self.name is None else f"{self.path} ({self.name})"
+        return f"{where}: {self.action} needs an http:// or https:// link"
+
+
+def needs(step: Any) -> frozenset[str]:
+    """The link capabilities ``step`` needs (empty: every link runs it)."""
+    return frozenset({REST_API}) if step_action(step) in HTTP_ONLY else frozenset()
+
+
+def capabilities_of(robot: MissionRobot) -> frozenset[str]:
+    """The capabilities of ``robot``'s link that steps need."""
+    return frozenset({REST_API}) if robot.http is not None else frozenset()
+
+
+def unsupported(mission: Mission, capabilities: Iterable[str]) -> list[Unsupported]:
+    """Every step of ``mission`` (loops' included) a link with ``capabilities`` cannot run."""
+    have = frozenset(capabilities)
+    found = []
+    for path, step in step_paths(mission.steps):
+        missing = needs(step) - have
+        if missing:
+            found.append(Unsupported(path, step.name, step_action(step) or "?", missing))
+    return found

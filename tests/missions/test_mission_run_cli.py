@@ -1,0 +1,245 @@
+"""``galileo mission run`` and ``galileo fleet mission run``: exit codes, lines, JSON lines."""
+
+from __future__ import annotations
+
+import json
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from galileo_async.cli import ExitCode
+from galileo_async.cli.mission_run import mission_exit_code
+from galileo_async.missions import MissionReport
+from tests.cli.test_cli import invoke
+from tests.cli.test_cli_served import _read_until as read_until
+from tests.cli.test_cli_signals import finish, start
+
+pytestmark = pytest.mark.timeout(120)
+
+LOBBY: dict[str, Any] = {
+    "mission": "lobby",
+    "steps": [
+        {"goto": 1, "name": "lobby"},
+        {"dwell": 30},
+        {"loop": {"count": 2, "steps": [{"goto": 2}, {"wait": "operator"}]}},
+    ],
+}
+
+
+def write(folder: Path, plan: dict[str, Any], name: str = "mission.json") -> str:
+    path = folder / name
+    path.write_text(json.dumps(plan), encoding="utf-8")
+    return str(path)
+
+
+def lines(output: str) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in output.splitlines() if line.startswith("{")]
+
+
+def test_run_prints_a_line_per_step_and_exits_0(tmp_path: Path) -> None:
+    plan = write(tmp_path, {"mission": "short", "steps": [{"goto": 1, "name": "a"}, {"dwell": 2}]})
+    result = invoke("mission", "run", plan, port=None)
+    assert result.exit_code == 0, result.output
+    out = result.stdout.splitlines()
+    assert out[0].startswith("steps[0] (a) goto reached in ")
+    assert out[1].startswith("steps[1] dwell done in 2.0 s")
+    assert out[-1].startswith("mission 'short' completed: 2 steps, 0 loops")
+
+
+def test_run_json_prints_a_line_per_event(tmp_path: Path) -> None:
+    plan = write(
+        tmp_path, {"mission": "short", "steps": [{"loop": {"count": 1, "steps": [{"dwell": 1}]}}]}
+    )
+    result = invoke("--json", "mission", "run", plan, port=None)
+    assert result.exit_code == 0, result.output
+    events = lines(result.stdout)
+    assert [e["event"] for e in events] == [
+        "loop_started", "step_started", "step_ended", "mission_ended",
+    ]  # fmt: skip
+    assert all("time" in e and e["mission"] == "short" for e in events)
+    assert events[2]["step"]["ending"] == "done"
+    assert events[-1]["report"]["ending"] == "completed"
+
+
+@pytest.mark.parametrize(
+    ("step", "code"),
+    [
+        ({"goto": 9}, ExitCode.REJECTED),
+        ({"goto": 9, "on_failure": "skip"}, ExitCode.OK),
+        ({"goto": 2, "timeout": 1}, ExitCode.TIMEOUT),
+        ({"call": {"url": "http://127.0.0.1:1/x", "timeout": 1}}, ExitCode.ERROR),
+    ],
+    ids=["rejected", "skipped", "timeout", "failed"],
+)
+def test_the_exit_code_tells_how_the_mission_ended(
+    tmp_path: Path, step: dict[str, Any], code: ExitCode
+) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [step]})
+    result = invoke("mission", "run", plan, port=None)
+    assert result.exit_code == code, result.output
+
+
+def test_a_mission_the_link_cannot_run_exits_2_naming_every_problem(tmp_path: Path) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"say": "hi"}, {"wait": "door"}]})
+    result = invoke("--json", "mission", "run", plan, port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    problems = [line["message"] for line in lines(result.stdout)]
+    assert problems == [
+        "mission 'm': steps[0]: say needs an http:// or https:// link",
+        "mission 'm': steps[1]: no release 'door' was given",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("text", "args", "message"),
+    [
+        ("{", (), "not JSON"),
+        ('{"mission": "m", "steps": []}', (), "steps"),
+        (json.dumps(LOBBY), ("--release", "operator"), "give NAME=key"),
+        (json.dumps(LOBBY), ("--release", "operator=mouse"), "neither key nor file:PATH"),
+    ],
+    ids=["not a mission", "no steps", "release without how", "unknown release"],
+)
+def test_usage_errors_exit_2(
+    tmp_path: Path, text: str, args: tuple[str, ...], message: str
+) -> None:
+    path = tmp_path / "bad.json"
+    path.write_text(text, encoding="utf-8")
+    result = invoke("mission", "run", str(path), *args, port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert message in result.output
+
+
+def test_a_file_release(tmp_path: Path) -> None:
+    go = tmp_path / "go"
+    go.write_text("", encoding="utf-8")
+    plan = write(tmp_path, LOBBY)
+    result = invoke("mission", "run", plan, "--release", f"operator=file:{go}", port=None)
+    assert result.exit_code == 0, result.output
+    assert "steps[2].loop.steps[1] wait done" in result.stdout
+
+
+def test_a_key_release(tmp_path: Path) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"wait": "operator"}, {"goto": 1}]})
+    result = invoke("mission", "run", plan, "--release", "operator=key", port=None, input=b"\n")
+    assert result.exit_code == 0, result.output
+
+
+def test_sim_prints_the_timeline_of_the_whole_plan(tmp_path: Path) -> None:
+    plan = write(tmp_path, LOBBY)
+    result = invoke("mission", "run", plan, "--sim", port=None)
+    assert result.exit_code == 0, result.output
+    out = result.stdout.splitlines()
+    assert out[0].split() == ["0.0", "s", "steps[0]", "goto", "started", "(attempt", "1)"]
+    assert out[-1].split()[2:] == ["mission", "completed"]
+    assert float(out[-1].split()[0]) > 37.0  # 30 s of dwell and three goals, in no time
+
+
+def test_sim_plays_http_steps_on_the_simulators_http_face(tmp_path: Path) -> None:
+    plan = write(
+        tmp_path, {"mission": "m", "steps": [{"say": "hi"}, {"goto_pose": {"x": 1, "y": 0}}]}
+    )
+    result = invoke("--json", "mission", "run", plan, "--sim", port=None)
+    assert result.exit_code == 0, result.output
+    ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
+    assert ended == ["done", "reached"]
+
+
+def test_sim_stops_a_forever_loop_after_until(tmp_path: Path) -> None:
+    forever = {
+        "mission": "m",
+        "steps": [{"loop": {"count": "forever", "steps": [{"goto": 1}, {"goto": 2}]}}],
+    }
+    result = invoke(
+        "mission", "run", write(tmp_path, forever), "--sim", "--until", "600", port=None
+    )
+    assert result.exit_code == ExitCode.CANCELLED, result.output
+    assert result.stdout.splitlines()[-1].split()[2:] == ["mission", "stopped"]
+
+
+def test_a_journal_and_a_resume_that_is_refused(tmp_path: Path) -> None:
+    plan, journal = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}]}), tmp_path / "j.json"
+    result = invoke("mission", "run", plan, "--journal", str(journal), port=None)
+    assert result.exit_code == 0, result.output
+    again = invoke("mission", "run", plan, "--journal", str(journal), "--resume", port=None)
+    assert again.exit_code == ExitCode.USAGE, again.output
+    assert "the mission completed; nothing to resume" in again.output
+
+
+FLEET = """
+[robots.alpha]
+port = "sim://?speed=20"
+
+[robots.beta]
+port = "sim://?speed=20"
+"""
+
+
+def test_fleet_mission_run_runs_every_robot_and_prefixes_its_lines(tmp_path: Path) -> None:
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(FLEET, encoding="utf-8")
+    shared = write(tmp_path, {"mission": "shared", "steps": [{"goto": 1}]})
+    own = write(tmp_path, {"mission": "own", "steps": [{"goto": 9}]}, "own.json")
+    result = invoke(
+        "--fleet", str(fleet), "fleet", "mission", "run", shared, "--per-robot", f"beta={own}",
+        port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.REJECTED, result.output  # beta's goal was refused
+    out = result.stdout.splitlines()
+    assert any(line.startswith("alpha: mission 'shared' completed") for line in out), out
+    assert any(line.startswith("beta: mission 'own' failed") for line in out), out
+    json_run = invoke("--fleet", str(fleet), "--json", "fleet", "mission", "run", shared, port=None)
+    assert json_run.exit_code == 0, json_run.output
+    assert {e["robot"] for e in lines(json_run.stdout)} == {"alpha", "beta"}
+
+
+def test_fleet_mission_run_needs_a_fleet_file(tmp_path: Path) -> None:
+    result = invoke("fleet", "mission", "run", write(tmp_path, LOBBY), port=None)
+    assert result.exit_code == ExitCode.USAGE
+
+
+def report(ending: str, last: str | None = None) -> MissionReport:
+    step = {"path": "steps[0]", "name": None, "action": "goto", "ending": last or "reached",
+            "started": 0, "ended": 1, "started_at": "2026-01-01T00:00:00Z",
+            "ended_at": "2026-01-01T00:00:01Z", "attempts": 1, "distance_m": 0}  # fmt: skip
+    return MissionReport.model_validate(
+        {
+            "mission": "m",
+            "ending": ending,
+            "steps": [step],
+            "started": 0,
+            "ended": 1,
+            "started_at": "2026-01-01T00:00:00Z",
+            "ended_at": "2026-01-01T00:00:01Z",
+        }
+    )
+
+
+@pytest.mark.parametrize(
+    ("ending", "last", "code"),
+    [
+        ("completed", None, 0), ("stopped", "stopped", 5), ("link lost", "link lost", 7),
+        ("cancelled", "cancelled", 130), ("failed", "rejected", 3), ("failed", "aborted", 4),
+        ("failed", "stalled", 4), ("failed", "timeout", 6), ("failed", "failed", 1),
+    ],
+)  # fmt: skip
+def test_mission_exit_codes(ending: str, last: str | None, code: int) -> None:
+    assert mission_exit_code(report(ending, last)) == code
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_stops_the_mission_and_the_robot(
+    tmp_path: Path, sig: signal.Signals, code: int
+) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 2}, {"dwell": 600}]})
+    process = start("--port", "sim://", "--json", "mission", "run", plan)
+    assert process.stdout is not None
+    read_until(process.stdout, '"step_started"')
+    returncode, out, err = finish(process, sig)
+    assert returncode == code, err
+    events = lines(out)
+    ended = [e for e in events if e.get("event") == "mission_ended"]
+    assert ended[0]["report"]["ending"] == "cancelled"
+    assert any(e.get("result") == "interrupted" and e.get("stop_sent") for e in events), out
