@@ -7,12 +7,12 @@ from typing import Any
 
 import pytest
 
+from galileo_async.battery import BATTERY_CURVE
 from galileo_async.missions import Mission, Problem, check_mission, check_static
 from galileo_async.missions.check import BUDGET, check_plan, has_errors
 from galileo_async.missions.importers import ImportedPlan
 from galileo_async.sim import SimConfig
 from galileo_async.testing import simulated_robot
-from galileo_async.vda5050.report import BATTERY_CURVE
 from tests.robot.goals.test_http_goals import http_robot
 
 pytestmark = pytest.mark.timeout(60)
