@@ -124,9 +124,9 @@ class StatusStore:
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
-        # power's wire value: the field reads it through models.float32_decimal, a
+        # power's wire value (its slot): the field reads it through float32_decimal, a
         # conversion this test for zero, on every frame, does not need.
-        if status.__dict__["power"] == 0.0 and status.is_placeholder:
+        if status._power == 0.0 and status.is_placeholder:
             self._placeholder()
             return
         if self._frame_waiters:
