@@ -295,23 +295,17 @@ class GalileoStatus:
 
     @classmethod
     def __get_pydantic_core_schema__(cls, source: Any, handler: GetCoreSchemaHandler) -> CoreSchema:
-        """As a field of a pydantic model: validated like model_validate, dumped like model_dump."""
+        """As a field of a pydantic model: validated, dumped and described as the companion."""
         from pydantic_core import core_schema
 
+        model = handler.generate_schema(_model())
         return core_schema.no_info_after_validator_function(
-            cls._from_model_or_status,
-            core_schema.union_schema(
-                [core_schema.is_instance_schema(cls), handler.generate_schema(_model())]
-            ),
-            serialization=core_schema.plain_serializer_function_ser_schema(
-                lambda status, info: status._model().model_dump(mode=info.mode),
-                info_arg=True,
+            cls._from_model,
+            core_schema.no_info_before_validator_function(_as_model, model),
+            serialization=core_schema.wrap_serializer_function_ser_schema(
+                lambda status, dump: dump(_as_model(status)), schema=model
             ),
         )
-
-    @classmethod
-    def _from_model_or_status(cls, value: Any) -> Self:
-        return value if isinstance(value, cls) else cls._from_model(value)
 
     @classmethod
     def _from_model(cls, model: BaseModel) -> Self:
@@ -424,6 +418,11 @@ def _restored(
     return status
 
 
+def _as_model(value: Any) -> Any:
+    """A status's companion model; anything else as it is."""
+    return value._model() if isinstance(value, GalileoStatus) else value
+
+
 def _frozen(name: str, value: Any) -> ValidationError:
     """What assigning to a status raises, as pydantic's frozen models do."""
     return ValidationError.from_exception_data(
@@ -435,8 +434,8 @@ def _frozen(name: str, value: Any) -> ValidationError:
 def _model() -> type[BaseModel]:
     """The companion pydantic model of GalileoStatus, built on first use."""
 
-    class _GalileoStatusModel(BaseModel):
-        model_config = ConfigDict(frozen=True, title="GalileoStatus")
+    class GalileoStatus(BaseModel):  # its name: the title of its errors and schemas
+        model_config = ConfigDict(frozen=True)
 
         layout: StatusLayout = StatusLayout.V2
         nav_status: NavStatus | None = None
@@ -465,4 +464,4 @@ def _model() -> type[BaseModel]:
         def _float32_decimal(self, value: float | None) -> float | None:
             return None if value is None else float32_decimal(value)
 
-    return _GalileoStatusModel
+    return GalileoStatus
