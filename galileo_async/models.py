@@ -180,8 +180,6 @@ class GalileoStatus:
         @property
         def current_angle(self) -> float | None: ...
 
-        #: The wire value of ``power`` (the store compares it with zero on every frame).
-        _power: float | None
         _fields_set: frozenset[str]
     else:
         power = _Float32Field()
@@ -199,9 +197,16 @@ class GalileoStatus:
     def __init__(self, **data: Any) -> None:
         """Validate ``data`` (field names; unknown names are ignored) like pydantic does."""
         model = _model()(**data)
-        _fill(self, model.__dict__, frozenset(model.model_fields_set))
+        self._fill(self, model.__dict__, frozenset(model.model_fields_set))
 
     # --- frozen ---------------------------------------------------------------------------
+
+    @staticmethod
+    def _fill(status: GalileoStatus, values: Mapping[str, Any], fields_set: frozenset[str]) -> None:
+        """Store ``values`` (every field) and ``fields_set`` into a new, empty ``status``."""
+        for name, slot in _SLOTS.items():
+            object.__setattr__(status, slot, values[name])
+        object.__setattr__(status, "_fields_set", fields_set)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise _frozen(name, value)
@@ -273,7 +278,7 @@ class GalileoStatus:
         values = dict(zip(_FIELD_NAMES, _WIRE(self), strict=True))
         values.update(update)
         copied = object.__new__(type(self))
-        _fill(copied, values, self._fields_set | update.keys())
+        self._fill(copied, values, self._fields_set | update.keys())
         return copied
 
     @classmethod
@@ -310,7 +315,7 @@ class GalileoStatus:
     @classmethod
     def _from_model(cls, model: BaseModel) -> Self:
         status = object.__new__(cls)
-        _fill(status, model.__dict__, frozenset(model.model_fields_set))
+        cls._fill(status, model.__dict__, frozenset(model.model_fields_set))
         return status
 
     def _model(self) -> BaseModel:
@@ -396,17 +401,13 @@ class _Filling(GalileoStatus):
     __delattr__ = object.__delattr__
 
 
+#: A status's power as the wire value it keeps (no float32_decimal): for code that only
+#: compares it with zero, on every frame (StatusStore.update).
+_wire_power: Callable[[GalileoStatus], float | None] = attrgetter("_power")
 #: Every slot's value of a status, in _FIELD_NAMES order (the wire values).
 _WIRE = attrgetter(*_SLOTS.values())
 #: Every field as it reads, in _FIELD_NAMES order.
 _READ = attrgetter(*_FIELD_NAMES)
-
-
-def _fill(status: GalileoStatus, values: Mapping[str, Any], fields_set: frozenset[str]) -> None:
-    """Store ``values`` (every field) and ``fields_set`` into a new, empty ``status``."""
-    for name, slot in _SLOTS.items():
-        object.__setattr__(status, slot, values[name])
-    object.__setattr__(status, "_fields_set", fields_set)
 
 
 def _restored(
@@ -414,7 +415,7 @@ def _restored(
 ) -> GalileoStatus:
     """A status from what ``__reduce__`` gave: pickles and copies."""
     status = object.__new__(cls)
-    _fill(status, dict(zip(_FIELD_NAMES, values, strict=True)), fields_set)
+    cls._fill(status, dict(zip(_FIELD_NAMES, values, strict=True)), fields_set)
     return status
 
 
