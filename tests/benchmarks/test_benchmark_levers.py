@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from benchmarks import levers
-from galileo_async.models import GalileoStatus, _model
+from galileo_async.models import GalileoStatus, StatusLayout, _model
 from galileo_async.protocol import LAYOUTS
 from tests.support import vectors as v
 
@@ -28,7 +28,7 @@ def test_the_plain_record_holds_the_status_fields() -> None:
 
 
 def test_the_old_way_builds_the_pydantic_model_of_the_status() -> None:
-    names = LAYOUTS["v2"].fields
+    names = LAYOUTS[StatusLayout.V2].fields
     expected = v.V2_ACTIVE_STATUS
     raw = tuple(getattr(expected, name) for name in names)
     built = levers._model_builder(names)(raw)
