@@ -199,14 +199,14 @@ class GalileoStatus:
         model = _model()(**data)
         self._fill(self, model.__dict__, frozenset(model.model_fields_set))
 
-    # --- frozen ---------------------------------------------------------------------------
-
     @staticmethod
     def _fill(status: GalileoStatus, values: Mapping[str, Any], fields_set: frozenset[str]) -> None:
         """Store ``values`` (every field) and ``fields_set`` into a new, empty ``status``."""
         for name, slot in _SLOTS.items():
             object.__setattr__(status, slot, values[name])
         object.__setattr__(status, "_fields_set", fields_set)
+
+    # --- frozen ---------------------------------------------------------------------------
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise _frozen(name, value)
