@@ -3,11 +3,14 @@
 ``python -m benchmarks.levers``: in this process, the best of 7 repetitions of 200,000
 calls each, ns per call, for the same unpacked values of a v2 frame:
 
-* **pydantic fast build**: the decoder's builder (``protocol/_build.py``'s fast path);
-* **plain slotted record**: the same 22 attribute stores and 6 enum lookups into a
-  ``__slots__`` object, what a decoder producing a plain record would do per frame;
+* **decoder build**: the decoder's builder (``protocol/_build.py``), a GalileoStatus record;
+* **pydantic model, as before the record**: what the decoder did while GalileoStatus was a
+  pydantic model: the same stores into a holder whose dict became a model's, whose three
+  slots were set (the companion model stands in for it);
+* **bare slotted record**: the same 22 attribute stores and 6 enum lookups into a plain
+  ``__slots__`` object of its own, the floor of any record;
 * **unchanged frame**: the previous status reused with a new time_stamp (compare the
-  values but for the counter, copy the previous status's dict, set pydantic's slots);
+  values but for the counter, copy the previous status's slots, one store more);
 * **call overhead**: a function that does nothing, the harness's own share.
 
 Not part of ``python -m benchmarks``: a measurement for BENCHMARKS.md §9, not a target.
@@ -19,8 +22,10 @@ import timeit
 from collections.abc import Callable
 from typing import Any
 
-from galileo_async.models import GalileoStatus, NavStatus
-from galileo_async.protocol import _build, encode_status
+from pydantic import BaseModel
+
+from galileo_async.models import GalileoStatus, NavStatus, _Filling, _model
+from galileo_async.protocol import encode_status
 from galileo_async.protocol import status as decoding
 from galileo_async.protocol.layouts import ENUM_FIELDS, LAYOUTS
 
@@ -46,6 +51,52 @@ def _record_builder(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], objec
     return build
 
 
+def _model_builder(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], object]:
+    """The decoder's build while GalileoStatus was a pydantic model (its fast path)."""
+    model = _model()
+    holder = type("Compact", (), {})
+    setters = {
+        name: vars(BaseModel)[name].__set__
+        for name in (
+            "__dict__",
+            "__pydantic_fields_set__",
+            "__pydantic_extra__",
+            "__pydantic_private__",
+        )
+    }
+    namespace: dict[str, Any] = {
+        "new": object.__new__, "cls": model, "Compact": holder, "fields_set": set(),
+        **{f"set{index}": setter for index, setter in enumerate(setters.values())},
+    }  # fmt: skip
+    lines = ["def build(values):"]
+    lines.append("    " + ", ".join(f"v{i}" for i in range(len(names))) + ", = values")
+    lines.append("    f = Compact()")
+    for index, name in enumerate(names):
+        if name in ENUM_FIELDS:
+            namespace[f"m_{name}"] = dict(ENUM_FIELDS[name]._value2member_map_)
+            lines.append(f"    f.{name} = m_{name}[v{index}]")
+        else:
+            lines.append(f"    f.{name} = v{index}")
+    lines += [
+        "    f.layout = 'v2'", "    s = new(cls)", "    set0(s, f.__dict__)",
+        "    set1(s, fields_set)", "    set2(s, None)", "    set3(s, None)", "    return s",
+    ]  # fmt: skip
+    exec("\n".join(lines) + "\n", namespace)
+    build: Callable[[tuple[Any, ...]], object] = namespace["build"]
+    return build
+
+
+def _record_copier(slots: tuple[str, ...]) -> Callable[[GalileoStatus], Any]:
+    """A function: status → a writable copy of it (a ``_Filling``), slot by slot."""
+    namespace: dict[str, Any] = {"Filling": _Filling}
+    lines = ["def copy(previous):", "    s = Filling()"]
+    lines += [f"    s.{slot} = previous.{slot}" for slot in slots]
+    lines.append("    return s")
+    exec("\n".join(lines) + "\n", namespace)
+    copier: Callable[[GalileoStatus], Any] = namespace["copy"]
+    return copier
+
+
 def measure(number: int = NUMBER, repeat: int = REPEAT) -> dict[str, float]:
     """ns per call of each way to a status (best of ``repeat`` runs of ``number`` calls)."""
     names = LAYOUTS["v2"].fields
@@ -60,24 +111,25 @@ def measure(number: int = NUMBER, repeat: int = REPEAT) -> dict[str, float]:
     previous = build(values)
     head, tail = values[:stamp], values[stamp + 1 :]
 
+    slots = GalileoStatus.__slots__
+    copy_slots = _record_copier(slots)
+
     def unchanged(values: tuple[Any, ...]) -> GalileoStatus | None:
         if values[:stamp] != head or values[stamp + 1 :] != tail:
             return None
-        fields = previous.__dict__.copy()
-        fields["time_stamp"] = values[stamp]
-        status: GalileoStatus = _build._new_status(GalileoStatus)
-        _build._set_dict(status, fields)
-        _build._set_fields_set(status, _build._ALL_FIELDS)
-        _build._set_extra(status, None)
-        _build._set_private(status, None)
-        return status
+        status = copy_slots(previous)
+        status.time_stamp = values[stamp]
+        status.__class__ = GalileoStatus
+        reused: GalileoStatus = status
+        return reused
 
     def nothing(values: tuple[Any, ...]) -> None:
         return None
 
     ways: dict[str, Callable[[tuple[Any, ...]], object]] = {
-        "pydantic fast build": build,
-        "plain slotted record": _record_builder(names),
+        "decoder build (GalileoStatus record)": build,
+        "pydantic model, as before the record": _model_builder(names),
+        "bare slotted record": _record_builder(names),
         "unchanged frame: previous status, new time_stamp": unchanged,
         "call overhead": nothing,
     }

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 from .. import events as ev
 from ..errors import ConnectionLost, GalileoConnectionError, GalileoTimeout, LinkStale
 from ..events import Event
-from ..models import GalileoStatus, LinkState
+from ..models import GalileoStatus, LinkState, _wire_power
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE, GoalMachine, SentGoal, step_events
 from .listeners import EventListener, Listeners, StatusListener
 from .streams import (
@@ -124,9 +124,9 @@ class StatusStore:
 
     def update(self, status: GalileoStatus) -> None:
         """Record a new status and wake whatever waits on it (hot path; never raises)."""
-        # power's wire value: the field reads it through models.float32_decimal, a
-        # conversion this test for zero, on every frame, does not need.
-        if status.__dict__["power"] == 0.0 and status.is_placeholder:
+        # power's wire value: the field reads it through float32_decimal, a conversion
+        # this test for zero, on every frame, does not need.
+        if _wire_power(status) == 0.0 and status.is_placeholder:
             self._placeholder()
             return
         if self._frame_waiters:

@@ -6,7 +6,6 @@ import copy
 import math
 import pickle
 import struct
-import sys
 from typing import Any
 
 import pydantic
@@ -114,11 +113,11 @@ def test_builder_equals_validated_and_behaves_like_any_status() -> None:
     assert built.model_copy(update={"power": 1.0}).power == 1.0
     again = build(raw)
     assert again == built
-    assert again.__dict__ is not built.__dict__
+    assert again is not built
+    assert type(built) is GalileoStatus
     with pytest.raises(pydantic.ValidationError):
         built.power = 2.0  # type: ignore[misc]
-    if sys.implementation.name == "cpython":  # its copies share one key table
-        assert sys.getsizeof(built.__dict__) < sys.getsizeof(dict(built.__dict__))
+    assert not hasattr(built, "__dict__")  # a slotted record: no dict per status
 
 
 def test_builder_falls_back_to_the_maps_for_values_they_only_make_on_demand() -> None:
@@ -227,3 +226,43 @@ def test_unknown_enum_values_decode_to_pseudo_members() -> None:
     assert status.map_status.known is True
     assert encode_status(status) == frame
     assert status.target_status != TargetStatus.INVALID
+
+
+def test_the_pydantic_style_api_of_the_record() -> None:
+    status = v.V2_ACTIVE_STATUS
+    assert not isinstance(status, pydantic.BaseModel)
+    assert GalileoStatus.model_validate(status) is status
+    assert GalileoStatus.model_validate(dict(status)) == status
+    assert GalileoStatus.model_validate_json(status.model_dump_json()) == status
+    assert GalileoStatus.model_json_schema()["title"] == "GalileoStatus"
+    assert set(GalileoStatus.model_json_schema()["properties"]) == set(GalileoStatus.model_fields)
+    assert str(status) == repr(status)[len("GalileoStatus(") : -1].replace(", ", " ")
+    assert GalileoStatus(nav_status=1, no_such_field=3) == GalileoStatus(nav_status=1)  # ignored
+    assert GalileoStatus(nav_status=1).model_fields_set == {"nav_status"}
+    copied = GalileoStatus(nav_status=1).model_copy(update={"power": 12.5})
+    assert copied.model_fields_set == {"nav_status", "power"}
+    assert copied.model_dump(exclude_unset=True) == {"nav_status": NavStatus.OPEN, "power": 12.5}
+    with pytest.raises(ValueError, match="no_such_field"):
+        status.model_copy(update={"no_such_field": 1})
+    with pytest.raises(pydantic.ValidationError, match="frozen"):
+        del status.power
+    with pytest.raises(pydantic.ValidationError, match="1 validation error for GalileoStatus"):
+        GalileoStatus.model_validate({"power": "lots"})
+
+
+def test_a_status_is_a_field_type_of_pydantic_models() -> None:
+    class Report(pydantic.BaseModel):
+        status: GalileoStatus
+        previous: GalileoStatus | None = None
+
+    report = Report(status=v.V2_ACTIVE_STATUS)
+    assert report.status == v.V2_ACTIVE_STATUS
+    assert type(report.status) is GalileoStatus
+    assert report.model_dump()["status"] == v.V2_ACTIVE_STATUS.model_dump()
+    again = Report.model_validate_json(report.model_dump_json())
+    assert again == report
+    assert type(again.status) is GalileoStatus
+    assert Report(status={"nav_status": 1}).status == GalileoStatus(nav_status=1)
+    with pytest.raises(pydantic.ValidationError, match=r"status\.nav_status"):
+        Report(status={"nav_status": "open"})
+    assert Report.model_json_schema()["properties"]["status"] == {"$ref": "#/$defs/GalileoStatus"}
