@@ -1,13 +1,17 @@
 """VDA 5050: N vehicles on one event loop, each with its own MQTT session to a real Mosquitto.
 
-Every robot is an in-process ``sim://`` robot (30 status frames/s); each vehicle publishes
-visualization at 10 Hz. A load driver toggles every robot between teleop forward and stop
-once a second (staggered), so ``driving`` flips: a status change that matters.
+Every robot sends 30 status frames/s; each vehicle publishes visualization at 10 Hz. The
+robots are in-process ``sim://`` robots, or (``robots_process``, the default from
+ROBOTS_PROCESS_FROM vehicles on) simulated robots served by a ``benchmarks.fleet_server``
+process (traffic spread over the frame period), each connected here as a ``socket://``
+robot. A load driver toggles every robot between teleop forward and stop once a second
+(staggered), so ``driving`` flips: a status change that matters.
 
 * **CPU per vehicle**: this process's CPU time over the window / wall time / N (Mosquitto
-  runs in its own process and is not counted). Baseline, same run: the same N robots and
-  load with no vehicle. **CPU of the adapters**: the difference times N, in cores (the
-  robots and the broker not counted).
+  and the robots' server run in their own processes and are not counted). Baseline, same
+  run: the same N robots and load with no vehicle. **CPU of the adapters**: the
+  difference times N, in cores (the robots and the broker not counted). Mosquitto's CPU
+  and the robots' server's (``/proc/PID/stat``) are reported beside it, in cores.
 * **RSS per vehicle**: this process's resident memory once every vehicle is ONLINE, less
   the same with the robots only (just before the vehicles start), / N.
 * **status change → state published**: t0 when a consumer of ``robot.statuses()`` sees
@@ -24,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import math
 import os
 import shutil
 import socket
@@ -32,6 +37,8 @@ import tempfile
 import time
 from collections.abc import AsyncIterator, Iterator
 from contextlib import AsyncExitStack
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -44,12 +51,19 @@ from galileo_async.vda5050 import Vehicle, VehicleConfig, run_vehicles
 from galileo_async.vda5050.report import driving
 
 from .common import Row, percentile, raise_fd_limit
+from .fleet import _connect, _Server
 
-__all__ = ["measure", "run"]
+__all__ = ["ROBOTS_PROCESS_FROM", "Broker", "broker", "measure", "mosquitto", "run"]
 
 MOSQUITTO = "/usr/sbin/mosquitto"
+#: From this many vehicles on, the robots run in their own process unless told otherwise:
+#: 1000 in-process sim robots alone saturate the one core a Python process has.
+ROBOTS_PROCESS_FROM = 500
 TOGGLE_PERIOD = 1.0
 GOAL_P99 = 0.050
+#: Issue #33: the adapters of TARGET_N vehicles cost at most GOAL_CORES (pro rata below).
+GOAL_CORES = 0.5
+TARGET_N = 1000
 INTERFACE = "bench"
 #: The shared baseline client has many publishes in flight at once, which aiomqtt logs.
 _QUIET = logging.getLogger("benchmarks.vda5050.echo")
@@ -65,15 +79,41 @@ def _rss() -> int:
         return 0
 
 
+def process_cpu(pid: int) -> float:
+    """CPU seconds (user + system) of process ``pid`` so far, from /proc; NaN elsewhere."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return math.nan
+    # Fields 14 and 15 of proc(5) (utime, stime): 12 and 13 after the command's ")".
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
 
 
+@dataclass(frozen=True)
+class Broker:
+    """A running Mosquitto: its port on 127.0.0.1 and its process id."""
+
+    port: int
+    pid: int
+
+
 @contextlib.contextmanager
 def mosquitto(*, nodelay: bool = True) -> Iterator[int]:
     """A Mosquitto on a free loopback port for the duration; yields the port."""
+    with broker(nodelay=nodelay) as running:
+        yield running.port
+
+
+@contextlib.contextmanager
+def broker(*, nodelay: bool = True) -> Iterator[Broker]:
+    """A Mosquitto on a free loopback port for the duration."""
     executable = MOSQUITTO if os.access(MOSQUITTO, os.X_OK) else shutil.which("mosquitto")
     if executable is None:
         raise FileNotFoundError("Mosquitto is not installed (.ci/setup installs it)")
@@ -97,7 +137,7 @@ def mosquitto(*, nodelay: bool = True) -> Iterator[int]:
                     if time.monotonic() > deadline:
                         raise
                     time.sleep(0.05)
-            yield port
+            yield Broker(port, proc.pid)
         finally:
             proc.terminate()
             proc.wait(10)
@@ -172,7 +212,17 @@ async def _master(client: aiomqtt.Client, probe: _Probe) -> None:
 
 
 @contextlib.asynccontextmanager
-async def _robots(count: int) -> AsyncIterator[list[Robot]]:
+async def _robots(count: int, server: _Server | None) -> AsyncIterator[list[Robot]]:
+    """``count`` in-process sim robots, or the server's robots connected over ``socket://``."""
+    if server is not None:
+        robots = await _connect(server)
+        try:
+            yield robots
+        finally:
+            with anyio.CancelScope(shield=True):
+                for robot in robots:
+                    await robot.close()
+        return
     async with AsyncExitStack() as stack:
         robots = [
             await stack.enter_async_context(galileo_async.connect("sim://")) for _ in range(count)
@@ -180,11 +230,20 @@ async def _robots(count: int) -> AsyncIterator[list[Robot]]:
         yield robots
 
 
-async def measure(count: int, seconds: float, port: int, vehicles: bool) -> dict[str, Any]:
-    """One phase: ``count`` robots, with vehicles or the bare baseline; CPU and latencies."""
+async def measure(
+    count: int, seconds: float, port: int, vehicles: bool, *, server: _Server | None = None,
+    broker_pid: int | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """One phase: ``count`` robots, with vehicles or the bare baseline; CPU and latencies.
+
+    ``server``: the robots are the server's (``socket://``), its CPU measured too;
+    ``broker_pid``: Mosquitto's CPU is measured as well (else NaN).
+    """
     probe = _Probe(count)
+    others = {"server": server.process.pid if server is not None else None,
+              "broker": broker_pid}  # fmt: skip
     async with (
-        _robots(count) as robots,
+        _robots(count, server) as robots,
         aiomqtt.Client("127.0.0.1", port, identifier=f"bench-master-{vehicles}") as master,
         aiomqtt.Client(
             "127.0.0.1", port, identifier=f"bench-echo-{vehicles}", logger=_QUIET
@@ -220,43 +279,63 @@ async def measure(count: int, seconds: float, port: int, vehicles: bool) -> dict
             group.start_soon(_toggle, robot, index, count)
         await anyio.sleep(2 * TOGGLE_PERIOD)  # warm up
         probe.recording = True
+        started = {name: _cpu_of(pid) for name, pid in others.items()}
         cpu, wall = time.process_time(), time.perf_counter()
         await anyio.sleep(seconds)
         cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        cores = {name: (_cpu_of(pid) - started[name]) / wall for name, pid in others.items()}
         probe.recording = False
         group.cancel_scope.cancel()
     return {
         "cpu_per_robot": cpu / wall / count,
+        "server_cores": cores["server"],
+        "broker_cores": cores["broker"],
         "latencies": probe.latencies,
         "in_vehicle": probe.in_vehicle,
         "rss_per_vehicle": rss,
     }
 
 
+def _cpu_of(pid: int | None) -> float:
+    return math.nan if pid is None else process_cpu(pid)
+
+
 def run(
-    *, quick: bool = False, vehicles: int | None = None, seconds: float | None = None
-) -> list[Row]:
+    *, quick: bool = False, vehicles: int | None = None, seconds: float | None = None,
+    robots_process: bool | None = None,
+) -> list[Row]:  # fmt: skip
     """Three phases at N vehicles (default 100; --quick 20), each over ``seconds`` (10; 4).
 
     Baseline and vehicles on a broker with ``set_tcp_nodelay true``, then the vehicles again
     on Mosquitto's default (Nagle on: the broker holds a small message for the ACK of the one
-    before, up to the subscriber's delayed ACK).
+    before, up to the subscriber's delayed ACK). ``robots_process``: the robots in a
+    fleet_server process, one for all three phases (default: from ROBOTS_PROCESS_FROM on).
     """
     count = vehicles or (20 if quick else 100)
     seconds = seconds or (4.0 if quick else 10.0)
+    if robots_process is None:
+        robots_process = count >= ROBOTS_PROCESS_FROM
     raise_fd_limit()
+    server = _Server(count, traffic="spread", idle=True) if robots_process else None
     try:
-        with mosquitto(nodelay=True) as port:
-            bare = anyio.run(measure, count, seconds, port, False)
-            driven = anyio.run(measure, count, seconds, port, True)
-        with mosquitto(nodelay=False) as port:
-            nagle = anyio.run(measure, count, seconds, port, True)
+        with broker(nodelay=True) as mqtt:
+            options = {"server": server, "broker_pid": mqtt.pid}
+            bare = anyio.run(partial(measure, count, seconds, mqtt.port, False, **options))
+            driven = anyio.run(partial(measure, count, seconds, mqtt.port, True, **options))
+        with broker(nodelay=False) as mqtt:
+            options = {"server": server, "broker_pid": mqtt.pid}
+            nagle = anyio.run(partial(measure, count, seconds, mqtt.port, True, **options))
     except FileNotFoundError as exc:
         return [Row("vda5050", f"not run: {exc}", float("nan"), "")]
+    finally:
+        if server is not None:
+            server.close()
     ms = 1000.0
     p99 = percentile(driven["latencies"], 99)
+    robots = "fleet_server process, socket://" if robots_process else "in-process sim://"
     extra = {"vehicles": count, "samples": len(driven["latencies"]),
-             "baseline_samples": len(bare["latencies"]), "visualization_hz": 10}  # fmt: skip
+             "baseline_samples": len(bare["latencies"]), "visualization_hz": 10,
+             "robots": robots}  # fmt: skip
 
     def latency(name: str, figures: list[float], q: int, **target: Any) -> Row:
         return Row("vda5050", f"{name} p{q}", percentile(figures, q) * ms, "ms",
@@ -265,11 +344,18 @@ def run(
 
     change = "status change → state at master"
     adapters = (driven["cpu_per_robot"] - bare["cpu_per_robot"]) * count
+    robot = "socket:// robot" if robots_process else "sim robot"
+    goal = GOAL_CORES * count / TARGET_N
     return [
         Row("vda5050", f"CPU per vehicle ({count} vehicles)", driven["cpu_per_robot"] * 100,
-            "% core", bare["cpu_per_robot"] * 100, "sim robot, no vehicle", extra=extra),
+            "% core", bare["cpu_per_robot"] * 100, f"{robot}, no vehicle", extra=extra),
         Row("vda5050", f"CPU of the {count} adapters (robots, broker not counted)", adapters,
-            "cores", extra=extra),
+            "cores", target=f"≤ {goal:g} cores", ok=adapters <= goal if robots_process else None,
+            extra=extra),
+        Row("vda5050", "Mosquitto CPU", driven["broker_cores"], "cores",
+            bare["broker_cores"], "no vehicle", extra=extra),
+        Row("vda5050", "robots' server CPU", driven["server_cores"], "cores",
+            bare["server_cores"], "no vehicle", extra=extra),
         Row("vda5050", "RSS per vehicle", driven["rss_per_vehicle"] / 1024, "KiB",
             extra=extra),
         latency(change, driven["latencies"], 50),
