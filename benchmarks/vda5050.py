@@ -14,6 +14,9 @@ robot. A load driver toggles every robot between teleop forward and stop once a 
   and the robots' server's (``/proc/PID/stat``) are reported beside it, in cores.
 * **RSS per vehicle**: this process's resident memory once every vehicle is ONLINE, less
   the same with the robots only (just before the vehicles start), / N.
+* **event loop lag**: how late a 10 ms sleep of this loop wakes (p99), with and without
+  the vehicles: a loop behind its work, or a process the machine does not run in time,
+  shows here before the latencies do.
 * **status change → state published**: t0 when a consumer of ``robot.statuses()`` sees
   ``driving`` flip; t1 when a master control (an aiomqtt client in this process) receives
   the first state message showing the new value. Baseline, same run: on the same flip a
@@ -64,6 +67,8 @@ GOAL_P99 = 0.050
 #: Issue #33: the adapters of TARGET_N vehicles cost at most GOAL_CORES (pro rata below).
 GOAL_CORES = 0.5
 TARGET_N = 1000
+#: Seconds of the sleep whose oversleep measures the event loop's lag.
+LAG_TICK = 0.01
 INTERFACE = "bench"
 #: The shared baseline client has many publishes in flight at once, which aiomqtt logs.
 _QUIET = logging.getLogger("benchmarks.vda5050.echo")
@@ -152,6 +157,8 @@ class _Probe:
         #: Flip → the state handed to the vehicle's socket (the adapter's own share).
         self.in_vehicle: list[float] = []
         self.written: dict[int, float] = {}
+        #: How late a LAG_TICK sleep wakes: the loop's (or the machine's) backlog.
+        self.lags: list[float] = []
         self.recording = False
 
     def flipped(self, index: int, value: bool) -> None:
@@ -199,6 +206,14 @@ async def _toggle(robot: Robot, index: int, count: int) -> None:
         await anyio.sleep(TOGGLE_PERIOD / 2)
         await robot.zero_speed()
         await anyio.sleep(TOGGLE_PERIOD / 2)
+
+
+async def _lag(probe: _Probe) -> None:
+    while True:
+        start = time.perf_counter()
+        await anyio.sleep(LAG_TICK)
+        if probe.recording:
+            probe.lags.append(time.perf_counter() - start - LAG_TICK)
 
 
 async def _master(client: aiomqtt.Client, probe: _Probe) -> None:
@@ -253,6 +268,7 @@ async def measure(
         await master.subscribe(f"{INTERFACE}/v2/bench/+/state")
         await master.subscribe(f"{INTERFACE}/echo/+")
         group.start_soon(_master, master, probe)
+        group.start_soon(_lag, probe)
         rss = 0.0
         if vehicles:
             before = _rss()
@@ -292,6 +308,7 @@ async def measure(
         "broker_cores": cores["broker"],
         "latencies": probe.latencies,
         "in_vehicle": probe.in_vehicle,
+        "lags": probe.lags,
         "rss_per_vehicle": rss,
     }
 
@@ -364,4 +381,7 @@ def run(
         latency("status change → state written by the vehicle", driven["in_vehicle"], 99),
         latency(f"{change}, broker Nagle on", nagle["latencies"], 50),
         latency(f"{change}, broker Nagle on", nagle["latencies"], 99),
+        Row("vda5050", f"event loop lag p99 (a {LAG_TICK * ms:g} ms sleep wakes late by)",
+            percentile(driven["lags"], 99) * ms, "ms", percentile(bare["lags"], 99) * ms,
+            "no vehicle", extra=extra),
     ]  # fmt: skip

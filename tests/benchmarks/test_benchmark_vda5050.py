@@ -21,10 +21,11 @@ def test_vda5050_benchmark_phases_measure_cpu_and_latency() -> None:
         assert phase["latencies"]
         assert all(0 < latency < 10 for latency in phase["latencies"])
     assert driven["in_vehicle"]
+    assert driven["lags"]
     assert not bare["in_vehicle"]
 
 
-UNITS = ["% core", "cores", "cores", "cores", "KiB", "ms", "ms", "ms", "ms", "ms"]
+UNITS = ["% core", "cores", "cores", "cores", "KiB", "ms", "ms", "ms", "ms", "ms", "ms"]
 
 
 def test_vda5050_benchmark_rows() -> None:
