@@ -12,7 +12,6 @@ from typing import Any
 
 import aiomqtt
 import anyio
-import paho.mqtt.client as paho
 from pydantic import BaseModel
 
 from ..errors import DuplicateVehicle, InvalidArgument
@@ -69,14 +68,17 @@ def write_at_once(client: aiomqtt.Client) -> bool:
     queued by another thread (the connect), still go through the writer callback. Call it
     on the loop's thread, before the client connects.
     """
-    mqtt = getattr(client, "_client", None)
-    if not isinstance(mqtt, paho.Client) or mqtt.on_socket_register_write is None:
+    # aiomqtt's paho-mqtt client; looked for by what it does, not by name.
+    mqtt: Any = getattr(client, "_client", None)
+    if not all(hasattr(mqtt, name) for name in ("loop_write", "want_write")):
+        return False
+    if getattr(mqtt, "on_socket_register_write", None) is None:
         return False
     register = mqtt.on_socket_register_write
     owner = threading.get_ident()
     writing = False
 
-    def register_write(mqtt: paho.Client, userdata: Any, sock: Any) -> None:
+    def register_write(mqtt: Any, userdata: Any, sock: Any) -> None:
         nonlocal writing
         if threading.get_ident() == owner and not writing:
             writing = True
