@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 import socket
 
 import aiomqtt
 import anyio
 
-from galileo_async.vda5050.session import write_at_once
+from galileo_async.vda5050 import VehicleConfig
+from galileo_async.vda5050.models import Connection, ConnectionState
+from galileo_async.vda5050.session import Session, write_at_once
 from tests.support.vda5050_support import WAIT, Broker, broker_fixture
 
 __all__ = ["broker_fixture"]
@@ -66,3 +69,18 @@ def test_a_client_without_paho_inside_is_left_alone() -> None:
         pass
 
     assert not write_at_once(Other())  # type: ignore[arg-type]
+
+
+async def test_a_vehicle_session_makes_its_clients_write_at_once() -> None:
+    config = VehicleConfig(broker="mqtt://127.0.0.1:1", manufacturer="m", serial_number="s")
+
+    def connection(state: ConnectionState) -> Connection:
+        return Connection(headerId=0, timestamp="t", version="2.0.0", manufacturer="m",
+                          serialNumber="s", connectionState=state)  # fmt: skip
+
+    async def nothing() -> None:
+        pass
+
+    session = Session(config, connection, nothing, lambda topic, payload: None)
+    client = session._client_for(logging.getLogger("test"))
+    assert "write_at_once" in client._client.on_socket_register_write.__qualname__
