@@ -2,7 +2,8 @@
 
 ``python -m benchmarks fleet_merged --traffic burst|spread|both``: how the robots' frames arrive.
 
-``python -m benchmarks vda5050 [--vehicles N]``: N VDA 5050 vehicles on one loop (Mosquitto).
+``python -m benchmarks vda5050 [--vehicles N] [--[no-]robots-process]``: N VDA 5050 vehicles on
+one loop (Mosquitto); the robots in another process by default from 500 vehicles on.
 
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 
@@ -86,6 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--vehicles", type=int, default=None, help="vda5050: vehicles (default 100; --quick 20)"
     )
+    parser.add_argument(
+        "--robots-process",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="vda5050: the robots in a benchmarks.fleet_server process, connected over "
+        "socket:// (spread traffic), so that the process measured runs the adapters and "
+        "not the simulation (default: on from 500 vehicles, else in-process sim://)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
     names = args.names or list(BENCHMARKS)
@@ -107,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
             options["malloc"] = args.malloc
         if name == "vda5050":
             options["vehicles"] = args.vehicles
+            options["robots_process"] = args.robots_process
         if name == "breakdown":
             options["instructions"] = args.instructions
         if name in ("fleet", "fleet_merged"):

@@ -74,10 +74,13 @@ class _Server:
     """The fleet server process and its control pipe."""
 
     def __init__(
-        self, count: int, env: dict[str, str] | None = None, traffic: str = "burst"
-    ) -> None:
+        self, count: int, env: dict[str, str] | None = None, traffic: str = "burst",
+        *, idle: bool = False,
+    ) -> None:  # fmt: skip
+        idling = ["--idle"] if idle else []
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "benchmarks.fleet_server", str(count), "--traffic", traffic],
+            [sys.executable, "-m", "benchmarks.fleet_server", str(count), "--traffic", traffic,
+             *idling],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
         )  # fmt: skip
         assert self.process.stdout is not None

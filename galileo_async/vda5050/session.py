@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import logging
 import ssl
+import threading
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -26,6 +27,7 @@ __all__ = [
     "YOUNG_SESSION",
     "Session",
     "tls_context",
+    "write_at_once",
 ]
 
 _log = logging.getLogger(__name__)
@@ -54,6 +56,45 @@ def _payload(message: aiomqtt.Message) -> bytes:
     if isinstance(payload, (bytes, bytearray)):
         return bytes(payload)
     return str(payload).encode()
+
+
+def write_at_once(client: aiomqtt.Client) -> bool:
+    """Make ``client`` write each packet in the call that queues it; False if it cannot.
+
+    aiomqtt writes through a writer callback that a thread-safe call registers on the
+    loop: per message a self-pipe wake-up, two epoll changes, a poll and an awaited
+    confirmation. In this thread the packet goes to the socket at once instead (QoS 0:
+    publish() then returns without waiting); what the socket does not take, and packets
+    queued by another thread (the connect), still go through the writer callback. Call it
+    on the loop's thread, before the client connects.
+    """
+    # aiomqtt's paho-mqtt client; looked for by what it does, not by name.
+    mqtt: Any = getattr(client, "_client", None)
+    if not all(hasattr(mqtt, name) for name in ("loop_write", "want_write")):
+        return False
+    if getattr(mqtt, "on_socket_register_write", None) is None:
+        return False
+    register = mqtt.on_socket_register_write
+    owner = threading.get_ident()
+    writing = False
+
+    def register_write(mqtt: Any, userdata: Any, sock: Any) -> None:
+        nonlocal writing
+        if threading.get_ident() == owner and not writing:
+            writing = True
+            try:
+                mqtt.loop_write()
+            except Exception:  # the writer callback meets it again and reports it
+                pass
+            else:
+                if not mqtt.want_write():
+                    return
+            finally:
+                writing = False
+        register(mqtt, userdata, sock)
+
+    mqtt.on_socket_register_write = register_write
+    return True
 
 
 def _no_key_password() -> str:
@@ -198,13 +239,15 @@ class Session:
             self._connection("CONNECTIONBROKEN").model_dump_json(exclude_none=True),
             qos=1, retain=True,
         )  # fmt: skip
-        return aiomqtt.Client(
+        client = aiomqtt.Client(
             address.host, address.port, username=address.username, password=password,
             identifier=f"{self.config.manufacturer}-{self.config.serial_number}", will=will,
             keepalive=self.config.keepalive, tls_context=self._tls_for(address),
             timeout=CONNECT_TIMEOUT,
             logger=log,
         )  # fmt: skip
+        write_at_once(client)
+        return client
 
     async def run(self) -> None:
         """Connect, serve, reconnect with exponential back-off; runs until cancelled.

@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import zlib
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable
 from typing import Any
 
 import anyio
@@ -82,6 +82,8 @@ class Vehicle:
         self._link_returned = False
         self._other_key_logged = False
         self._shutdown = Shutdown(self)
+        #: The significant part of the last status seen (report.significant).
+        self._significant: Hashable = object()
 
     # --- what the vehicle reports ------------------------------------------------------
 
@@ -278,10 +280,19 @@ class Vehicle:
         DuplicateVehicle (everything stopped) when another vehicle with this identity was
         on the broker first: that one stays connected.
         """
+        # A listener, not a task: a task would wake with each of the robot's 30 statuses/s.
+        self.robot.add_update_listener(self._on_status)
+        if self.robot.status is not None:
+            self._on_status(self.robot.status)
+        try:
+            await self._run()
+        finally:
+            self.robot.remove_update_listener(self._on_status)
+
+    async def _run(self) -> None:
         duplicate: DuplicateVehicle | None = None
         async with anyio.create_task_group() as group:
             group.start_soon(self.executor.run)
-            group.start_soon(self._watch_status)
             group.start_soon(self._watch_link)
             group.start_soon(self._publish_states)
             if self.config.broker_loss_stop_delay is not None:
@@ -372,13 +383,12 @@ class Vehicle:
             wanted, was_open, delay = False, True, NAVIGATION_RETRY_INITIAL
             self.changed()
 
-    async def _watch_status(self) -> None:
-        last: object = object()
-        async for status in self.robot.statuses():
-            key = report.significant(status)
-            if key != last:
-                last = key
-                self.changed()
+    def _on_status(self, status: GalileoStatus) -> None:
+        """Each status (synchronously, from the robot's store): a state when it matters."""
+        key = report.significant(status)
+        if key != self._significant:
+            self._significant = key
+            self.changed()
 
     async def _watch_link(self) -> None:
         async for state in self.robot.link_states():
