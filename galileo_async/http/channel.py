@@ -20,6 +20,7 @@ from ..errors import (
 from ..protocol import ApiCall, Command, DecoderStats
 from ..transports.channel import Capabilities, Channel, Feed
 from ..transports.connectors import DEFAULT_CONNECT_TIMEOUT
+from ..transports.stats import clock_note, clocks
 from .calls import rest_call
 from .client import HttpApi, failure_text, tls_context
 from .options import (
@@ -116,6 +117,7 @@ class HttpChannel(Channel):
         self._feed = feed
         await self.api.login()
         what = f"cannot open the WebSocket {self.ws_url()} of {self.name}"
+        began = clocks()
         try:
             ws = await asyncio.wait_for(
                 self.api.session.ws_connect(
@@ -130,7 +132,7 @@ class HttpChannel(Channel):
         except asyncio.TimeoutError:
             raise HttpTimeout(
                 f"{what}: no answer within {self.connect_timeout} s (connect_timeout)"
-                f"{self._ws_port_hint()}",
+                f"{clock_note(began)}{self._ws_port_hint()}",
                 endpoint=STATUS_TOPIC,
             ) from None
         except aiohttp.WSServerHandshakeError as exc:

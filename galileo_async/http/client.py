@@ -13,6 +13,7 @@ import aiohttp
 from pydantic import SecretStr
 
 from ..errors import AuthenticationError, ConnectionLost, HttpError, HttpTimeout
+from ..transports.stats import clock_note, clocks
 from .options import HttpAddress
 
 __all__ = ["API_PATH", "HttpApi", "failure_text", "tls_context", "tls_hint"]
@@ -151,6 +152,7 @@ class HttpApi:
         if authenticate:
             query.update(self.token_query())
         where = f"{method} {API_PATH}{endpoint}"
+        began = clocks()
         try:
             async with self.session.request(
                 method, f"{self.base_url}{API_PATH}{endpoint}", params=query, json=body
@@ -166,7 +168,7 @@ class HttpApi:
         except asyncio.TimeoutError:
             raise HttpTimeout(
                 f"{where}: no answer within {self.timeout} s from {self.base_url} "
-                "(request_timeout)",
+                f"(request_timeout){clock_note(began)}",
                 endpoint=endpoint,
             ) from None
         except aiohttp.ClientError as exc:

@@ -15,7 +15,7 @@ from ..links import open_link
 from ..options import FIRST_STATUS_TIMEOUT, OPTIONS, ConnectOptions, options_checked
 from ..state.store import StatusStore
 from ..transitions import DEFAULT_ARRIVE_TOLERANCE
-from ..transports import loop_clock
+from ..transports import clock_note, clocks, loop_clock
 from .control_server import control_operations, serve_control
 from .options import check_connect_options
 from .robot import Robot
@@ -105,14 +105,15 @@ def _owner(name: str) -> str:
 
 
 async def _first_status(store: StatusStore, timeout: float, url: str) -> None:
+    began = clocks()
     try:
         await store.first_frame(timeout)
     except GalileoTimeout:
         dropped = store.link_error
         why = f"; last: {dropped}" if isinstance(dropped, ConnectionLost) else ""
         raise GalileoConnectionError(
-            f"connected to {url}, but no valid status frame arrived within {timeout} s "
-            f"(wrong port, baud rate or device?){why}"
+            f"connected to {url}, but no valid status frame arrived within {timeout} s"
+            f"{clock_note(began)} (wrong port, baud rate or device?){why}"
         ) from None
     except ConnectionLost as exc:  # the link ended (no reconnect): say why
         raise ConnectionLost(f"{url}: dropped before the first status frame: {exc}") from exc

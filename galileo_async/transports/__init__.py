@@ -34,7 +34,7 @@ from .options import (
     PORTABLE_OPTIONS,
     STREAM_OPTIONS,
 )
-from .stats import LinkState, LinkStats, StatusSink, loop_clock
+from .stats import LinkState, LinkStats, StatusSink, clock_note, clocks, loop_clock
 from .stream import StreamChannel
 from .udp import UdpChannel
 
@@ -63,6 +63,8 @@ __all__ = [
     "StatusSink",
     "StreamChannel",
     "UdpChannel",
+    "clock_note",
+    "clocks",
     "loop_clock",
     "parse_socket_url",
     "serial_connector",

@@ -18,6 +18,7 @@ from urllib.parse import urlsplit
 from ..errors import GalileoConnectionError, GalileoError, InvalidArgument, PortBusy
 from ..options import DEFAULT_BAUDRATE, DEFAULT_CONNECT_TIMEOUT
 from .options import check_values
+from .stats import clock_note, clocks
 
 __all__ = [
     "DEFAULT_BAUDRATE",
@@ -149,6 +150,7 @@ def socket_connector(
     async def connect(
         loop: asyncio.AbstractEventLoop, factory: ProtocolFactory
     ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+        began = clocks()
         with translate_errors(what):
             try:
                 transport, protocol = await asyncio.wait_for(
@@ -157,6 +159,7 @@ def socket_connector(
             except asyncio.TimeoutError:
                 raise GalileoConnectionError(
                     f"{what}: no TCP connection within {connect_timeout} s (connect_timeout)"
+                    f"{clock_note(began)}"
                 ) from None
         set_keepalive(transport)
         return transport, protocol

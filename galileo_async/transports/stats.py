@@ -12,7 +12,7 @@ from ..errors import GalileoConnectionError
 from ..models import GalileoStatus, LinkState, StatusLayout
 from ..protocol import DecoderStats
 
-__all__ = ["LinkState", "LinkStats", "StatusSink", "loop_clock"]
+__all__ = ["LinkState", "LinkStats", "StatusSink", "clock_note", "clocks", "loop_clock"]
 
 
 def loop_clock() -> Callable[[], float]:
@@ -21,6 +21,28 @@ def loop_clock() -> Callable[[], float]:
     if getattr(clock, "__func__", None) is asyncio.BaseEventLoop.time:
         return time.monotonic  # what asyncio's time() returns (a virtual clock is not this)
     return clock
+
+
+def clocks() -> tuple[float, float]:
+    """Now by the running loop's clock and by the real one: where a wait began, for clock_note."""
+    return asyncio.get_running_loop().time(), time.monotonic()
+
+
+def clock_note(began: tuple[float, float]) -> str:
+    """A timeout message's tail: ``""``, or the real time passed when the loop's clock ran ahead.
+
+    A virtual clock (galileo_async.testing) jumps to the next timer whenever its loop waits,
+    also for an answer from outside the loop (another thread's loop, another process): such
+    a timeout fires at once, and its "within N s" is the loop's time, not the real one.
+    """
+    loop_time, real_time = clocks()
+    waited, real = loop_time - began[0], real_time - began[1]
+    if real >= waited / 2:
+        return ""
+    return (
+        f" (by the event loop's clock, which ran ahead: {real:.2f} s of real time passed;"
+        " a virtual clock does not wait for an answer from outside its loop)"
+    )
 
 
 @dataclass(slots=True, init=False)

@@ -30,16 +30,29 @@ def invoke(
 ) -> Result:
     """Run ``galileo [--port port] args…`` in-process; GALILEO_PORT cleared.
 
-    With no port or a sim:// one (nothing outside this process) the command's event loop
-    runs on the virtual clock, unless ``real_clock``; with any other port, on the real one.
-    ``record`` takes the real clock: it writes through anyio's worker threads, which a
-    VirtualClock does not wait for (it would jump to the --duration deadline meanwhile).
+    With only sim:// addresses (in the command's own loop) or none, the command's event loop
+    runs on the virtual clock, unless ``real_clock``; with any other address, ``port`` or
+    one in ``args`` (``-p URL``), on the real one: a virtual clock would jump to each timeout
+    while the loop waits for an answer from outside it. ``record`` takes the real clock:
+    it writes through anyio's worker threads, which a VirtualClock does not wait for (it
+    would jump to the --duration deadline meanwhile).
     """
     runner = CliRunner()
     full = (["--port", port] if port is not None else []) + list(args)
-    virtual = not real_clock and (port is None or port.startswith("sim://"))
+    virtual = not real_clock and all(a.startswith("sim://") for a in addresses(full))
     with on_the_virtual_clock() if virtual else contextlib.nullcontext():
         return runner.invoke(app, full, input=input, env={"GALILEO_PORT": None, "COLUMNS": "120"})
+
+
+def addresses(args: list[str]) -> list[str]:
+    """Every address a command line names: each --port or -p value, and every other URL."""
+    found = []
+    for before, arg in zip(["", *args], args, strict=False):
+        if arg.startswith("--port="):
+            found.append(arg.removeprefix("--port="))
+        elif before in ("--port", "-p") or "://" in arg:
+            found.append(arg)
+    return found
 
 
 @contextlib.contextmanager
@@ -71,6 +84,19 @@ def json_lines(text: str) -> list[dict[str, object]]:
 @pytest.fixture
 def served() -> Iterator[ServedSim]:
     yield from serving(20.0)
+
+
+def test_invoke_takes_the_real_clock_for_an_address_outside_the_process() -> None:
+    assert addresses(["--port", FAST, "status"]) == [FAST]
+    assert addresses(["mission", "schema"]) == []
+    http = "http://127.0.0.1:3546"
+    assert addresses(["mission", "check", "a.yaml", "-p", http]) == [http]
+    assert addresses(["--port=socket://h:1", "status"]) == ["socket://h:1"]
+    assert addresses(["--port", "/dev/ttyUSB0", "status"]) == ["/dev/ttyUSB0"]
+    assert addresses(["--port", FAST, "mission", "check", "a.yaml", "--port", http]) == [
+        FAST,
+        http,
+    ]
 
 
 def test_help_lists_every_command() -> None:

@@ -86,6 +86,15 @@ class ServedSim:
         self.loop.close()
 
 
+class HttpServedSim(ServedSim):
+    """The simulator's HTTP face on 127.0.0.1 (REST and WebSocket), on its own thread's loop."""
+
+    async def _serve(self, config: dict[str, Any]) -> None:
+        self.simulator = Simulator(**config)
+        face = await self.simulator.serve_http()
+        self.url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
+
+
 def serving(speed: float) -> Iterator[ServedSim]:
     """A ServedSim at ``speed`` for a fixture's life: ``yield from serving(5.0)``."""
     sim = ServedSim(speed=speed)

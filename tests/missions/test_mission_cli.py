@@ -6,7 +6,6 @@ import json
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 import yaml
@@ -15,11 +14,14 @@ from galileo_async.cli import ExitCode
 from galileo_async.missions import load_mission, mission_schema, parse_mission
 from galileo_async.sim import DEFAULT_TARGETS
 from tests.cli.test_cli import invoke
-from tests.cli.test_cli_served import ServedSim
+from tests.cli.test_cli_served import HttpServedSim
 
 DATA = Path(__file__).parent / "data"
 
 pytestmark = pytest.mark.timeout(60)
+
+#: CLI runs one after another against one served robot.
+RUNS = 50
 
 
 def test_schema_prints_the_json_schema() -> None:
@@ -131,47 +133,49 @@ def test_import_rejects_a_format_it_does_not_know() -> None:
     assert "--format" in result.output
 
 
-class _HttpSim(ServedSim):
-    """The simulator's HTTP face on 127.0.0.1, in its own thread."""
-
-    async def _serve(self, config: dict[str, Any]) -> None:
-        from galileo_async.sim import Simulator
-
-        self.simulator = Simulator(**config)
-        face = await self.simulator.serve_http()
-        self.url = f"http://127.0.0.1:{face.address[1]}?ws_port={face.ws_address[1]}"
-
-
 @pytest.fixture
-def http_sim() -> Iterator[_HttpSim]:
-    sim = _HttpSim(speed=5.0)
+def http_sim() -> Iterator[HttpServedSim]:
+    sim = HttpServedSim(speed=5.0)
     try:
         yield sim
     finally:
         sim.close()
 
 
-def test_import_with_the_points_of_an_http_robot(http_sim: _HttpSim) -> None:
-    # The robot is outside the command's loop: the real clock (as test_cli_served's).
+def test_import_with_the_points_of_an_http_robot(http_sim: HttpServedSim) -> None:
     result = invoke(
         "mission", "import", str(DATA / "timeTask.json"), "-p", http_sim.url,
-        port=None, real_clock=True,
+        port=None,
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     loop = parse_mission(result.stdout.split("---\n")[1]).steps[1]
     assert len(loop.loop.steps) == 2 * len(DEFAULT_TARGETS)  # type: ignore[union-attr]
 
 
-def test_check_against_an_http_robot(http_sim: _HttpSim) -> None:
+def test_check_against_an_http_robot(http_sim: HttpServedSim) -> None:
     check = invoke(
         "--json", "mission", "check", str(DATA / "every_step.yaml"), "-p", http_sim.url,
-        port=None, real_clock=True,
+        port=None,
     )  # fmt: skip
     data = json.loads(check.stdout)
     assert data.get("port") == http_sim.url, check.output
     errors = [p["message"] for p in data["problems"] if p["severity"] == "error"]
     assert errors == ["map 'floor1' is not on the robot (it has: sim, floor2)"]
     assert check.exit_code == ExitCode.USAGE
+
+
+@pytest.mark.timeout(180)
+def test_checks_one_after_another_against_one_http_robot(http_sim: HttpServedSim) -> None:
+    # Each run is a new event loop and a new session against the same face; the robot is
+    # outside the command's loop, so invoke runs it on the real clock (a virtual one would
+    # jump to the connect timeout while the face's thread answers).
+    for run in range(RUNS):
+        check = invoke(
+            "--json", "mission", "check", str(DATA / "every_step.yaml"), "-p", http_sim.url,
+            port=None,
+        )  # fmt: skip
+        assert check.exit_code == ExitCode.USAGE, f"run {run}: {check.output}"
+        assert json.loads(check.stdout)["port"] == http_sim.url
 
 
 def test_without_pyyaml_the_command_says_how_to_get_it(monkeypatch: pytest.MonkeyPatch) -> None:
