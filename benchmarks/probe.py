@@ -35,6 +35,8 @@ __all__ = ["PROBES", "Figures", "make_frames", "measure"]
 SERVER_PATH_ENV = "GALILEO_BENCH_SERVER_PATH"
 #: Longest a single awaited step of a probe may take.
 STEP_TIMEOUT = 10.0
+#: A first status may take this long under cachegrind (about 50x slower) on a loaded machine.
+FIRST_STATUS = 120.0
 
 
 def make_frames(count: int) -> list[bytes]:
@@ -164,7 +166,9 @@ async def _driver_host(
     stamps = [status.time_stamp for status in StatusDecoder().feed(b"".join(frames))]
     loop = asyncio.get_running_loop()
     wanted: list[Any] = [None, None]  # (time stamp, future)
-    robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
+    robot = await galileo_async.connect(
+        f"socket://127.0.0.1:{port}", stale_timeout=None, first_status_timeout=FIRST_STATUS
+    )
 
     async def first(robot: Any) -> None:
         async for status in robot.statuses():
@@ -280,7 +284,9 @@ async def _socket_latency(samples: int) -> tuple[list[float], list[float]]:
         devices[-1].transport.write(latency._frame(k))
 
     try:
-        robot = await galileo_async.connect(f"socket://127.0.0.1:{port}", stale_timeout=None)
+        robot = await galileo_async.connect(
+            f"socket://127.0.0.1:{port}", stale_timeout=None, first_status_timeout=FIRST_STATUS
+        )
         try:
             status = await _wakeups(robot, send, "time_stamp", samples)
             command = await timed_commands(lambda: robot.forward(20), arrivals, samples // 4)
