@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import tempfile
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -20,7 +20,9 @@ import anyio
 
 from ..errors import GalileoError
 from ..models import ChargeStatus, GalileoStatus
+from .events import MissionEvent, StepEnded, StepStarted
 from .model import Mission
+from .runner import run_mission
 from .schedule_model import Occurrence, Schedule, occurrences, zone_of
 
 if TYPE_CHECKING:
@@ -104,7 +106,6 @@ class Resumed(ScheduleEvent):
     volts: float | None
 
 
-Runner = Callable[..., Awaitable[Any]]
 Progress = Callable[[object], None]
 
 
@@ -137,11 +138,6 @@ def _volts(status: GalileoStatus | None) -> float | None:
     return status.power if status is not None and status.power is not None else None
 
 
-def _is_step_end(event: object) -> bool:
-    """True for the runner's event that a step (not a loop) ended."""
-    return type(event).__name__ == "StepEnded" and getattr(event, "action", None) != "loop"
-
-
 class _Run:
     """One run_schedule(): the state shared by its windows."""
 
@@ -151,7 +147,6 @@ class _Run:
         schedule: Schedule,
         missions: list[Mission],
         wall: _Wall,
-        runner: Runner,
         on_progress: Progress | None,
         journals: Path,
     ) -> None:
@@ -159,7 +154,6 @@ class _Run:
         self.schedule = schedule
         self.missions = missions
         self.wall = wall
-        self.runner = runner
         self.on_progress = on_progress
         self.journals = journals
         self._step_ended: asyncio.Event | None = None
@@ -169,12 +163,11 @@ class _Run:
         if self.on_progress is not None:
             self.on_progress(event)
 
-    def _mission_event(self, event: object) -> None:
+    def _mission_event(self, event: MissionEvent) -> None:
         self.emit(event)
-        kind = type(event).__name__
-        if kind == "StepStarted" and getattr(event, "action", None) == "charge":
+        if isinstance(event, StepStarted) and event.action == "charge":
             self._charge_step = True  # the mission's own charging is no pause
-        elif _is_step_end(event):
+        elif isinstance(event, StepEnded):
             self._charge_step = False
             if self._step_ended is not None:
                 self._step_ended.set()
@@ -242,7 +235,7 @@ class _Run:
                     return "battery low", None
                 resume = started
             mission = asyncio.ensure_future(
-                self.runner(
+                run_mission(
                     self.robot, self.missions[index], journal=journal, resume=resume,
                     on_progress=self._mission_event,
                 )
@@ -369,29 +362,21 @@ async def _reap(task: asyncio.Future[Any]) -> None:
         task.exception()  # retrieved: the outcome is read by the caller where it matters
 
 
-def _default_runner() -> Runner:
-    from .runner import run_mission  # type: ignore[import-not-found, unused-ignore]
-
-    runner: Runner = run_mission
-    return runner
-
-
 async def run_schedule(
     robot: Robot,
     schedule: Schedule,
     *,
     on_progress: Progress | None = None,
     now: datetime | None = None,
-    runner: Runner | None = None,
 ) -> None:
     """Run ``schedule`` on ``robot`` until cancelled; the robot is stopped on the way out.
 
     ``now``: the wall time at the start (aware; default the host's clock), from which
-    the loop's clock counts on. ``runner``: how a mission runs (default
-    ``missions.runner.run_mission``). ``on_progress`` gets the schedule's events and the
-    runner's. Missions must be loaded (``load_schedule`` reads their files). Leaving by
-    any route (cancellation, an error of the runner or the robot) stops the robot,
-    shielded and within EXIT_STOP_TIMEOUT s.
+    the loop's clock counts on. Each mission runs with ``run_mission`` (a journal per
+    window, so a charging pause resumes at its step). ``on_progress`` gets the schedule's
+    events and the runner's. Missions must be loaded (``load_schedule`` reads their
+    files). Leaving by any route (cancellation, an error of the runner or the robot)
+    stops the robot, shielded and within EXIT_STOP_TIMEOUT s.
     """
     missions = []
     for window in schedule.windows:
@@ -399,10 +384,9 @@ async def run_schedule(
             raise ValueError(f"window mission {window.mission!r} is not loaded: use load_schedule")
         missions.append(window.mission)
     wall = _Wall(now, zone_of(schedule))
-    run_one = runner if runner is not None else _default_runner()
     try:
         with tempfile.TemporaryDirectory(prefix="galileo-schedule-") as journals:
-            run = _Run(robot, schedule, missions, wall, run_one, on_progress, Path(journals))
+            run = _Run(robot, schedule, missions, wall, on_progress, Path(journals))
             await run.run()
     finally:
         with (

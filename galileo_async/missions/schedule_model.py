@@ -9,7 +9,6 @@ schedule's zone become aware datetimes, daylight saving time included.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import date, datetime, time, timedelta, timezone, tzinfo
@@ -19,6 +18,7 @@ from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from ..battery import battery_charge
 from .model import Mission
 
 __all__ = [
@@ -30,7 +30,6 @@ __all__ = [
     "Schedule",
     "ScheduleFileError",
     "Window",
-    "battery_percent",
     "check_schedule",
     "load_schedule",
     "occurrences",
@@ -45,31 +44,6 @@ _DAY_SETS = {
     "weekdays": (0, 1, 2, 3, 4),
     "weekends": (5, 6),
 }
-
-#: Volts → percent of a 24 V pack at rest, linear between the points (the robot reports
-#: voltage only: docs/protocol.md §1 ``power``); the VDA 5050 adapter's batteryCharge curve.
-BATTERY_CURVE: tuple[tuple[float, float], ...] = (
-    (22.0, 0.0),
-    (23.5, 10.0),
-    (24.5, 30.0),
-    (25.5, 60.0),
-    (26.5, 85.0),
-    (28.0, 100.0),
-)
-
-
-def battery_percent(volts: float) -> float:
-    """Estimated charge in percent (0..100) for ``volts`` on BATTERY_CURVE."""
-    if not math.isfinite(volts):
-        return 0.0
-    (low_v, low_p), *rest = BATTERY_CURVE
-    if volts <= low_v:
-        return low_p
-    for high_v, high_p in rest:
-        if volts <= high_v:
-            return round(low_p + (high_p - low_p) * (volts - low_v) / (high_v - low_v), 1)
-        low_v, low_p = high_v, high_p
-    return 100.0
 
 
 class _Strict(BaseModel):
@@ -175,7 +149,8 @@ class DateRange(_Strict):
 
 
 class BatteryPolicy(_Strict):
-    """Go charge below a level, resume the mission at a level (percent from the curve, or V)."""
+    """Go charge below a level, resume the mission at a level (percent from
+    galileo_async.battery's curve, or V)."""
 
     go_charge_below_percent: float | None = Field(None, gt=0, lt=100)
     go_charge_below_volts: float | None = Field(None, gt=0, allow_inf_nan=False)
@@ -204,20 +179,20 @@ class BatteryPolicy(_Strict):
         """A level in percent, whichever way it was given."""
         if percent is not None:
             return percent
-        return battery_percent(volts) if volts is not None else default
+        return battery_charge(volts) if volts is not None else default
 
     def low(self, volts: float) -> bool:
         """True when ``volts`` is below the go-charge level."""
         if self.go_charge_below_volts is not None:
             return volts < self.go_charge_below_volts
-        return battery_percent(volts) < (self.go_charge_below_percent or 0.0)
+        return battery_charge(volts) < (self.go_charge_below_percent or 0.0)
 
     def charged(self, volts: float) -> bool:
         """True when ``volts`` reached the resume level (never, when none is given)."""
         if self.resume_at_volts is not None:
             return volts >= self.resume_at_volts
         if self.resume_at_percent is not None:
-            return battery_percent(volts) >= self.resume_at_percent
+            return battery_charge(volts) >= self.resume_at_percent
         return False
 
 

@@ -8,10 +8,11 @@ from zoneinfo import ZoneInfo
 
 import pytest
 
+from galileo_async.battery import battery_charge
 from galileo_async.missions import Mission
 from galileo_async.missions.schedule_model import (
+    BatteryPolicy,
     ScheduleFileError,
-    battery_percent,
     check_schedule,
     load_schedule,
     local_instant,
@@ -137,8 +138,15 @@ def test_occurrences_in_order_with_exclusions_and_midnight() -> None:
     assert first[10].stop.astimezone(BERLIN).strftime("%a %H:%M") == "Sun 03:00"
 
 
-def test_battery_percent_follows_the_curve() -> None:
-    assert battery_percent(22.0) == 0.0
-    assert battery_percent(25.0) == 45.0
-    assert battery_percent(28.5) == 100.0
-    assert battery_percent(float("nan")) == 0.0
+def test_battery_thresholds_in_percent_read_the_one_voltage_curve() -> None:
+    # 25.0 V is 45 % on galileo_async.battery's curve.
+    assert battery_charge(25.0) == 45.0
+    by_percent = BatteryPolicy(go_charge_below_percent=45.5, resume_at_percent=90)
+    assert by_percent.low(25.0)
+    assert not by_percent.low(25.1)
+    assert not by_percent.charged(26.9)
+    assert by_percent.charged(27.8)
+    by_volts = BatteryPolicy(go_charge_below_volts=24.0, resume_at_percent=60)
+    assert BatteryPolicy.percent(None, 24.0) == battery_charge(24.0)
+    assert by_volts.low(23.9)
+    assert by_volts.charged(25.5)
