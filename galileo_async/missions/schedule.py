@@ -11,7 +11,7 @@ import asyncio
 import contextlib
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,6 +22,7 @@ from ..errors import GalileoError
 from ..models import ChargeStatus, GalileoStatus
 from .events import MissionEvent, StepEnded, StepStarted
 from .model import Mission
+from .report import MissionReport
 from .runner import run_mission
 from .schedule_model import Occurrence, Schedule, occurrences, zone_of
 
@@ -53,6 +54,25 @@ class ScheduleEvent:
 
     at: datetime
 
+    @property
+    def kind(self) -> str:
+        """The event's name in JSON lines ("window_opened" …)."""
+        name = type(self).__name__
+        return "".join(f"_{c.lower()}" if c.isupper() else c for c in name).lstrip("_")
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-able dict: ``event`` (the kind), the fields, instants in ISO 8601; a
+        closed window's report without its steps."""
+        data: dict[str, Any] = {"event": self.kind}
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, datetime):
+                value = value.isoformat()
+            elif isinstance(value, MissionReport):
+                value = value.model_dump(mode="json", exclude={"steps"})
+            data[item.name] = value
+        return data
+
 
 @dataclass(frozen=True)
 class WindowOpened(ScheduleEvent):
@@ -70,7 +90,7 @@ class WindowClosed(ScheduleEvent):
     window: int
     name: str | None
     reason: str
-    report: object | None = None
+    report: MissionReport | None = None
 
 
 @dataclass(frozen=True)
@@ -224,7 +244,9 @@ class _Run:
             await self._stop_pose(window.stop_pose)
         self.emit(WindowClosed(self.wall.now(), index, window.name, reason, report))
 
-    async def _mission(self, index: int, closes: datetime, journal: Path) -> tuple[str, object]:
+    async def _mission(
+        self, index: int, closes: datetime, journal: Path
+    ) -> tuple[str, MissionReport | None]:
         """Run (and resume after each charging pause) until the mission ends or ``closes``."""
         resume = started = False
         while True:
@@ -260,7 +282,10 @@ class _Run:
             finally:
                 await _reap(watch)
                 await _reap(mission)
-            ended = mission.done() and not mission.cancelled() and mission.exception() is None
+            failure = None if mission.cancelled() else mission.exception()
+            if failure is not None:
+                raise failure  # MissionRejected (nothing moved), or a bug: never hidden
+            ended = mission.done() and not mission.cancelled()
             if ended and (not charge or self.wall.now() + _EDGE >= closes):
                 return "mission ended", mission.result()
             if not charge:

@@ -11,6 +11,7 @@ import pytest
 
 from galileo_async import ChargeStatus, Robot
 from galileo_async.missions.events import LoopStarted, MissionEnded, StepEnded, StepStarted
+from galileo_async.missions.report import MissionRejected
 from galileo_async.missions.schedule import (
     ChargingPause,
     Excluded,
@@ -21,7 +22,7 @@ from galileo_async.missions.schedule import (
     run_schedule,
 )
 from galileo_async.missions.schedule_model import Schedule
-from galileo_async.protocol import Stop
+from galileo_async.protocol import Cancel, Stop
 from galileo_async.testing import SimulatedDevice, simulated_robot
 from tests.support.cancel_ways import WAYS, stop_waiting
 
@@ -313,3 +314,17 @@ async def test_stopping_run_schedule_every_way_leaves_the_robot_stopped(how: str
     assert status.current_speed_x == 0
     assert status.current_speed_theta == 0
     assert any(isinstance(command, Stop) for command in stops)
+
+
+async def test_a_mission_the_link_cannot_run_ends_the_schedule_before_anything_moves() -> None:
+    plan = schedule(
+        windows=[{"days": "every day", "start": "08:00", "stop": "09:00",
+                  "mission": {"mission": "hello", "steps": [{"say": "hello"}]}}]
+    )  # fmt: skip
+    async with simulated_robot() as (robot, device):
+        device.clear()
+        with pytest.raises(MissionRejected, match="say"):
+            await run_schedule(robot, plan, now=MONDAY.replace(hour=8))
+        sent = device.received()
+    # Nothing but robot.stop() on the way out (a cancel and a stop): no goal was sent.
+    assert {type(command) for command in sent} == {Cancel, Stop}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,8 @@ import pytest
 from galileo_async.cli import ExitCode
 from galileo_async.missions.schedule_model import load_schedule, parse_schedule
 from tests.cli.test_cli import invoke
+from tests.cli.test_cli_served import _read_until as read_until
+from tests.cli.test_cli_signals import finish, start
 
 DATA = Path(__file__).parent / "data"
 
@@ -112,3 +115,105 @@ def test_import_schedule_of_a_plan_without_windows_fails() -> None:
     result = invoke("mission", "import", "--schedule", nav2, port=None)
     assert result.exit_code == ExitCode.ERROR
     assert "has no time windows" in result.stderr
+
+
+# --------------------------------------------------------------------------- mission schedule
+SHORT = """\
+schedule: short
+time_zone: Europe/Berlin
+windows:
+  - days: every day
+    start: "08:00"
+    stop: "08:10"
+    mission: patrol.yaml
+    stop_pose: 3
+"""
+#: Open at any time of day: a run on the host's clock starts its mission at once.
+ALL_DAY = """\
+time_zone: UTC
+windows:
+  - {days: every day, start: "00:00", stop: "12:00", mission: patrol.yaml}
+  - {days: every day, start: "12:00", stop: "00:00", mission: patrol.yaml}
+"""
+
+
+def test_schedule_sim_prints_the_timeline_of_a_window(tmp_path: Path) -> None:
+    path = office(tmp_path, SHORT)
+    result = invoke(
+        "mission", "schedule", str(path), "--sim", "--days", "0.01", "--start",
+        "2026-03-23T07:59", port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.OK, result.output
+    lines = result.stdout.splitlines()
+    assert lines[0] == "2026-03-23 08:00:00 window 0 opened, closes at 08:10"
+    assert lines[1].startswith("2026-03-23 08:10:")
+    assert " mission 'patrol' cancelled: " in lines[1]  # the window closed mid-loop
+    assert lines[-1].startswith("2026-03-23 08:10:")
+    assert lines[-1].endswith("window 0 closed: window closed")
+
+
+def test_schedule_sim_json_has_a_line_per_event(tmp_path: Path) -> None:
+    path = office(tmp_path, SHORT)
+    result = invoke(
+        "--json", "mission", "schedule", str(path), "--sim", "--days", "0.01", "--start",
+        "2026-03-23T07:59", port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.OK, result.output
+    events = [json.loads(line) for line in result.stdout.splitlines()]
+    kinds = [event["event"] for event in events]
+    assert kinds[0] == "window_opened"
+    assert events[0]["at"] == "2026-03-23T08:00:00+01:00"
+    assert events[0]["closes"] == "2026-03-23T08:10:00+01:00"
+    assert {"step_started", "step_ended", "loop_started"} <= set(kinds)
+    assert kinds[-2:] == ["mission_ended", "window_closed"]
+    assert events[-1]["reason"] == "window closed"
+    assert all("time" in event for event in events)
+
+
+def test_schedule_of_a_broken_file_exits_2_with_its_line(tmp_path: Path) -> None:
+    path = office(tmp_path, SHORT.replace('stop: "08:10"', 'stop: "08:70"'))
+    result = invoke("mission", "schedule", str(path), "--sim", port=None)
+    assert result.exit_code == ExitCode.USAGE
+    assert f"error: {path}:6: windows[0]: stop: " in result.stderr
+    as_json = invoke("--json", "mission", "schedule", str(path), port="sim://")
+    assert as_json.exit_code == ExitCode.USAGE
+    data = json.loads(as_json.stdout)
+    assert (data["ok"], data["problems"][0]["line"]) == (False, 6)
+    missing = invoke("mission", "schedule", str(tmp_path / "none.yaml"), port=None)
+    assert missing.exit_code == ExitCode.USAGE
+    assert "none.yaml" in missing.stderr
+
+
+def test_schedule_options_that_do_not_fit_exit_2(tmp_path: Path) -> None:
+    path = str(office(tmp_path, SHORT))
+    bad = invoke("mission", "schedule", path, "--sim", "--start", "08:00", port=None)
+    assert bad.exit_code == ExitCode.USAGE
+    assert "YYYY-MM-DDTHH:MM" in bad.output
+    real = invoke("mission", "schedule", path, "--start", "2026-03-23T08:00", port="sim://")
+    assert real.exit_code == ExitCode.USAGE
+    assert "--start is for --sim" in real.stderr
+
+
+def test_schedule_with_a_mission_the_link_cannot_run_exits_2(tmp_path: Path) -> None:
+    path = office(tmp_path, ALL_DAY, patrol="mission: patrol\nsteps: [{say: hello}]\n")
+    result = invoke("mission", "schedule", str(path), port="sim://")
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "mission 'patrol': " in result.stderr
+    assert "say" in result.stderr
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_ends_the_schedule_with_the_robot_stopped(
+    tmp_path: Path, sig: signal.Signals, code: int
+) -> None:
+    path = office(tmp_path, ALL_DAY)
+    process = start("--port", "sim://", "--json", "mission", "schedule", str(path))
+    assert process.stdout is not None
+    opened = read_until(process.stdout, '"step_started"')
+    assert '"window_opened"' in opened
+    returncode, out, err = finish(process, sig)
+    assert returncode == code, err
+    events = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    ended = [e for e in events if e.get("event") == "mission_ended"]
+    assert ended[0]["report"]["ending"] == "cancelled"
+    assert any(e.get("result") == "interrupted" and e.get("stop_sent") for e in events), out
