@@ -282,10 +282,10 @@ class _Run:
             finally:
                 await _reap(watch)
                 await _reap(mission)
-            failure = None if mission.cancelled() else mission.exception()
+            ended = mission.done() and not mission.cancelled()
+            failure = mission.exception() if ended else None
             if failure is not None:
                 raise failure  # MissionRejected (nothing moved), or a bug: never hidden
-            ended = mission.done() and not mission.cancelled()
             if ended and (not charge or self.wall.now() + _EDGE >= closes):
                 return "mission ended", mission.result()
             if not charge:
