@@ -26,7 +26,7 @@ from ..missions.schedule import (
     WindowOpened,
     WindowSkipped,
 )
-from .mission import _file_failure, _plan_errors
+from .mission import PointsOption, _file_failure, _plan_errors
 from .mission_run import _line, _rejected
 from .output import out_console, timestamp
 from .runner import ExitCode, fail, run, run_robot, settings_of
@@ -44,18 +44,28 @@ SIM_DAYS = 1
 Event = ScheduleEvent | MissionEvent
 
 
-def _load(settings: Any, file: Path) -> Schedule:
-    """The schedule in ``file``; a file that does not load: every problem, exit 2."""
+def _load(settings: Any, file: Path, points: Path | None) -> Schedule:
+    """The schedule in ``file`` (a schedule file, or the vendor's timeTask.json with its
+    paths' ``points``); a file that does not load: every problem, exit 2."""
     from ..missions.files import MissionFileError
-    from ..missions.schedule_model import load_schedule
+    from ..missions.importers import detect_format, load_plan
+    from ..missions.schedule_model import load_schedule, schedule_from_plan
+    from .mission import _points
 
     with _plan_errors():
         try:
-            return load_schedule(file)
-        except OSError as exc:
-            fail(f"{file}: {exc.strerror or exc}", ExitCode.USAGE)
+            if detect_format(file) != "timetask":
+                return load_schedule(file)
+            if points is None:
+                fail(f"{file}: a timeTask.json needs --points (its paths' points)", ExitCode.USAGE)
+            plan = load_plan(file, plan_format="timetask", points=_points(points))
+            return schedule_from_plan(plan, name=file.stem)
+        except (OSError, UnicodeDecodeError) as exc:
+            fail(f"{file}: {getattr(exc, 'strerror', None) or exc}", ExitCode.USAGE)
         except MissionFileError as exc:
             _file_failure(settings, exc)
+        except ValueError as exc:  # a timeTask.json's windows that make no schedule
+            fail(f"{file}: {exc}", ExitCode.USAGE)
 
 
 def _schedule_line(event: ScheduleEvent, zone: tzinfo) -> str:
@@ -124,7 +134,12 @@ def _start(value: str | None, zone: tzinfo) -> datetime:
 
 def mission_schedule(
     ctx: typer.Context,
-    file: Annotated[Path, typer.Argument(help="The schedule file (YAML).", dir_okay=False)],
+    file: Annotated[
+        Path,
+        typer.Argument(
+            help="The schedule file (YAML), or the vendor's timeTask.json.", dir_okay=False
+        ),
+    ],
     sim: Annotated[
         bool,
         typer.Option(
@@ -144,6 +159,7 @@ def mission_schedule(
             help="--sim: the wall time it starts at, in the schedule's zone (default now).",
         ),
     ] = None,
+    points: PointsOption = None,
     json_output: Annotated[
         bool, typer.Option("--json", help="A JSON line per event (windows, charging, steps).")
     ] = False,
@@ -157,7 +173,7 @@ def mission_schedule(
 
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
-    schedule = _load(settings, file)
+    schedule = _load(settings, file, points)
     zone = zone_of(schedule)
     if sim:
         first = _start(start, zone)

@@ -217,3 +217,18 @@ def test_a_signal_ends_the_schedule_with_the_robot_stopped(
     ended = [e for e in events if e.get("event") == "mission_ended"]
     assert ended[0]["report"]["ending"] == "cancelled"
     assert any(e.get("result") == "interrupted" and e.get("stop_sent") for e in events), out
+
+
+def test_schedule_takes_the_vendors_timetask_with_its_points() -> None:
+    timetask = str(DATA / "timeTask.json")
+    result = invoke(
+        "mission", "schedule", timetask, "--points", str(DATA / "maps"), "--sim",
+        "--start", "2026-03-23T07:25", "--days", "0.03", port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.OK, result.output
+    lines = result.stdout.splitlines()
+    assert lines[0] == "2026-03-23 07:30:00 window 0 opened, closes at 07:45"
+    assert "mission 'mapSwithTasks[0] floor1/route1 07:30-07:45'" in lines[1]
+    no_points = invoke("mission", "schedule", timetask, "--sim", port=None)
+    assert no_points.exit_code == ExitCode.USAGE
+    assert "needs --points" in no_points.stderr
