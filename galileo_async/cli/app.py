@@ -17,6 +17,7 @@ from . import (
     fleet_cmd,
     mission,
     mission_run,
+    mission_schedule,
     ops,
     serve,
     stopping,
@@ -218,6 +219,7 @@ app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | 
 # Missions (extra [missions]): the module imports yaml only when a command runs.
 app.add_typer(mission.mission_app, name="mission")
 mission_run.register(mission.mission_app)
+mission_schedule.register(mission.mission_app)
 # `galileo --fleet F fleet mission run FILE`
 mission_run.register_fleet(fleet_cmd.fleet_app)
 

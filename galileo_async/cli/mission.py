@@ -18,7 +18,7 @@ from ..links import link_kind, url_forms
 from .runner import ExitCode, Settings, fail, out_console, print_json, run_robot, settings_of
 
 if TYPE_CHECKING:
-    from ..missions.check import Problem
+    from ..missions.check import Problem, WindowCheck
     from ..missions.importers import ImportedPlan, PlanFormat, PointSource
     from ..robot import Robot
 
@@ -131,10 +131,15 @@ def import_plan(
         int | None,
         typer.Option("--loops", min=0, help="Nav2: number_of_loops (N: N + 1 passes)."),
     ] = None,
+    as_schedule: Annotated[
+        bool,
+        typer.Option("--schedule", help="timeTask.json: print one schedule file, missions inline."),
+    ] = False,
     port: PortOption = None,
     json_output: JsonFlag = False,
 ) -> None:
-    """Print a plan of another format as mission YAML (a timeTask.json: one per window)."""
+    """Print a plan of another format as mission YAML (a timeTask.json: one per window,
+    or with --schedule one schedule file)."""
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
     kind = _format(plan_format)
@@ -144,7 +149,7 @@ def import_plan(
     if not from_robot:
         with _plan_errors():
             plan = _load(settings, file, kind, _points(points), poses, headings, loops)
-        _print_plan(settings, plan)
+        _print_plan(settings, plan, file if as_schedule else None)
         raise typer.Exit(int(ExitCode.OK))
 
     async def body(robot: Robot) -> int:
@@ -157,7 +162,7 @@ def import_plan(
             return as_points(await http.targets(map_name, path_name))
 
         plan = await _load_from_robot(settings, file, kind, source, poses, headings, loops)
-        _print_plan(settings, plan)
+        _print_plan(settings, plan, file if as_schedule else None)
         return int(ExitCode.OK)
 
     run_robot(settings, body)
@@ -221,9 +226,13 @@ async def _robot_points(text: str, source: Any) -> dict[tuple[str, str], list[An
     return cache
 
 
-def _print_plan(settings: Settings, plan: ImportedPlan) -> None:
+def _print_plan(settings: Settings, plan: ImportedPlan, schedule: Path | None = None) -> None:
+    """The plan as mission files; with ``schedule`` (the file's path) as one schedule file."""
     from ..missions.files import dump_mission
 
+    if schedule is not None:
+        _print_schedule(settings, plan, schedule)
+        return
     if settings.json:
         data = {
             "missions": [
@@ -246,6 +255,45 @@ def _print_plan(settings: Settings, plan: ImportedPlan) -> None:
         documents.append(header + dump_mission(mission))
     notes = "".join(f"# note: {note}\n" for note in plan.notes)
     out_console().print(notes + "---\n".join(documents), markup=False, end="")
+
+
+def _print_schedule(settings: Settings, plan: ImportedPlan, file: Path) -> None:
+    from ..missions.schedule_model import dump_schedule, schedule_from_plan
+
+    if not plan.windows:
+        fail(f"--schedule: {file} has no time windows (a timeTask.json has)")
+    try:
+        schedule = schedule_from_plan(plan, name=file.stem)
+    except ValueError as exc:
+        fail(f"--schedule: {exc}")
+    if settings.json:
+        data = {"schedule": schedule.model_dump(mode="json", by_alias=True), "notes": plan.notes}
+        out_console().print(json.dumps(data), markup=False)
+        return
+    notes = "".join(f"# note: {note}\n" for note in plan.notes)
+    zone = "# time_zone: the robot's zone (timeTask.json's times are the robot's local time)\n"
+    out_console().print(notes + zone + dump_schedule(schedule), markup=False, end="")
+
+
+def _scheduled(
+    settings: Settings, file: Path, kind: PlanFormat | None
+) -> tuple[ImportedPlan, list[WindowCheck]] | None:
+    """A schedule file (a top-level ``windows:``) as a plan and its window checks; None for
+    anything else. A schedule that does not load: every problem, exit 2."""
+    from ..missions.files import MissionFileError
+    from ..missions.schedule_model import is_schedule, load_schedule, schedule_plan
+
+    if kind not in (None, "mission") or file.suffix == ".json":
+        return None
+    try:
+        if not is_schedule(_read(file)):
+            return None
+    except UnicodeDecodeError:
+        return None  # the plan's loader names it
+    try:
+        return schedule_plan(load_schedule(file))
+    except MissionFileError as exc:
+        _file_failure(settings, exc)
 
 
 def _file_failure(settings: Settings, exc: Any) -> NoReturn:
@@ -279,21 +327,30 @@ def check(
     ] = False,
     json_output: JsonFlag = False,
 ) -> None:
-    """Check a plan before it runs (with --port: against the robot); exit 0, or 2 naming
-    every problem."""
+    """Check a plan or a schedule before it runs (with --port: against the robot); exit 0,
+    or 2 naming every problem."""
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
     kind = _format(plan_format)
     with_robot = _port(settings, port)
+    with _plan_errors():
+        scheduled = _scheduled(settings, file, kind)
+    checks = scheduled[1] if scheduled is not None else []
     if not with_robot:
         with _plan_errors():
-            plan = _load(settings, file, kind, _points(points), False, True, None)
-        raise typer.Exit(_report(settings, file, plan, _run_checks(plan, None), strict, False))
+            if scheduled is not None:
+                plan = scheduled[0]
+            else:
+                plan = _load(settings, file, kind, _points(points), False, True, None)
+        found = _run_checks(plan, None, checks)
+        raise typer.Exit(_report(settings, file, plan, found, strict, False))
 
     async def body(robot: Robot) -> int:
         from ..missions.check import check_plan
 
-        if points is None and robot.http is not None:
+        if scheduled is not None:
+            plan = scheduled[0]
+        elif points is None and robot.http is not None:
             from ..missions.importers import as_points
 
             http = robot.http
@@ -305,18 +362,20 @@ def check(
         else:
             with _plan_errors():
                 plan = _load(settings, file, kind, _points(points), False, True, None)
-        found = await check_plan(plan, robot=robot)
+        found = await check_plan(plan, robot=robot, window_checks=checks)
         return _report(settings, file, plan, found, strict, True)
 
     run_robot(settings, body)
 
 
-def _run_checks(plan: ImportedPlan, robot: None) -> list[tuple[str, Problem]]:
+def _run_checks(
+    plan: ImportedPlan, robot: None, checks: list[WindowCheck]
+) -> list[tuple[str, Problem]]:
     import asyncio
 
     from ..missions.check import check_plan
 
-    return asyncio.run(check_plan(plan, robot=robot))
+    return asyncio.run(check_plan(plan, robot=robot, window_checks=checks))
 
 
 def _report(

@@ -26,9 +26,12 @@ __all__ = [
     "FileProblem",
     "MissionFileError",
     "dump_mission",
+    "dump_yaml",
     "load_mission",
+    "mission_data",
     "mission_schema",
     "parse_mission",
+    "yaml_mapping",
     "yaml_module",
 ]
 
@@ -96,6 +99,14 @@ def load_mission(path: str | Path) -> Mission:
 
 def parse_mission(text: str, *, source: str = "<string>") -> Mission:
     """The mission in YAML ``text``; MissionFileError naming every problem with its line."""
+    message = "no mission here: a mission file is a mapping with `mission:` and `steps:`"
+    data, lines = yaml_mapping(text, source=source, not_a_mapping=message)
+    return mission_from_data(data, source=source, lines=lines)
+
+
+def yaml_mapping(text: str, *, source: str, not_a_mapping: str) -> tuple[dict[str, Any], _Lines]:
+    """The YAML document ``text`` (a mapping) and its lines; MissionFileError with the line
+    of a YAML error, or ``not_a_mapping`` when the document is something else."""
     yaml = yaml_module()
     loader = yaml.SafeLoader(text)
     try:
@@ -111,10 +122,9 @@ def parse_mission(text: str, *, source: str = "<string>") -> Mission:
     finally:
         loader.dispose()
     if not isinstance(data, dict):
-        message = "no mission here: a mission file is a mapping with `mission:` and `steps:`"
         line = None if node is None else node.start_mark.line + 1
-        raise MissionFileError([FileProblem(source, line, None, None, message)])
-    return mission_from_data(data, source=source, lines=_Lines.of(node))
+        raise MissionFileError([FileProblem(source, line, None, None, not_a_mapping)])
+    return data, _Lines.of(node)
 
 
 def mission_from_data(
@@ -176,6 +186,13 @@ class _Lines:
         elif isinstance(node, yaml.SequenceNode):
             for index, item in enumerate(node.value):
                 self._visit(item, (*path, index))
+
+    def under(self, path: tuple[Any, ...]) -> _Lines:
+        """The lines of the part of the document at ``path``, by paths from there."""
+        part = _Lines()
+        size = len(path)
+        part.at = {key[size:]: line for key, line in self.at.items() if key[:size] == path}
+        return part
 
     def line(self, path: tuple[Any, ...]) -> int | None:
         """The line of ``path``, else of its nearest ancestor the document has."""
@@ -333,9 +350,19 @@ def _jump(policy: Any) -> str | None:
 def dump_mission(mission: Mission) -> str:
     """``mission`` as mission-file YAML, shorthands where they say the same; parse_mission
     of it gives ``mission`` back."""
-    yaml = yaml_module()
+    return dump_yaml(mission_data(mission))
+
+
+def mission_data(mission: Mission) -> dict[str, Any]:
+    """``mission`` as the plain data of its file (shorthands where they say the same)."""
     data = mission.model_dump(mode="json", by_alias=True, exclude_defaults=True, exclude={"steps"})
     data["steps"] = [_step_data(step) for step in mission.steps]
+    return data
+
+
+def dump_yaml(data: Any) -> str:
+    """``data`` as YAML in file order, small mappings of mission_data on one line."""
+    yaml = yaml_module()
     return str(yaml.dump(data, Dumper=_dumper(yaml), sort_keys=False, allow_unicode=True))
 
 

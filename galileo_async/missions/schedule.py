@@ -10,8 +10,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import tempfile
-from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,7 +20,10 @@ import anyio
 
 from ..errors import GalileoError
 from ..models import ChargeStatus, GalileoStatus
+from .events import MissionEvent, StepEnded, StepStarted
 from .model import Mission
+from .report import MissionReport
+from .runner import run_mission
 from .schedule_model import Occurrence, Schedule, occurrences, zone_of
 
 if TYPE_CHECKING:
@@ -51,6 +54,25 @@ class ScheduleEvent:
 
     at: datetime
 
+    @property
+    def kind(self) -> str:
+        """The event's name in JSON lines ("window_opened" …)."""
+        name = type(self).__name__
+        return "".join(f"_{c.lower()}" if c.isupper() else c for c in name).lstrip("_")
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-able dict: ``event`` (the kind), the fields, instants in ISO 8601; a
+        closed window's report without its steps."""
+        data: dict[str, Any] = {"event": self.kind}
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, datetime):
+                value = value.isoformat()
+            elif isinstance(value, MissionReport):
+                value = value.model_dump(mode="json", exclude={"steps"})
+            data[item.name] = value
+        return data
+
 
 @dataclass(frozen=True)
 class WindowOpened(ScheduleEvent):
@@ -68,7 +90,7 @@ class WindowClosed(ScheduleEvent):
     window: int
     name: str | None
     reason: str
-    report: object | None = None
+    report: MissionReport | None = None
 
 
 @dataclass(frozen=True)
@@ -104,7 +126,6 @@ class Resumed(ScheduleEvent):
     volts: float | None
 
 
-Runner = Callable[..., Awaitable[Any]]
 Progress = Callable[[object], None]
 
 
@@ -137,11 +158,6 @@ def _volts(status: GalileoStatus | None) -> float | None:
     return status.power if status is not None and status.power is not None else None
 
 
-def _is_step_end(event: object) -> bool:
-    """True for the runner's event that a step (not a loop) ended."""
-    return type(event).__name__ == "StepEnded" and getattr(event, "action", None) != "loop"
-
-
 class _Run:
     """One run_schedule(): the state shared by its windows."""
 
@@ -151,7 +167,6 @@ class _Run:
         schedule: Schedule,
         missions: list[Mission],
         wall: _Wall,
-        runner: Runner,
         on_progress: Progress | None,
         journals: Path,
     ) -> None:
@@ -159,7 +174,6 @@ class _Run:
         self.schedule = schedule
         self.missions = missions
         self.wall = wall
-        self.runner = runner
         self.on_progress = on_progress
         self.journals = journals
         self._step_ended: asyncio.Event | None = None
@@ -169,12 +183,11 @@ class _Run:
         if self.on_progress is not None:
             self.on_progress(event)
 
-    def _mission_event(self, event: object) -> None:
+    def _mission_event(self, event: MissionEvent) -> None:
         self.emit(event)
-        kind = type(event).__name__
-        if kind == "StepStarted" and getattr(event, "action", None) == "charge":
+        if isinstance(event, StepStarted) and event.action == "charge":
             self._charge_step = True  # the mission's own charging is no pause
-        elif _is_step_end(event):
+        elif isinstance(event, StepEnded):
             self._charge_step = False
             if self._step_ended is not None:
                 self._step_ended.set()
@@ -231,7 +244,9 @@ class _Run:
             await self._stop_pose(window.stop_pose)
         self.emit(WindowClosed(self.wall.now(), index, window.name, reason, report))
 
-    async def _mission(self, index: int, closes: datetime, journal: Path) -> tuple[str, object]:
+    async def _mission(
+        self, index: int, closes: datetime, journal: Path
+    ) -> tuple[str, MissionReport | None]:
         """Run (and resume after each charging pause) until the mission ends or ``closes``."""
         resume = started = False
         while True:
@@ -242,7 +257,7 @@ class _Run:
                     return "battery low", None
                 resume = started
             mission = asyncio.ensure_future(
-                self.runner(
+                run_mission(
                     self.robot, self.missions[index], journal=journal, resume=resume,
                     on_progress=self._mission_event,
                 )
@@ -267,7 +282,10 @@ class _Run:
             finally:
                 await _reap(watch)
                 await _reap(mission)
-            ended = mission.done() and not mission.cancelled() and mission.exception() is None
+            ended = mission.done() and not mission.cancelled()
+            failure = mission.exception() if ended else None
+            if failure is not None:
+                raise failure  # MissionRejected (nothing moved), or a bug: never hidden
             if ended and (not charge or self.wall.now() + _EDGE >= closes):
                 return "mission ended", mission.result()
             if not charge:
@@ -369,29 +387,21 @@ async def _reap(task: asyncio.Future[Any]) -> None:
         task.exception()  # retrieved: the outcome is read by the caller where it matters
 
 
-def _default_runner() -> Runner:
-    from .runner import run_mission  # type: ignore[import-not-found, unused-ignore]
-
-    runner: Runner = run_mission
-    return runner
-
-
 async def run_schedule(
     robot: Robot,
     schedule: Schedule,
     *,
     on_progress: Progress | None = None,
     now: datetime | None = None,
-    runner: Runner | None = None,
 ) -> None:
     """Run ``schedule`` on ``robot`` until cancelled; the robot is stopped on the way out.
 
     ``now``: the wall time at the start (aware; default the host's clock), from which
-    the loop's clock counts on. ``runner``: how a mission runs (default
-    ``missions.runner.run_mission``). ``on_progress`` gets the schedule's events and the
-    runner's. Missions must be loaded (``load_schedule`` reads their files). Leaving by
-    any route (cancellation, an error of the runner or the robot) stops the robot,
-    shielded and within EXIT_STOP_TIMEOUT s.
+    the loop's clock counts on. Each mission runs with ``run_mission`` (a journal per
+    window, so a charging pause resumes at its step). ``on_progress`` gets the schedule's
+    events and the runner's. Missions must be loaded (``load_schedule`` reads their
+    files). Leaving by any route (cancellation, an error of the runner or the robot)
+    stops the robot, shielded and within EXIT_STOP_TIMEOUT s.
     """
     missions = []
     for window in schedule.windows:
@@ -399,10 +409,9 @@ async def run_schedule(
             raise ValueError(f"window mission {window.mission!r} is not loaded: use load_schedule")
         missions.append(window.mission)
     wall = _Wall(now, zone_of(schedule))
-    run_one = runner if runner is not None else _default_runner()
     try:
         with tempfile.TemporaryDirectory(prefix="galileo-schedule-") as journals:
-            run = _Run(robot, schedule, missions, wall, run_one, on_progress, Path(journals))
+            run = _Run(robot, schedule, missions, wall, on_progress, Path(journals))
             await run.run()
     finally:
         with (

@@ -9,32 +9,48 @@ schedule's zone become aware datetimes, daylight saving time included.
 
 from __future__ import annotations
 
-import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import date, datetime, time, timedelta, timezone, tzinfo
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from ..battery import battery_charge
+from .check import Problem, WindowCheck
+from .files import (
+    FileProblem,
+    MissionFileError,
+    dump_yaml,
+    load_mission,
+    mission_data,
+    mission_from_data,
+    yaml_mapping,
+)
 from .model import Mission
+
+if TYPE_CHECKING:
+    from .importers import ImportedPlan, ImportedWindow
 
 __all__ = [
     "DAY_NAMES",
     "BatteryPolicy",
     "DateRange",
     "Occurrence",
-    "Problem",
     "Schedule",
-    "ScheduleFileError",
     "Window",
-    "battery_percent",
     "check_schedule",
+    "dump_schedule",
+    "imported_windows",
+    "is_schedule",
     "load_schedule",
     "occurrences",
     "parse_schedule",
+    "schedule_from_plan",
+    "schedule_plan",
     "zone_of",
 ]
 
@@ -45,31 +61,6 @@ _DAY_SETS = {
     "weekdays": (0, 1, 2, 3, 4),
     "weekends": (5, 6),
 }
-
-#: Volts → percent of a 24 V pack at rest, linear between the points (the robot reports
-#: voltage only: docs/protocol.md §1 ``power``); the VDA 5050 adapter's batteryCharge curve.
-BATTERY_CURVE: tuple[tuple[float, float], ...] = (
-    (22.0, 0.0),
-    (23.5, 10.0),
-    (24.5, 30.0),
-    (25.5, 60.0),
-    (26.5, 85.0),
-    (28.0, 100.0),
-)
-
-
-def battery_percent(volts: float) -> float:
-    """Estimated charge in percent (0..100) for ``volts`` on BATTERY_CURVE."""
-    if not math.isfinite(volts):
-        return 0.0
-    (low_v, low_p), *rest = BATTERY_CURVE
-    if volts <= low_v:
-        return low_p
-    for high_v, high_p in rest:
-        if volts <= high_v:
-            return round(low_p + (high_p - low_p) * (volts - low_v) / (high_v - low_v), 1)
-        low_v, low_p = high_v, high_p
-    return 100.0
 
 
 class _Strict(BaseModel):
@@ -175,7 +166,8 @@ class DateRange(_Strict):
 
 
 class BatteryPolicy(_Strict):
-    """Go charge below a level, resume the mission at a level (percent from the curve, or V)."""
+    """Go charge below a level, resume the mission at a level (percent from
+    galileo_async.battery's curve, or V)."""
 
     go_charge_below_percent: float | None = Field(None, gt=0, lt=100)
     go_charge_below_volts: float | None = Field(None, gt=0, allow_inf_nan=False)
@@ -204,20 +196,20 @@ class BatteryPolicy(_Strict):
         """A level in percent, whichever way it was given."""
         if percent is not None:
             return percent
-        return battery_percent(volts) if volts is not None else default
+        return battery_charge(volts) if volts is not None else default
 
     def low(self, volts: float) -> bool:
         """True when ``volts`` is below the go-charge level."""
         if self.go_charge_below_volts is not None:
             return volts < self.go_charge_below_volts
-        return battery_percent(volts) < (self.go_charge_below_percent or 0.0)
+        return battery_charge(volts) < (self.go_charge_below_percent or 0.0)
 
     def charged(self, volts: float) -> bool:
         """True when ``volts`` reached the resume level (never, when none is given)."""
         if self.resume_at_volts is not None:
             return volts >= self.resume_at_volts
         if self.resume_at_percent is not None:
-            return battery_percent(volts) >= self.resume_at_percent
+            return battery_charge(volts) >= self.resume_at_percent
         return False
 
 
@@ -327,17 +319,6 @@ def occurrences(schedule: Schedule, zone: tzinfo, since: date) -> Iterator[Occur
 
 
 # --------------------------------------------------------------------------- checks
-@dataclass(frozen=True)
-class Problem:
-    """One thing a check found: where (``windows[1]``) and what."""
-
-    where: str
-    message: str
-
-    def __str__(self) -> str:
-        return f"{self.where}: {self.message}"
-
-
 def _minutes(window: Window) -> list[tuple[int, int]]:
     """The window's spans in minutes of the week (Monday 00:00 is 0)."""
     start = window.start.hour * 60 + window.start.minute
@@ -354,10 +335,10 @@ def _minutes(window: Window) -> list[tuple[int, int]]:
 
 
 def check_schedule(schedule: Schedule) -> list[Problem]:
-    """What the model allows but is probably unmeant: windows overlapping on a day.
+    """What the model allows but is probably unmeant: windows overlapping on a day (warnings).
 
     An overlap is no problem when the later window's ``on_overlap`` is given in the file:
-    its policy says what happens then.
+    its policy says what happens then. A problem's ``step`` is the window (``windows[1]``).
     """
     problems = []
     for later, window in enumerate(schedule.windows):
@@ -371,46 +352,16 @@ def check_schedule(schedule: Schedule) -> list[Problem]:
                 problems.append(
                     Problem(
                         f"windows[{later}]",
+                        window.name,
                         f"overlaps windows[{earlier}] on a day: say what happens with"
                         " on_overlap: wait, preempt or skip",
+                        "warning",
                     )
                 )
     return problems
 
 
 # --------------------------------------------------------------------------- files
-class ScheduleFileError(ValueError):
-    """A schedule file that cannot be loaded: every problem, with the file, line and window."""
-
-    def __init__(
-        self, source: str, problems: list[str], *, line: int | None = None, step: str | None = None
-    ) -> None:
-        self.source = source
-        self.line = line
-        self.step = step
-        self.problems = problems
-        where = f"{source}:{line}" if line is not None else source
-        super().__init__(f"{where}: " + "; ".join(problems))
-
-
-def _line_of(node: Any, path: tuple[Any, ...]) -> int | None:
-    """The 1-based line of the YAML node at ``path`` (the deepest found on the way)."""
-    import yaml
-
-    line = node.start_mark.line + 1 if node is not None else None
-    for key in path:
-        if isinstance(node, yaml.MappingNode):
-            node = next((v for k, v in node.value if k.value == key), None)
-        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
-            node = node.value[key]
-        else:
-            node = None
-        if node is None:
-            break
-        line = node.start_mark.line + 1
-    return line
-
-
 def _where(path: tuple[Any, ...]) -> str:
     text = ""
     for key in path:
@@ -421,61 +372,166 @@ def _where(path: tuple[Any, ...]) -> str:
 def parse_schedule(text: str, *, source: str = "<string>", base: Path | None = None) -> Schedule:
     """The Schedule in YAML ``text``; a window's mission file is read relative to ``base``.
 
-    ScheduleFileError naming ``source``, the line and the window of the first problem, with
-    one message per problem.
+    MissionFileError naming every problem with ``source``, its line and its window
+    (``windows[1]``); a window's mission is loaded as ``load_mission`` loads one.
     """
-    import yaml
-
-    try:
-        node = yaml.compose(text)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise ScheduleFileError(source, [str(exc).replace("\n", " ")], line=line) from None
-    if not isinstance(data, dict):
-        raise ScheduleFileError(source, ["a schedule is a mapping with `windows:`"], line=1)
+    message = "no schedule here: a schedule file is a mapping with `windows:`"
+    data, lines = yaml_mapping(text, source=source, not_a_mapping=message)
+    problems = [FileProblem(source, line, None, None, message) for line, message in lines.twice]
+    unloaded: set[int] = set()
     windows = data.get("windows")
-    if isinstance(windows, list):
-        for index, window in enumerate(windows):
-            if isinstance(window, dict) and isinstance(window.get("mission"), str):
-                path = (base or Path.cwd()) / window["mission"]
-                try:
-                    window["mission"] = _mission_file(path)
-                except (OSError, ValueError) as exc:
-                    raise ScheduleFileError(
-                        source,
-                        [f"mission {window['mission']}: {exc}"],
-                        line=_line_of(node, ("windows", index, "mission")),
-                        step=f"windows[{index}]",
-                    ) from None
+    for index, window in enumerate(windows if isinstance(windows, list) else []):
+        if not isinstance(window, dict):
+            continue
+        found = _load_window_mission(window, index, source, base, lines)
+        if found:
+            problems += found
+            unloaded.add(index)
     try:
-        return Schedule.model_validate(data)
+        schedule = Schedule.model_validate(data)
     except ValidationError as exc:
-        errors = exc.errors()
-        problems = [f"{_where(tuple(e['loc'])) or 'schedule'}: {e['msg']}" for e in errors]
-        first = tuple(errors[0]["loc"])
-        window = f"windows[{first[1]}]" if first[:1] == ("windows",) and len(first) > 1 else None
-        raise ScheduleFileError(source, problems, line=_line_of(node, first), step=window) from None
+        for error in exc.errors():
+            loc = tuple(error["loc"])
+            if (
+                loc[:1] == ("windows",)
+                and loc[1:2]
+                and loc[1] in unloaded
+                and loc[2:3] == ("mission",)
+            ):
+                continue  # said above, with the mission's own lines
+            problems.append(_problem(source, lines, data, loc, str(error["msg"])))
+    if problems:
+        problems.sort(key=lambda problem: problem.line or 0)
+        raise MissionFileError(problems)
+    return schedule
+
+
+def _window_name(window: dict[str, Any]) -> str | None:
+    name = window.get("name")
+    return name if isinstance(name, str) else None
+
+
+def _load_window_mission(
+    window: dict[str, Any], index: int, source: str, base: Path | None, lines: Any
+) -> list[FileProblem]:
+    """Load the window's mission (a file, or inline) in place; its problems, if any."""
+    where, name = f"windows[{index}]", _window_name(window)
+    path = ("windows", index, "mission")
+    mission = window.get("mission")
+    try:
+        if isinstance(mission, str):
+            window["mission"] = load_mission((base or Path.cwd()) / mission)
+        elif isinstance(mission, dict):
+            window["mission"] = mission_from_data(mission, source=source, lines=lines.under(path))
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        return [FileProblem(source, lines.line(path), where, name, f"mission {mission}: {reason}")]
+    except MissionFileError as exc:
+        if isinstance(mission, str):
+            return [
+                FileProblem(source, lines.line(path), where, name, f"mission {mission}: {detail}")
+                for detail in exc.details
+            ]
+        # Inline: the lines are the schedule's already (lines.under keeps them).
+        inline = f"{where}.mission"
+        return [
+            FileProblem(
+                source, detail.line, f"{inline}.{detail.step}" if detail.step else inline,
+                detail.name, detail.message,
+            )
+            for detail in exc.details
+        ]  # fmt: skip
+    return []
+
+
+def _problem(
+    source: str, lines: Any, data: dict[str, Any], loc: tuple[Any, ...], message: str
+) -> FileProblem:
+    """A pydantic error of the schedule as a FileProblem: its line, its window, the field."""
+    message = message.removeprefix("Value error, ")
+    line = lines.line(loc)
+    if loc[:1] == ("windows",) and len(loc) > 1 and isinstance(loc[1], int):
+        windows = data.get("windows")
+        window = windows[loc[1]] if isinstance(windows, list) and loc[1] < len(windows) else None
+        name = _window_name(window) if isinstance(window, dict) else None
+        field = _where(loc[2:])
+        return FileProblem(source, line, f"windows[{loc[1]}]", name,
+                           f"{field}: {message}" if field else message)  # fmt: skip
+    field = _where(loc)
+    return FileProblem(source, line, None, None, f"{field}: {message}" if field else message)
 
 
 def load_schedule(path: str | Path) -> Schedule:
-    """The schedule in the YAML file ``path``; its missions' paths are relative to it."""
+    """The schedule in the YAML file ``path``; its missions' paths are relative to it
+    (MissionFileError naming every problem; OSError when it cannot be read)."""
     path = Path(path)
     return parse_schedule(path.read_text(encoding="utf-8"), source=str(path), base=path.parent)
 
 
-def _mission_file(path: Path) -> Mission:
-    """The mission in the YAML file ``path`` (ValueError naming what is wrong)."""
-    import yaml
+# --------------------------------------------------------------------------- other forms
+_SCHEDULE_KEY = re.compile(r"^windows\s*:", flags=re.MULTILINE)
 
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise ValueError(str(exc).replace("\n", " ")) from None
-    try:
-        return Mission.model_validate(data)
-    except ValidationError as exc:
-        raise ValueError(
-            "; ".join(f"{_where(tuple(e['loc']))}: {e['msg']}" for e in exc.errors())
-        ) from None
+
+def is_schedule(text: str) -> bool:
+    """True for a schedule file's text: a top-level ``windows:`` (a mission has none)."""
+    return _SCHEDULE_KEY.search(text) is not None
+
+
+def imported_windows(schedule: Schedule) -> list[ImportedWindow]:
+    """The schedule's windows in an import's terms (ISO weekdays, "HH:MM", stop pose -1
+    for the dock), for check_plan."""
+    from .importers import ImportedWindow
+
+    found = []
+    for window in schedule.windows:
+        assert isinstance(window.mission, Mission)  # parse_schedule loads them
+        pose = -1 if window.stop_pose == "dock" else window.stop_pose
+        days = tuple(day + 1 for day in window.days)
+        start, stop = window.start.strftime("%H:%M"), window.stop.strftime("%H:%M")
+        found.append(ImportedWindow(days, start, stop, window.mission, stop_pose=pose))
+    return found
+
+
+def schedule_plan(schedule: Schedule) -> tuple[ImportedPlan, list[WindowCheck]]:
+    """The schedule as check_plan takes it: its missions and windows, and check_schedule."""
+    from .importers import ImportedPlan
+
+    windows = imported_windows(schedule)
+    plan = ImportedPlan(missions=[window.mission for window in windows], windows=windows)
+    return plan, [lambda _windows: check_schedule(schedule)]
+
+
+def schedule_from_plan(
+    plan: ImportedPlan, *, name: str = "schedule", time_zone: str | None = None
+) -> Schedule:
+    """An imported plan's windows as a Schedule, each with its mission inline."""
+    windows = []
+    for window in plan.windows:
+        pose = "dock" if window.stop_pose == -1 else window.stop_pose
+        windows.append({
+            "days": [day - 1 for day in window.days], "start": window.start,
+            "stop": window.stop, "mission": window.mission, "stop_pose": pose,
+        })  # fmt: skip
+    return Schedule.model_validate({"schedule": name, "time_zone": time_zone, "windows": windows})
+
+
+def dump_schedule(schedule: Schedule) -> str:
+    """``schedule`` as schedule-file YAML, its missions inline; parse_schedule of it gives
+    ``schedule`` back."""
+    data = schedule.model_dump(mode="json", exclude_defaults=True, exclude={"windows"})
+    data["windows"] = [_window_data(window) for window in schedule.windows]
+    return dump_yaml(data)
+
+
+def _window_data(window: Window) -> dict[str, Any]:
+    data: dict[str, Any] = {}
+    if window.name is not None:
+        data["name"] = window.name
+    data["days"] = [DAY_NAMES[day] for day in window.days]
+    data["start"] = window.start.strftime("%H:%M")
+    data["stop"] = window.stop.strftime("%H:%M")
+    mission = window.mission
+    data["mission"] = mission_data(mission) if isinstance(mission, Mission) else mission
+    rest = window.model_dump(mode="json", exclude_defaults=True)
+    data.update({key: rest[key] for key in ("stop_pose", "on_overlap") if key in rest})
+    return data

@@ -1,4 +1,4 @@
-"""run_schedule on the virtual clock: windows, charging pauses, closing, overlaps, DST."""
+"""run_schedule with the real runner on the virtual clock: windows, charging, closing, DST."""
 
 from __future__ import annotations
 
@@ -7,10 +7,11 @@ from datetime import datetime, timedelta, timezone
 from typing import Any
 from zoneinfo import ZoneInfo
 
-import anyio
 import pytest
 
 from galileo_async import ChargeStatus, Robot
+from galileo_async.missions.events import LoopStarted, MissionEnded, StepEnded, StepStarted
+from galileo_async.missions.report import MissionRejected
 from galileo_async.missions.schedule import (
     ChargingPause,
     Excluded,
@@ -21,13 +22,15 @@ from galileo_async.missions.schedule import (
     run_schedule,
 )
 from galileo_async.missions.schedule_model import Schedule
-from galileo_async.protocol import StartCharging, Stop
+from galileo_async.protocol import Cancel, Stop
 from galileo_async.testing import SimulatedDevice, simulated_robot
-from tests.support.fake_runner import FakeRuns, StepEnded, fake_runner
+from tests.support.cancel_ways import WAYS, stop_waiting
 
 BERLIN = ZoneInfo("Europe/Berlin")
 #: A Monday.
 MONDAY = datetime(2026, 3, 23, tzinfo=BERLIN)
+_ON_DOCK = (ChargeStatus.FINDING_DOCK, ChargeStatus.DOCKING, ChargeStatus.CHARGING,
+            ChargeStatus.CHARGED)  # fmt: skip
 
 PATROL = {
     "mission": "patrol",
@@ -41,14 +44,29 @@ def schedule(**fields: Any) -> Schedule:
 
 
 class Played:
-    """run_schedule in a task, its events with their wall times, the runner's calls."""
+    """run_schedule's events (the schedule's and the runner's) in order."""
 
     def __init__(self) -> None:
         self.events: list[object] = []
-        self.runs = FakeRuns([])
 
     def of(self, kind: type[Any]) -> list[Any]:
         return [event for event in self.events if isinstance(event, kind)]
+
+    def resumes(self) -> list[tuple[StepStarted | None, StepStarted]]:
+        """Each Resumed: the step started last before its pause, and the first after it."""
+        found = []
+        last: StepStarted | None = None
+        for index, event in enumerate(self.events):
+            if isinstance(event, ChargingPause):
+                before = last
+            elif isinstance(event, Resumed):
+                after = next(e for e in self.events[index:] if isinstance(e, StepStarted))
+                found.append((before, after))
+            elif isinstance(event, StepStarted):
+                last = event
+            elif isinstance(event, WindowOpened):
+                last = None
+        return found
 
 
 async def play(
@@ -56,11 +74,8 @@ async def play(
 ) -> Played:
     played = Played()
     task = asyncio.ensure_future(
-        run_schedule(
-            robot, plan, now=start, on_progress=played.events.append,
-            runner=fake_runner(played.runs),
-        )
-    )  # fmt: skip
+        run_schedule(robot, plan, now=start, on_progress=played.events.append)
+    )
     await device.advance(seconds)
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
@@ -92,51 +107,90 @@ async def test_a_working_day_with_a_lunch_break_and_charging() -> None:
     assert [local(event) for event in opened] == [(8, 0), (13, 0)]
     assert [event.reason for event in closed] == ["window closed", "window closed"]
     assert [local(event)[0] for event in closed] == [12, 18]
-    pauses, resumed = played.of(ChargingPause), played.of(Resumed)
-    assert pauses
+    # The mission loops: its loop turned many times in each window.
+    assert max(event.iteration for event in played.of(LoopStarted)) > 50
+    # Charging from the battery threshold, mid-loop, in both windows; each pause resumed.
+    pauses = played.of(ChargingPause)
+    assert {pause.window for pause in pauses} == {0, 1}
     assert all(pause.reason == "battery low" for pause in pauses)
-    assert len(resumed) >= len(pauses) - 1
-    # Each pause resumes the mission where it stopped: the runner is called with resume.
-    # (a pause when a window opens comes before its first run: that run starts afresh)
-    calls = played.runs.calls
-    assert [resume for _, resume, _ in calls].count(False) == 2
-    assert all(first > 0 for _, resume, first in calls if resume)
+    assert len(played.of(Resumed)) == len(pauses)
+    resumes = played.resumes()
+    assert resumes
+    for before, after in resumes:
+        if before is None:  # low when the window opened: its first run starts afresh
+            assert (after.path, after.loops) == ("steps[0].loop.steps[0]", {"steps[0]": 1})
+        else:  # the journal: the same step of the same loop turn
+            assert (after.path, after.loops) == (before.path, before.loops)
+    assert any(before is not None for before, _ in resumes)
+    assert all(event.report.ending == "cancelled" for event in played.of(MissionEnded))
     assert status is not None
-    assert status.charge_status != ChargeStatus.FREE  # the dock at 18:00
+    assert status.charge_status in _ON_DOCK  # the stop pose at 18:00: the dock
 
 
-async def test_docking_from_outside_pauses_the_mission_until_charged() -> None:
+async def test_docking_started_outside_pauses_the_mission_until_charged() -> None:
     plan = schedule(
         windows=[{"days": "every day", "start": "08:00", "stop": "09:00", "mission": PATROL}]
     )
     async with simulated_robot() as (robot, device):
         played = Played()
         task = asyncio.ensure_future(
-            run_schedule(robot, plan, now=MONDAY.replace(hour=8), on_progress=played.events.append,
-                         runner=fake_runner(played.runs))
-        )  # fmt: skip
+            run_schedule(robot, plan, now=MONDAY.replace(hour=8), on_progress=played.events.append)
+        )
         await device.advance(100)
-        await robot.send(StartCharging())  # someone docks it
+        device.go_charge()  # the robot heads for the dock by itself
         await device.advance(600)
         task.cancel()
         with pytest.raises(asyncio.CancelledError):
             await task
     assert [pause.reason for pause in played.of(ChargingPause)] == ["docked"]
     assert len(played.of(Resumed)) == 1
-    assert [call[1] for call in played.runs.calls] == [False, True]
+    [(before, after)] = played.resumes()
+    assert before is not None
+    assert (after.path, after.loops) == (before.path, before.loops)
 
 
-@pytest.mark.parametrize(
-    ("policy", "closes_after_stop"), [("finish_step", True), ("stop_now", False)]
-)
-async def test_window_close_finishes_the_step_or_stops_now(
-    policy: str, closes_after_stop: bool
-) -> None:
+async def test_a_resume_after_charging_starts_at_the_step_where_it_stopped() -> None:
+    errand = {
+        "mission": "errand",
+        "steps": [{"goto": 1}, {"dwell": 30}, {"goto": 2}, {"dwell": 600}, {"goto": 3}],
+    }
+    plan = schedule(
+        windows=[{"days": "every day", "start": "08:00", "stop": "09:00", "mission": errand}]
+    )
+    async with simulated_robot() as (robot, device):
+        played = Played()
+        task = asyncio.ensure_future(
+            run_schedule(robot, plan, now=MONDAY.replace(hour=8), on_progress=played.events.append)
+        )
+        await robot.wait_until(lambda status: status.target_num_id == 2 and not status.goal_active,
+                               timeout=600)  # fmt: skip
+        await device.advance(60)  # into the long dwell
+        device.go_charge()
+        await device.advance(1800)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+    pause = played.events.index(played.of(ChargingPause)[0])
+    started = [e.path for e in played.events[:pause] if isinstance(e, StepStarted)]
+    again = [e.path for e in played.events[pause:] if isinstance(e, StepStarted)]
+    assert started == ["steps[0]", "steps[1]", "steps[2]", "steps[3]"]
+    assert again == ["steps[3]", "steps[4]"]  # nothing before the dwell is driven again
+    first, second = played.of(MissionEnded)
+    assert (first.report.ending, first.report.resumed_at) == ("cancelled", None)
+    assert (second.report.ending, second.report.resumed_at) == ("completed", "steps[3]")
+    [closed] = played.of(WindowClosed)
+    assert closed.reason == "mission ended"
+
+
+@pytest.mark.parametrize("policy", ["finish_step", "stop_now"])
+async def test_window_close_finishes_the_step_or_stops_now(policy: str) -> None:
     long_dwell = {"mission": "wait", "steps": [{"dwell": 10}, {"dwell": 350}, {"dwell": 10}]}
+    # finish_step, then a target as the stop pose; stop_now, then the dock.
+    stop_pose = 3 if policy == "finish_step" else "dock"
     plan = schedule(
         windows=[
             {"days": "every day", "start": "08:00", "stop": "08:05", "mission": long_dwell,
-             "stop_pose": 3}
+             "stop_pose": stop_pose}
         ],
         on_window_close=policy,
     )  # fmt: skip
@@ -144,16 +198,18 @@ async def test_window_close_finishes_the_step_or_stops_now(
         played = await play(robot, plan, MONDAY.replace(hour=8), 1200, device)
         status = robot.status
     [closed] = played.of(WindowClosed)
+    assert closed.reason == "window closed"
     stop = MONDAY.replace(hour=8, minute=5)
     # steps[1] ends at 08:06:00; the stop pose is a few seconds away
-    assert (closed.at > stop + timedelta(seconds=60)) is closes_after_stop
+    assert (closed.at > stop + timedelta(seconds=60)) is (policy == "finish_step")
     assert closed.at < stop + timedelta(seconds=90)
-    ended = [event for event in played.events if isinstance(event, StepEnded)]
-    assert [event.path for event in ended] == (
-        ["steps[0]", "steps[1]"] if closes_after_stop else ["steps[0]"]
-    )
+    done = [e.step.path for e in played.of(StepEnded) if e.step.ending == "done"]
+    assert done == (["steps[0]", "steps[1]"] if policy == "finish_step" else ["steps[0]"])
     assert status is not None
-    assert status.target_num_id == 3  # the stop pose
+    if policy == "finish_step":
+        assert status.target_num_id == 3
+    else:
+        assert status.charge_status in _ON_DOCK
 
 
 @pytest.mark.parametrize("policy", ["wait", "preempt", "skip"])
@@ -229,84 +285,46 @@ async def test_an_excluded_date_opens_no_window() -> None:
         played = await play(robot, plan, MONDAY.replace(hour=23, minute=49), 120, device)
     assert [local(event) for event in played.of(Excluded)] == [(23, 50)]
     assert played.of(WindowOpened) == []
-    assert played.runs.calls == []
+    assert played.of(StepStarted) == []
 
 
-async def _by_fail_after(run: Any) -> None:
-    with pytest.raises(TimeoutError), anyio.fail_after(200):
-        await run()
-
-
-async def _by_move_on_after(run: Any) -> None:
-    with anyio.move_on_after(200) as scope:
-        await run()
-    assert scope.cancelled_caught
-
-
-async def _by_asyncio_timeout(run: Any) -> None:
-    with pytest.raises(TimeoutError):
-        async with asyncio.timeout(200):  # type: ignore[attr-defined, unused-ignore]
-            await run()
-
-
-async def _by_task_cancel(run: Any) -> None:
-    task = asyncio.ensure_future(run())
-    await asyncio.sleep(200)
-    task.cancel()
-    with pytest.raises(asyncio.CancelledError):
-        await task
-
-
-async def _by_failing_sibling(run: Any) -> None:
-    async def fail() -> None:
-        await asyncio.sleep(200)
-        raise RuntimeError("sibling")
-
-    async def both() -> None:
-        async with anyio.create_task_group() as group:
-            group.start_soon(run)
-            group.start_soon(fail)
-
-    # an ExceptionGroup (the exceptiongroup backport's on Python 3.10)
-    with pytest.raises(Exception, match="unhandled errors") as caught:
-        await both()
-    assert [str(error) for error in getattr(caught.value, "exceptions", [])] == ["sibling"]
-
-
-ROUTES = [
-    _by_fail_after,
-    _by_move_on_after,
-    _by_asyncio_timeout,
-    _by_task_cancel,
-    _by_failing_sibling,
-]
-
-
-@pytest.mark.parametrize("route", ROUTES, ids=[route.__name__[4:] for route in ROUTES])
-async def test_cancelling_run_schedule_stops_the_robot(route: Any) -> None:
-    import sys
-
-    if route is _by_asyncio_timeout and sys.version_info < (3, 11):
-        pytest.skip("asyncio.timeout is Python 3.11+")
+@pytest.mark.parametrize("how", WAYS)
+async def test_stopping_run_schedule_every_way_leaves_the_robot_stopped(how: str) -> None:
     plan = schedule(
         windows=[{"days": "every day", "start": "08:00", "stop": "18:00", "mission": PATROL}]
     )
-    runs = FakeRuns([])
+    played = Played()
     async with simulated_robot() as (robot, device):
 
         async def run() -> None:
-            await run_schedule(robot, plan, now=MONDAY.replace(hour=8), runner=fake_runner(runs))
+            await run_schedule(
+                robot, plan, now=MONDAY.replace(hour=8), on_progress=played.events.append
+            )
 
         device.clear()
-        await route(run)
+        await stop_waiting(how, run, 200)
         stops = device.received()
         device.clear()
-        await device.advance(5)
+        await device.advance(30)
         assert device.received() == []  # nothing more is sent: nothing runs
         status = robot.status
-    assert runs.calls
+    assert played.of(StepStarted)
     assert status is not None
     assert not status.goal_active
     assert status.current_speed_x == 0
     assert status.current_speed_theta == 0
     assert any(isinstance(command, Stop) for command in stops)
+
+
+async def test_a_mission_the_link_cannot_run_ends_the_schedule_before_anything_moves() -> None:
+    plan = schedule(
+        windows=[{"days": "every day", "start": "08:00", "stop": "09:00",
+                  "mission": {"mission": "hello", "steps": [{"say": "hello"}]}}]
+    )  # fmt: skip
+    async with simulated_robot() as (robot, device):
+        device.clear()
+        with pytest.raises(MissionRejected, match="say"):
+            await run_schedule(robot, plan, now=MONDAY.replace(hour=8))
+        sent = device.received()
+    # Nothing but robot.stop() on the way out (a cancel and a stop): no goal was sent.
+    assert {type(command) for command in sent} == {Cancel, Stop}

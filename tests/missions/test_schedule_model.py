@@ -8,10 +8,10 @@ from zoneinfo import ZoneInfo
 
 import pytest
 
-from galileo_async.missions import Mission
+from galileo_async.battery import battery_charge
+from galileo_async.missions import Mission, MissionFileError, Problem
 from galileo_async.missions.schedule_model import (
-    ScheduleFileError,
-    battery_percent,
+    BatteryPolicy,
     check_schedule,
     load_schedule,
     local_instant,
@@ -75,17 +75,46 @@ def test_errors_name_the_line_and_the_window(
     tmp_path: Path, text: str, line: int, window: str | None, words: str
 ) -> None:
     (tmp_path / "patrol.yaml").write_text("mission: patrol\nsteps: [{goto: 1}]\n")
-    with pytest.raises(ScheduleFileError, match=words) as caught:
+    with pytest.raises(MissionFileError, match=words) as caught:
         parse_schedule(text, source="office.yaml", base=tmp_path)
     assert caught.value.line == line
     assert caught.value.step == window
-    assert str(caught.value).startswith(f"office.yaml:{line}: ")
+    assert caught.value.problems[0].startswith(f"office.yaml:{line}: ")
 
 
 def test_a_missing_mission_file_names_its_line(tmp_path: Path) -> None:
-    with pytest.raises(ScheduleFileError, match=r"patrol\.yaml") as caught:
+    with pytest.raises(MissionFileError, match=r"patrol\.yaml") as caught:
         parse_schedule(SCHEDULE, source="office.yaml", base=tmp_path)
     assert (caught.value.line, caught.value.step) == (7, "windows[0]")
+
+
+def test_every_problem_has_its_line_and_an_inline_mission_its_step(tmp_path: Path) -> None:
+    text = (
+        SCHEDULE.replace('stop: "12:00"', 'stop: "12:75"')
+        .replace("{dwell: 60}", "{dwel: 60}")
+        .replace("stop_pose: dock", "stop_pose: 300")
+    )
+    (tmp_path / "patrol.yaml").write_text("mission: patrol\nsteps: [{goto: 1}]\n")
+    with pytest.raises(MissionFileError) as caught:
+        parse_schedule(text, source="office.yaml", base=tmp_path)
+    assert [(d.line, d.step) for d in caught.value.details] == [
+        (6, "windows[0]"), (12, "windows[1].mission.steps[0]"), (13, "windows[1]"),
+    ]  # fmt: skip
+    assert "did you mean 'dwell'" in caught.value.problems[1]
+
+
+def test_a_broken_mission_file_names_both_files(tmp_path: Path) -> None:
+    (tmp_path / "patrol.yaml").write_text("mission: patrol\nsteps:\n  - {goto: 1}\n  - {got: 2}\n")
+    with pytest.raises(MissionFileError) as caught:
+        load_schedule_text(tmp_path, SCHEDULE)
+    [problem] = caught.value.problems
+    assert problem.startswith("office.yaml:7: windows[0]: mission patrol.yaml: ")
+    assert f"{tmp_path / 'patrol.yaml'}:4: steps[1]" in problem
+
+
+def load_schedule_text(folder: Path, text: str) -> object:
+    (folder / "office.yaml").write_text(text)
+    return parse_schedule(text, source="office.yaml", base=folder)
 
 
 def test_overlapping_windows_are_a_problem_unless_a_policy_is_given() -> None:
@@ -98,7 +127,9 @@ def test_overlapping_windows_are_a_problem_unless_a_policy_is_given() -> None:
     ]
     text = f"time_zone: UTC\nwindows: {windows}\n"
     problems = check_schedule(parse_schedule(text))
-    assert [problem.where for problem in problems] == ["windows[1]", "windows[3]"]
+    assert [problem.step for problem in problems] == ["windows[1]", "windows[3]"]
+    assert all(isinstance(problem, Problem) for problem in problems)
+    assert {problem.severity for problem in problems} == {"warning"}
     assert "on_overlap" in str(problems[0])
     windows[1]["on_overlap"] = "preempt"
     windows[3]["on_overlap"] = "skip"
@@ -137,8 +168,15 @@ def test_occurrences_in_order_with_exclusions_and_midnight() -> None:
     assert first[10].stop.astimezone(BERLIN).strftime("%a %H:%M") == "Sun 03:00"
 
 
-def test_battery_percent_follows_the_curve() -> None:
-    assert battery_percent(22.0) == 0.0
-    assert battery_percent(25.0) == 45.0
-    assert battery_percent(28.5) == 100.0
-    assert battery_percent(float("nan")) == 0.0
+def test_battery_thresholds_in_percent_read_the_one_voltage_curve() -> None:
+    # 25.0 V is 45 % on galileo_async.battery's curve.
+    assert battery_charge(25.0) == 45.0
+    by_percent = BatteryPolicy(go_charge_below_percent=45.5, resume_at_percent=90)
+    assert by_percent.low(25.0)
+    assert not by_percent.low(25.1)
+    assert not by_percent.charged(26.9)
+    assert by_percent.charged(27.8)
+    by_volts = BatteryPolicy(go_charge_below_volts=24.0, resume_at_percent=60)
+    assert BatteryPolicy.percent(None, 24.0) == battery_charge(24.0)
+    assert by_volts.low(23.9)
+    assert by_volts.charged(25.5)
