@@ -19,14 +19,35 @@ import typer
 
 from ..errors import InvalidArgument
 from ..fleet.file import load_fleet_file
+from ..links import link_kind
 from ..missions.capabilities import REST_API, needs
 from ..missions.events import LoopStarted, MissionEnded, MissionEvent, StepEnded
 from ..missions.model import Mission, WaitStep, step_paths
 from ..missions.report import MissionRejected, MissionReport
+from .mission import (
+    FormatOption,
+    PointsOption,
+    load_plan_file,
+    load_plan_from_robot,
+    plan_errors,
+    plan_format_of,
+    point_source,
+    robot_points,
+)
 from .output import out_console, timestamp
-from .runner import ExitCode, fail, is_sim, print_error, run, run_robot, settings_of
+from .runner import (
+    ExitCode,
+    fail,
+    is_sim,
+    print_error,
+    robot_url,
+    run,
+    run_robot,
+    settings_of,
+)
 
 if TYPE_CHECKING:
+    from ..missions.importers import ImportedPlan, PlanFormat
     from ..robot import Robot
     from ..testing.robot import SimLink
 
@@ -34,8 +55,8 @@ __all__ = [
     "FILE_RELEASE_PERIOD",
     "SIM_UNTIL",
     "fleet_mission_run",
-    "load_mission_file",
     "mission_exit_code",
+    "mission_of",
     "mission_run",
     "register",
     "register_fleet",
@@ -61,7 +82,20 @@ _STEP_CODES = {
 }
 
 FileArgument = Annotated[
-    Path, typer.Argument(help="The mission file (YAML; JSON is YAML too).", dir_okay=False)
+    Path,
+    typer.Argument(
+        help="A mission file (YAML; JSON is YAML too), timeTask.json or Nav2 file.",
+        dir_okay=False,
+    ),
+]
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        "--task",
+        metavar="NAME",
+        help="A file of several tasks (timeTask.json): the one to run, by its name or its "
+        "first word (autoRunTasks[0]).",
+    ),
 ]
 ReleaseOption = Annotated[
     list[str] | None,
@@ -75,27 +109,30 @@ ReleaseOption = Annotated[
 JsonOption = Annotated[bool, typer.Option("--json", help="A JSON line per progress event.")]
 
 
-def load_mission_file(path: Path) -> Mission:
-    """The Mission in ``path`` (JSON, or YAML when pyyaml is installed); InvalidArgument."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InvalidArgument(f"{path}: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text)
-    except ValueError:
-        try:
-            import yaml  # type: ignore[import-untyped, unused-ignore]
-        except ImportError:
-            raise InvalidArgument(f"{path}: not JSON, and pyyaml is not installed") from None
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise InvalidArgument(f"{path}: {exc}") from None
-    try:
-        return Mission.model_validate(data)
-    except ValueError as exc:
-        raise InvalidArgument(f"{path}: {exc}") from None
+def mission_of(plan: ImportedPlan, file: Path, task: str | None) -> Mission:
+    """The one mission of ``plan`` that runs: its only one, or the one ``task`` names (its
+    whole name or its first word, e.g. ``autoRunTasks[0]``); else exit 2 naming them."""
+    names = [mission.mission for mission in plan.missions]
+    if task is None and len(plan.missions) == 1:
+        return plan.missions[0]
+    for mission in plan.missions:
+        if task in (mission.mission, mission.mission.split(" ")[0]):
+            return mission
+    listed = "; ".join(repr(name) for name in names) or "none"
+    if task is None:
+        fail(f"{file} has {len(names)} tasks: name the one to run with --task ({listed})",
+             ExitCode.USAGE)  # fmt: skip
+    fail(f"{file} has no task {task!r} (it has: {listed})", ExitCode.USAGE)
+
+
+def _needs_robot_points(file: Path, kind: PlanFormat | None, points: Path | None) -> bool:
+    """True for a timeTask.json without --points: its paths' points come from the robot."""
+    from ..missions.importers import detect_format
+
+    if points is not None:
+        return False
+    with plan_errors():
+        return (kind or detect_format(file)) == "timetask"
 
 
 def mission_exit_code(report: MissionReport) -> int:
@@ -202,6 +239,9 @@ def mission_run(
         bool, typer.Option("--resume", help="Start where the --journal file says the run was.")
     ] = False,
     release: ReleaseOption = None,
+    plan_format: FormatOption = "auto",
+    points: PointsOption = None,
+    task: TaskOption = None,
     json_output: JsonOption = False,
 ) -> None:
     """Run a mission with a line per step; the exit code tells how it ended.
@@ -212,13 +252,22 @@ def mission_run(
     """
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
-    try:
-        mission = load_mission_file(file)
-    except InvalidArgument as exc:
-        fail(str(exc), ExitCode.USAGE)
+    kind = plan_format_of(plan_format)
+    from_robot = (
+        not sim
+        and _needs_robot_points(file, kind, points)
+        and link_kind(robot_url(settings)) == "http"
+    )
+    loaded: Mission | None = None
+    if not from_robot:
+        with plan_errors():
+            plan = load_plan_file(settings, file, kind, point_source(points), False, True, None)
+        loaded = mission_of(plan, file, task)
     releases = _releases(release)
     show = _printer(settings.json)
     if sim:
+        assert loaded is not None
+        mission = loaded
 
         async def simulated() -> int:
             return await _play(mission, show, until, settings.json)
@@ -228,6 +277,12 @@ def mission_run(
     async def body(robot: Robot) -> int:
         from ..missions.runner import run_mission
 
+        mission = loaded
+        if mission is None:
+            source = robot_points(robot)
+            assert source is not None  # an http:// link has its REST part
+            plan = await load_plan_from_robot(settings, file, kind, source, False, True, None)
+            mission = mission_of(plan, file, task)
         try:
             report = await run_mission(
                 robot, mission, releases=releases, journal=journal, resume=resume,
@@ -289,6 +344,9 @@ def fleet_mission_run(
         ),
     ] = None,
     release: ReleaseOption = None,
+    plan_format: FormatOption = "auto",
+    points: PointsOption = None,
+    task: TaskOption = None,
     json_output: JsonOption = False,
 ) -> None:
     """Run a mission on every robot of the fleet at once; the first stop stops them all.
@@ -302,15 +360,21 @@ def fleet_mission_run(
         fail("fleet commands need a fleet file: galileo --fleet fleet.toml fleet …", ExitCode.USAGE)
     try:
         spec = load_fleet_file(settings.fleet)
-        shared = load_mission_file(file)
-        missions = dict.fromkeys(spec.ports, shared)
-        for entry in per_robot or []:
-            name, _, path = entry.partition("=")
-            if name not in spec.ports or not path:
-                raise InvalidArgument(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet")
-            missions[name] = load_mission_file(Path(path))
     except InvalidArgument as exc:
         fail(str(exc), ExitCode.USAGE)
+    kind, source = plan_format_of(plan_format), point_source(points)
+
+    def load(path: Path) -> Mission:
+        with plan_errors():
+            return mission_of(load_plan_file(settings, path, kind, source, False, True, None),
+                              path, task)  # fmt: skip
+
+    missions = dict.fromkeys(spec.ports, load(file))
+    for entry in per_robot or []:
+        name, _, path = entry.partition("=")
+        if name not in spec.ports or not path:
+            fail(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet", ExitCode.USAGE)
+        missions[name] = load(Path(path))
     releases = _releases(release)
     shows = {name: _printer(settings.json, name) for name in missions}
 

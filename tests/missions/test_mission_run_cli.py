@@ -95,7 +95,7 @@ def test_a_mission_the_link_cannot_run_exits_2_naming_every_problem(tmp_path: Pa
 @pytest.mark.parametrize(
     ("text", "args", "message"),
     [
-        ("{", (), "not JSON"),
+        ("{", (), "bad.json:1: YAML: "),
         ('{"mission": "m", "steps": []}', (), "steps"),
         (json.dumps(LOBBY), ("--release", "operator"), "give NAME=key"),
         (json.dumps(LOBBY), ("--release", "operator=mouse"), "neither key nor file:PATH"),
@@ -110,6 +110,66 @@ def test_usage_errors_exit_2(
     result = invoke("mission", "run", str(path), *args, port=None)
     assert result.exit_code == ExitCode.USAGE, result.output
     assert message in result.output
+
+
+def test_a_bad_file_names_the_file_the_line_and_the_step(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("mission: m\nsteps:\n  - goto: 1\n  - dwell: -3\n", encoding="utf-8")
+    result = invoke("mission", "run", str(path), port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert f"{path}:4: steps[1]: dwell: " in result.output
+
+
+TIMETASK = {
+    "autoRunTasks": [
+        {"whichDay": 0, "startTime": "08:00", "stopTime": "09:00", "mapName": "sim",
+         "pathName": "path1", "waitTime": 1, "stopPose": 0, "loopCount": 1},
+        {"whichDay": 0, "startTime": "13:00", "stopTime": "18:00", "mapName": "floor2",
+         "pathName": "path2", "waitTime": 0, "stopPose": 1, "loopCount": 2},
+    ]
+}  # fmt: skip
+
+
+def test_a_timetask_file_runs_the_task_named_with_task(tmp_path: Path) -> None:
+    plan = write(tmp_path, TIMETASK, "timeTask.json")
+    points = tmp_path / "nav.csv"
+    points.write_text("1 0 0\n2 0 0\n", encoding="utf-8")
+    several = invoke("mission", "run", plan, "--points", str(points), "--sim", port=None)
+    assert several.exit_code == ExitCode.USAGE, several.output
+    assert "has 2 tasks: name the one to run with --task" in several.output
+    assert "'autoRunTasks[1] floor2/path2 13:00-18:00'" in several.output
+    unknown = invoke("mission", "run", plan, "--points", str(points), "--task", "x", port=None)
+    assert unknown.exit_code == ExitCode.USAGE, unknown.output
+    assert "has no task 'x'" in unknown.output
+    result = invoke(
+        "--json", "mission", "run", plan, "--points", str(points), "--task", "autoRunTasks[0]",
+        "--sim", port=None,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    events = lines(result.stdout)
+    assert {e["mission"] for e in events} == {"autoRunTasks[0] sim/path1 08:00-09:00"}
+    ended = [e["step"]["action"] for e in events if e["event"] == "step_ended"]
+    assert ended == ["switch_map", "goto", "dwell", "goto", "dwell", "goto"]
+
+
+def test_a_timetask_file_needs_the_points_of_its_paths(tmp_path: Path) -> None:
+    plan = write(tmp_path, TIMETASK, "timeTask.json")
+    result = invoke("mission", "run", plan, "--task", "autoRunTasks[0]", port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "a timeTask.json needs the points of its paths" in result.output
+
+
+def test_a_nav2_waypoint_file_runs(tmp_path: Path) -> None:
+    path = tmp_path / "waypoints.yaml"
+    path.write_text(
+        "waypoints:\n  waypoint0:\n    pose: [1.0, 0.0, 0.0]\n"
+        "    orientation: [1.0, 0.0, 0.0, 0.0]\n",
+        encoding="utf-8",
+    )
+    result = invoke("--json", "mission", "run", str(path), "--sim", port=None)
+    assert result.exit_code == 0, result.output
+    ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
+    assert ended[-1] == "reached"
 
 
 def test_a_file_release(tmp_path: Path) -> None:
