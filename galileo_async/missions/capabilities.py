@@ -28,9 +28,14 @@ class Unsupported:
     action: str
     missing: frozenset[str]
 
+    @property
+    def reason(self) -> str:
+        """What the step needs, without where it is: ``say needs an http:// … link``."""
+        return f"{self.action} needs an http:// or https:// link"
+
     def __str__(self) -> str:
         where = self.path if self.name is None else f"{self.path} ({self.name})"
-        return f"{where}: {self.action} needs an http:// or https:// link"
+        return f"{where}: {self.reason}"
 
 
 def needs(step: Any) -> frozenset[str]:

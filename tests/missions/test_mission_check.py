@@ -86,9 +86,9 @@ def test_a_jump_backwards_is_unbounded() -> None:
             "warning",
             "the call's 20 s",
         ),
-        ({"say": "hi"}, "note", "say needs an http:// link"),
-        ({"switch_map": "f"}, "note", "switch_map needs an http:// link"),
-        ({"goto_pose": {"x": 1, "y": 2}}, "note", "goto_pose needs an http:// link"),
+        ({"say": "hi"}, "note", "say needs an http:// or https:// link"),
+        ({"switch_map": "f"}, "note", "switch_map needs an http:// or https:// link"),
+        ({"goto_pose": {"x": 1, "y": 2}}, "note", "goto_pose needs an http:// or https:// link"),
     ],
 )
 def test_doubtful_steps(step: dict[str, Any], severity: str, text: str) -> None:
@@ -116,9 +116,9 @@ async def test_against_a_robot_on_a_serial_like_link() -> None:
         problems = await check_mission(plan, robot=robot)
     assert found(problems) == [
         ("error", "steps[1]", "target 6 is not in the robot's map: it has 6 targets (0-5)"),
-        ("error", "steps[3]", "say needs an http:// link"),
-        ("error", "steps[4]", "switch_map needs an http:// link"),
-        ("error", "steps[5]", "goto_pose needs an http:// link"),
+        ("error", "steps[3]", "say needs an http:// or https:// link"),
+        ("error", "steps[4]", "switch_map needs an http:// or https:// link"),
+        ("error", "steps[5]", "goto_pose needs an http:// or https:// link"),
     ]  # after a switch_map the link cannot tell the new map's targets
     assert problems[0].name == "far"
 
