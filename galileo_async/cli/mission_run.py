@@ -37,6 +37,7 @@ from .mission import (
 from .output import out_console, timestamp
 from .runner import (
     ExitCode,
+    Settings,
     fail,
     is_sim,
     print_error,
@@ -242,6 +243,14 @@ def mission_run(
     plan_format: FormatOption = "auto",
     points: PointsOption = None,
     task: TaskOption = None,
+    offload: Annotated[
+        bool,
+        typer.Option(
+            "--offload",
+            help="Send it to the robot's task chain as one task (http://) and follow it: it "
+            "goes on when this host's link drops. With --sim: on the simulator's HTTP face.",
+        ),
+    ] = False,
     json_output: JsonOption = False,
 ) -> None:
     """Run a mission with a line per step; the exit code tells how it ended.
@@ -265,11 +274,15 @@ def mission_run(
         loaded = mission_of(plan, file, task)
     releases = _releases(release)
     show = _printer(settings.json)
+    if offload:
+        _offload_usage(settings, sim, loaded, journal is not None or resume or bool(releases))
     if sim:
         assert loaded is not None
         mission = loaded
 
         async def simulated() -> int:
+            if offload:
+                return await _play_offload(mission, show, until)
             return await _play(mission, show, until, settings.json)
 
         run(settings, simulated)
@@ -283,6 +296,8 @@ def mission_run(
             assert source is not None  # an http:// link has its REST part
             plan = await load_plan_from_robot(settings, file, kind, source, False, True, None)
             mission = mission_of(plan, file, task)
+        if offload:
+            return await _offload(robot, mission, show)
         try:
             report = await run_mission(
                 robot, mission, releases=releases, journal=journal, resume=resume,
@@ -330,6 +345,66 @@ async def _play(
         for line in play.timeline():
             console.print(line, markup=False, soft_wrap=True, highlight=False)
     return mission_exit_code(play.report)
+
+
+def _offload_usage(
+    settings: Settings, sim: bool, mission: Mission | None, host_options: bool
+) -> None:
+    """Exit 2 unless --offload can go: an http:// robot (or --sim), no options of a run on
+    this host, and a mission (when loaded) the task chain can run."""
+    from ..missions.offload import OffloadRejected, offload_problems
+
+    if host_options:
+        fail("--offload: the robot runs the plan; --journal, --resume and --release are for "
+             "a run on this host", ExitCode.USAGE)  # fmt: skip
+    if not sim and link_kind(robot_url(settings)) != "http":
+        fail("--offload needs the robot's task chain: an http:// or https:// robot (-p URL) "
+             "or --sim", ExitCode.USAGE)  # fmt: skip
+    if mission is not None and (problems := offload_problems(mission)):
+        raise typer.Exit(_rejected(OffloadRejected(mission.mission, problems)))
+
+
+async def _offload(robot: Robot, mission: Mission, show: Callable[[MissionEvent], None]) -> int:
+    """offload_mission on ``robot``, shown as a run's events; the exit code as a run's."""
+    from ..missions.offload import ChainProgress, offload_mission
+    from ..missions.offload_events import OffloadEvents
+
+    events = OffloadEvents(mission)
+
+    def progress(seen: ChainProgress) -> None:
+        for event in events.of(seen):
+            show(event)
+
+    try:
+        report = await offload_mission(robot, mission, on_progress=progress)
+    except MissionRejected as exc:
+        return _rejected(exc)
+    ended = events.ended(report)
+    show(ended)
+    return mission_exit_code(ended.report)
+
+
+async def _play_offload(
+    mission: Mission, show: Callable[[MissionEvent], None], until: float
+) -> int:
+    """``--sim --offload``: the mission on simulated_robot(link="http")'s task chain."""
+    import asyncio
+
+    from ..testing import simulated_robot
+
+    async with simulated_robot(link="http") as (robot, _):
+        stopping: list[asyncio.Task[Any]] = []
+
+        def stop() -> None:
+            stopping.append(asyncio.ensure_future(robot.stop()))
+
+        timer = asyncio.get_running_loop().call_later(until, stop)
+        try:
+            return await _offload(robot, mission, show)
+        finally:
+            timer.cancel()
+            if stopping:
+                await asyncio.wait(stopping)
 
 
 def fleet_mission_run(

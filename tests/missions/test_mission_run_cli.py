@@ -15,6 +15,7 @@ from galileo_async.missions import MissionReport
 from tests.cli.test_cli import invoke
 from tests.cli.test_cli_served import _read_until as read_until
 from tests.cli.test_cli_signals import finish, start
+from tests.missions.test_mission_cli import _HttpSim, http_sim  # noqa: F401  (a fixture)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -303,3 +304,86 @@ def test_a_signal_stops_the_mission_and_the_robot(
     ended = [e for e in events if e.get("event") == "mission_ended"]
     assert ended[0]["report"]["ending"] == "cancelled"
     assert any(e.get("result") == "interrupted" and e.get("stop_sent") for e in events), out
+
+
+PATROL: dict[str, Any] = {
+    "mission": "patrol",
+    "steps": [{"loop": {"count": 2, "steps": [{"goto": 1}, {"dwell": 5}, {"goto": 2}]}}],
+}
+
+
+def test_offload_prints_the_lines_of_a_run(tmp_path: Path) -> None:
+    plan = write(tmp_path, PATROL)
+    result = invoke("mission", "run", plan, "--sim", "--offload", port=None)
+    assert result.exit_code == 0, result.output
+    out = result.stdout.splitlines()
+    assert out[0] == "steps[0] loop 1 of 2"
+    assert out[1].startswith("steps[0].loop.steps[0] goto reached in ")
+    assert out[2].startswith("steps[0].loop.steps[1] dwell done in ")
+    assert out[4] == "steps[0] loop 2 of 2"
+    assert out[-1].startswith("mission 'patrol' completed: 6 steps, 2 loops")
+    json_run = invoke("--json", "mission", "run", plan, "--sim", "--offload", port=None)
+    assert json_run.exit_code == 0, json_run.output
+    events = lines(json_run.stdout)
+    assert [e["event"] for e in events[:3]] == ["loop_started", "step_started", "step_ended"]
+    assert events[2]["step"]["ending"] == "reached"
+    assert events[2]["step"]["loops"] == {"steps[0]": 1}
+    assert events[-1]["report"]["ending"] == "completed"
+    assert events[-1]["report"]["loops_done"] == 2
+
+
+def test_offload_of_a_forever_loop_stops_after_until(tmp_path: Path) -> None:
+    forever = {"mission": "m", "steps": [{"loop": {"steps": [{"goto": 1}, {"goto": 2}]}}]}
+    result = invoke(
+        "mission", "run", write(tmp_path, forever), "--sim", "--offload", "--until", "120",
+        port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.CANCELLED, result.output
+    assert result.stdout.splitlines()[-1].startswith("mission 'm' stopped: ")
+
+
+def test_offload_of_a_mission_the_chain_cannot_run_exits_2_naming_every_problem(
+    tmp_path: Path,
+) -> None:
+    plan = write(
+        tmp_path, {"mission": "m", "steps": [{"say": "hi"}, {"goto": 1, "on_failure": "skip"}]}
+    )
+    result = invoke("--json", "mission", "run", plan, "--sim", "--offload", port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert [line["message"] for line in lines(result.stdout)] == [
+        "mission 'm': steps[0]: say: the task chain has no speech action",
+        "mission 'm': steps[1]: on_failure skip: the task chain ends at the first failed "
+        "action (on_failure: abort)",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("args", "port", "message"),
+    [
+        ((), "sim://", "--offload needs the robot's task chain: an http:// or https://"),
+        (("--sim", "--journal", "j.json"), None, "--journal, --resume and --release are for"),
+    ],
+    ids=["not http", "journal"],
+)
+def test_offload_usage_errors_exit_2(
+    tmp_path: Path, args: tuple[str, ...], port: str | None, message: str
+) -> None:
+    result = invoke("mission", "run", write(tmp_path, PATROL), "--offload", *args, port=port)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert message in result.output
+
+
+def test_offload_to_the_http_face_of_a_simulator(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    robot: _HttpSim = request.getfixturevalue("http_sim")
+    # The robot is outside the command's loop: the real clock (as test_cli_served's).
+    plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}, {"dwell": 1}]})
+    opened = invoke("nav", "start", port=robot.url, real_clock=True)
+    assert opened.exit_code == 0, opened.output
+    result = invoke(
+        "--json", "mission", "run", plan, "--offload", port=robot.url, real_clock=True,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
+    assert ended == ["reached", "done"]
