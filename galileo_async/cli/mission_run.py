@@ -34,7 +34,7 @@ from .mission import (
     point_source,
     robot_points,
 )
-from .output import out_console, timestamp
+from .output import err_console, out_console, timestamp
 from .runner import (
     ExitCode,
     Settings,
@@ -55,6 +55,7 @@ if TYPE_CHECKING:
 __all__ = [
     "FILE_RELEASE_PERIOD",
     "SIM_UNTIL",
+    "checked",
     "fleet_mission_run",
     "mission_exit_code",
     "mission_of",
@@ -124,6 +125,20 @@ def mission_of(plan: ImportedPlan, file: Path, task: str | None) -> Mission:
         fail(f"{file} has {len(names)} tasks: name the one to run with --task ({listed})",
              ExitCode.USAGE)  # fmt: skip
     fail(f"{file} has no task {task!r} (it has: {listed})", ExitCode.USAGE)
+
+
+def checked(file: Path, mission: Mission) -> bool:
+    """check_static before anything moves: print its warnings and errors; False on an error."""
+    from ..missions.check import check_static
+
+    problems = [p for p in check_static(mission) if p.severity != "note"]
+    for problem in problems:
+        if problem.severity == "error":
+            where = str(problem).partition(": ")[2]  # without "error: ", which print_error says
+            print_error(f"{file}: {where}", kind="usage", code=ExitCode.USAGE)
+        else:
+            err_console().print(f"{file}: {problem}", markup=False, highlight=False)
+    return not any(problem.severity == "error" for problem in problems)
 
 
 def _needs_robot_points(file: Path, kind: PlanFormat | None, points: Path | None) -> bool:
@@ -272,6 +287,8 @@ def mission_run(
         with plan_errors():
             plan = load_plan_file(settings, file, kind, point_source(points), False, True, None)
         loaded = mission_of(plan, file, task)
+        if not checked(file, loaded):
+            raise typer.Exit(int(ExitCode.USAGE))
     releases = _releases(release)
     show = _printer(settings.json)
     if offload:
@@ -296,6 +313,8 @@ def mission_run(
             assert source is not None  # an http:// link has its REST part
             plan = await load_plan_from_robot(settings, file, kind, source, False, True, None)
             mission = mission_of(plan, file, task)
+            if not checked(file, mission):
+                return int(ExitCode.USAGE)
         if offload:
             return await _offload(robot, mission, show)
         try:
@@ -441,8 +460,11 @@ def fleet_mission_run(
 
     def load(path: Path) -> Mission:
         with plan_errors():
-            return mission_of(load_plan_file(settings, path, kind, source, False, True, None),
-                              path, task)  # fmt: skip
+            plan = load_plan_file(settings, path, kind, source, False, True, None)
+        mission = mission_of(plan, path, task)
+        if not checked(path, mission):
+            raise typer.Exit(int(ExitCode.USAGE))
+        return mission
 
     missions = dict.fromkeys(spec.ports, load(file))
     for entry in per_robot or []:

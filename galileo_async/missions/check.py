@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
-from .capabilities import Unsupported, capabilities_of, unsupported
+from .capabilities import Unsupported, capabilities_of, unreleased, unsupported
 from .model import (
     ChargeStep,
     DwellStep,
@@ -99,6 +99,7 @@ def check_static(mission: Mission) -> list[Problem]:
     problems: list[Problem] = []
     problems += _unreachable(mission.steps, "steps", _jump_targets(mission))
     lacking = _lacking(mission, frozenset())
+    waits = {path: step.wait.release for path, step in unreleased(mission, ())}
     order = {step.name: index for index, (_, step) in enumerate(step_paths(mission.steps))}
     for index, (path, step) in enumerate(step_paths(mission.steps)):
         problems += [Problem(path, step.name, text, kind) for kind, text in _step_doubts(step)]
@@ -111,6 +112,11 @@ def check_static(mission: Mission) -> list[Problem]:
             ), "warning"))  # fmt: skip
         if path in lacking:
             problems.append(Problem(path, step.name, lacking[path].reason, "note"))
+        if path in waits:
+            problems.append(Problem(path, step.name, (
+                f"a run needs the release {waits[path]!r} (--release {waits[path]}=key|"
+                "file:PATH, run_mission's releases); check cannot know it"
+            ), "note"))  # fmt: skip
     return problems
 
 

@@ -387,3 +387,27 @@ def test_offload_to_the_http_face_of_a_simulator(
     assert result.exit_code == 0, result.output
     ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
     assert ended == ["reached", "done"]
+
+
+def test_run_checks_the_plan_first_an_error_exits_2_before_anything_moves(
+    tmp_path: Path,
+) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}, {"dwell": 30, "timeout": 10}]})
+    result = invoke("--json", "mission", "run", plan, port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert [line["message"] for line in lines(result.stdout)] == [
+        f"{plan}: steps[1]: timeout 10 s ends the dwell of 30 s"
+    ]  # no step_started: nothing moved
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(FLEET, encoding="utf-8")
+    on_fleet = invoke("--fleet", str(fleet), "fleet", "mission", "run", plan, port=None)
+    assert on_fleet.exit_code == ExitCode.USAGE, on_fleet.output
+    assert "steps[1]: timeout 10 s ends the dwell of 30 s" in on_fleet.output
+
+
+def test_run_prints_the_plans_warnings_and_runs(tmp_path: Path) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"dwell": 0}, {"goto": 1}]})
+    result = invoke("mission", "run", plan, port=None)
+    assert result.exit_code == 0, result.output
+    assert f"{plan}: warning: steps[0]: dwell 0 does nothing" in result.stderr
+    assert result.stdout.splitlines()[-1].startswith("mission 'm' completed")
