@@ -1,4 +1,5 @@
-"""A mission offloaded to the robot's own task chain over http:// (docs/missions-offload.md).
+"""A mission offloaded to the robot's own task chain over http:// (docs/missions.md,
+"Offloading to the robot").
 
 ``offload_problems`` names every step the chain cannot run as the mission says;
 ``plan_offload`` turns a mission into the chain's actions; ``offload_mission`` asks the
