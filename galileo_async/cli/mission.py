@@ -7,7 +7,7 @@ install it and exits 1. ``check`` exits 0, or 2 naming every problem (docs/missi
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
@@ -22,7 +22,19 @@ if TYPE_CHECKING:
     from ..missions.importers import ImportedPlan, PlanFormat, PointSource
     from ..robot import Robot
 
-__all__ = ["INSTALL_HINT", "mission_app"]
+__all__ = [
+    "INSTALL_HINT",
+    "FormatOption",
+    "PointsOption",
+    "file_failure",
+    "load_plan_file",
+    "load_plan_from_robot",
+    "mission_app",
+    "plan_errors",
+    "plan_format_of",
+    "point_source",
+    "robot_points",
+]
 
 #: How to get what `galileo mission` needs besides the command line.
 INSTALL_HINT = "pip install 'galileo-async[cli,missions]'"
@@ -58,11 +70,13 @@ PortOption = Annotated[
         help=f"The robot to read from and check against: {url_forms(plugins=False)}.",
     ),
 ]
+#: The points of a map's path, read from a robot: (map, path) -> waypoints.
+RobotPoints = Callable[[str, str], Awaitable[list[Any]]]
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
 
 
 @contextmanager
-def _plan_errors() -> Iterator[None]:
+def plan_errors() -> Iterator[None]:
     """A missing PyYAML or an unreadable file as one error line (exit 1)."""
     try:
         yield
@@ -82,7 +96,8 @@ def schema() -> None:
     out_console().print(json.dumps(mission_schema(), indent=2), markup=False)
 
 
-def _format(value: str) -> PlanFormat | None:
+def plan_format_of(value: str) -> PlanFormat | None:
+    """The --format value as a PlanFormat (None: auto); BadParameter for another."""
     from ..missions.importers import FORMATS
 
     if value == "auto":
@@ -94,7 +109,8 @@ def _format(value: str) -> PlanFormat | None:
     return value
 
 
-def _points(points: Path | None) -> PointSource | None:
+def point_source(points: Path | None) -> PointSource | None:
+    """The --points file or folder as a PointSource (None: none given)."""
     from ..missions.importers import points_from_folder, read_nav_points
 
     if points is None:
@@ -102,6 +118,20 @@ def _points(points: Path | None) -> PointSource | None:
     if points.is_dir():
         return points_from_folder(points)
     return read_nav_points(points)
+
+
+def robot_points(robot: Robot) -> RobotPoints | None:
+    """The points of a map's path as ``robot`` reads them (None: its link has no HTTP API)."""
+    http = robot.http
+    if http is None:
+        return None
+
+    async def source(map_name: str, path_name: str) -> list[Any]:
+        from ..missions.importers import as_points
+
+        return as_points(await http.targets(map_name, path_name))
+
+    return source
 
 
 def _port(settings: Settings, port: str | None) -> bool:
@@ -142,33 +172,29 @@ def import_plan(
     or with --schedule one schedule file)."""
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
-    kind = _format(plan_format)
+    kind = plan_format_of(plan_format)
     from_robot = _port(settings, port) and points is None
     if from_robot and link_kind(settings.port) != "http":
         fail("the points of a timeTask.json's paths come from --points or an http:// robot")
     if not from_robot:
-        with _plan_errors():
-            plan = _load(settings, file, kind, _points(points), poses, headings, loops)
+        with plan_errors():
+            plan = load_plan_file(
+                settings, file, kind, point_source(points), poses, headings, loops
+            )
         _print_plan(settings, plan, file if as_schedule else None)
         raise typer.Exit(int(ExitCode.OK))
 
     async def body(robot: Robot) -> int:
-        from ..missions.importers import as_points
-
-        http = robot.http
-        assert http is not None  # an http:// link has its REST part
-
-        async def source(map_name: str, path_name: str) -> list[Any]:
-            return as_points(await http.targets(map_name, path_name))
-
-        plan = await _load_from_robot(settings, file, kind, source, poses, headings, loops)
+        source = robot_points(robot)
+        assert source is not None  # an http:// link has its REST part
+        plan = await load_plan_from_robot(settings, file, kind, source, poses, headings, loops)
         _print_plan(settings, plan, file if as_schedule else None)
         return int(ExitCode.OK)
 
     run_robot(settings, body)
 
 
-def _load(
+def load_plan_file(
     settings: Settings,
     file: Path,
     kind: PlanFormat | None,
@@ -177,6 +203,7 @@ def _load(
     headings: bool,
     loops: int | None,
 ) -> ImportedPlan:
+    """load_plan on ``file``; a file that does not load prints every problem, exit 2."""
     from ..missions.files import MissionFileError
     from ..missions.importers import load_plan
 
@@ -185,14 +212,14 @@ def _load(
             file, plan_format=kind, points=points, poses=poses, headings=headings, loops=loops
         )
     except MissionFileError as exc:
-        _file_failure(settings, exc)
+        file_failure(settings, exc)
 
 
-async def _load_from_robot(
+async def load_plan_from_robot(
     settings: Settings,
     file: Path,
     kind: PlanFormat | None,
-    source: Any,
+    source: RobotPoints,
     poses: bool,
     headings: bool,
     loops: int | None,
@@ -200,19 +227,21 @@ async def _load_from_robot(
     """load_plan with each path's points read from the robot first (the import is sync)."""
     from ..missions.importers import detect_format
 
-    with _plan_errors():
+    with plan_errors():
         text = _read(file)
         if (kind or detect_format(file, text)) != "timetask":
-            return _load(settings, file, kind, None, poses, headings, loops)
+            return load_plan_file(settings, file, kind, None, poses, headings, loops)
     cache = await _robot_points(text, source)
-    return _load(settings, file, "timetask", lambda m, p: cache[(m, p)], poses, headings, loops)
+    return load_plan_file(
+        settings, file, "timetask", lambda m, p: cache[(m, p)], poses, headings, loops
+    )
 
 
 def _read(file: Path) -> str:
     return file.read_text(encoding="utf-8")
 
 
-async def _robot_points(text: str, source: Any) -> dict[tuple[str, str], list[Any]]:
+async def _robot_points(text: str, source: RobotPoints) -> dict[tuple[str, str], list[Any]]:
     cache: dict[tuple[str, str], list[Any]] = {}
     try:
         tasks = json.loads(text).get("autoRunTasks") or []
@@ -293,10 +322,10 @@ def _scheduled(
     try:
         return schedule_plan(load_schedule(file))
     except MissionFileError as exc:
-        _file_failure(settings, exc)
+        file_failure(settings, exc)
 
 
-def _file_failure(settings: Settings, exc: Any) -> NoReturn:
+def file_failure(settings: Settings, exc: Any) -> NoReturn:
     """A plan file that does not load: every problem, exit 2."""
     if settings.json:
         problems = [
@@ -331,37 +360,31 @@ def check(
     or 2 naming every problem."""
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
-    kind = _format(plan_format)
+    kind = plan_format_of(plan_format)
     with_robot = _port(settings, port)
-    with _plan_errors():
+    with plan_errors():
         scheduled = _scheduled(settings, file, kind)
     checks = scheduled[1] if scheduled is not None else []
     if not with_robot:
-        with _plan_errors():
+        with plan_errors():
             if scheduled is not None:
                 plan = scheduled[0]
             else:
-                plan = _load(settings, file, kind, _points(points), False, True, None)
+                plan = load_plan_file(settings, file, kind, point_source(points), False, True, None)
         found = _run_checks(plan, None, checks)
         raise typer.Exit(_report(settings, file, plan, found, strict, False))
 
     async def body(robot: Robot) -> int:
         from ..missions.check import check_plan
 
+        source = robot_points(robot)
         if scheduled is not None:
             plan = scheduled[0]
-        elif points is None and robot.http is not None:
-            from ..missions.importers import as_points
-
-            http = robot.http
-
-            async def source(map_name: str, path_name: str) -> list[Any]:
-                return as_points(await http.targets(map_name, path_name))
-
-            plan = await _load_from_robot(settings, file, kind, source, False, True, None)
+        elif points is None and source is not None:
+            plan = await load_plan_from_robot(settings, file, kind, source, False, True, None)
         else:
-            with _plan_errors():
-                plan = _load(settings, file, kind, _points(points), False, True, None)
+            with plan_errors():
+                plan = load_plan_file(settings, file, kind, point_source(points), False, True, None)
         found = await check_plan(plan, robot=robot, window_checks=checks)
         return _report(settings, file, plan, found, strict, True)
 

@@ -19,23 +19,46 @@ import typer
 
 from ..errors import InvalidArgument
 from ..fleet.file import load_fleet_file
+from ..links import link_kind
 from ..missions.capabilities import REST_API, needs
 from ..missions.events import LoopStarted, MissionEnded, MissionEvent, StepEnded
 from ..missions.model import Mission, WaitStep, step_paths
 from ..missions.report import MissionRejected, MissionReport
-from .output import out_console, timestamp
-from .runner import ExitCode, fail, is_sim, print_error, run, run_robot, settings_of
+from .mission import (
+    FormatOption,
+    PointsOption,
+    load_plan_file,
+    load_plan_from_robot,
+    plan_errors,
+    plan_format_of,
+    point_source,
+    robot_points,
+)
+from .output import err_console, out_console, timestamp
+from .runner import (
+    ExitCode,
+    Settings,
+    fail,
+    is_sim,
+    print_error,
+    robot_url,
+    run,
+    run_robot,
+    settings_of,
+)
 
 if TYPE_CHECKING:
+    from ..missions.importers import ImportedPlan, PlanFormat
     from ..robot import Robot
     from ..testing.robot import SimLink
 
 __all__ = [
     "FILE_RELEASE_PERIOD",
     "SIM_UNTIL",
+    "checked",
     "fleet_mission_run",
-    "load_mission_file",
     "mission_exit_code",
+    "mission_of",
     "mission_run",
     "register",
     "register_fleet",
@@ -61,7 +84,20 @@ _STEP_CODES = {
 }
 
 FileArgument = Annotated[
-    Path, typer.Argument(help="The mission file (YAML; JSON is YAML too).", dir_okay=False)
+    Path,
+    typer.Argument(
+        help="A mission file (YAML; JSON is YAML too), timeTask.json or Nav2 file.",
+        dir_okay=False,
+    ),
+]
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        "--task",
+        metavar="NAME",
+        help="A file of several tasks (timeTask.json): the one to run, by its name or its "
+        "first word (autoRunTasks[0]).",
+    ),
 ]
 ReleaseOption = Annotated[
     list[str] | None,
@@ -75,27 +111,44 @@ ReleaseOption = Annotated[
 JsonOption = Annotated[bool, typer.Option("--json", help="A JSON line per progress event.")]
 
 
-def load_mission_file(path: Path) -> Mission:
-    """The Mission in ``path`` (JSON, or YAML when pyyaml is installed); InvalidArgument."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InvalidArgument(f"{path}: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text)
-    except ValueError:
-        try:
-            import yaml  # type: ignore[import-untyped, unused-ignore]
-        except ImportError:
-            raise InvalidArgument(f"{path}: not JSON, and pyyaml is not installed") from None
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise InvalidArgument(f"{path}: {exc}") from None
-    try:
-        return Mission.model_validate(data)
-    except ValueError as exc:
-        raise InvalidArgument(f"{path}: {exc}") from None
+def mission_of(plan: ImportedPlan, file: Path, task: str | None) -> Mission:
+    """The one mission of ``plan`` that runs: its only one, or the one ``task`` names (its
+    whole name or its first word, e.g. ``autoRunTasks[0]``); else exit 2 naming them."""
+    names = [mission.mission for mission in plan.missions]
+    if task is None and len(plan.missions) == 1:
+        return plan.missions[0]
+    for mission in plan.missions:
+        if task in (mission.mission, mission.mission.split(" ")[0]):
+            return mission
+    listed = "; ".join(repr(name) for name in names) or "none"
+    if task is None:
+        fail(f"{file} has {len(names)} tasks: name the one to run with --task ({listed})",
+             ExitCode.USAGE)  # fmt: skip
+    fail(f"{file} has no task {task!r} (it has: {listed})", ExitCode.USAGE)
+
+
+def checked(file: Path, mission: Mission) -> bool:
+    """check_static before anything moves: print its warnings and errors; False on an error."""
+    from ..missions.check import check_static
+
+    problems = [p for p in check_static(mission) if p.severity != "note"]
+    for problem in problems:
+        if problem.severity == "error":
+            where = str(problem).partition(": ")[2]  # without "error: ", which print_error says
+            print_error(f"{file}: {where}", kind="usage", code=ExitCode.USAGE)
+        else:
+            err_console().print(f"{file}: {problem}", markup=False, highlight=False)
+    return not any(problem.severity == "error" for problem in problems)
+
+
+def _needs_robot_points(file: Path, kind: PlanFormat | None, points: Path | None) -> bool:
+    """True for a timeTask.json without --points: its paths' points come from the robot."""
+    from ..missions.importers import detect_format
+
+    if points is not None:
+        return False
+    with plan_errors():
+        return (kind or detect_format(file)) == "timetask"
 
 
 def mission_exit_code(report: MissionReport) -> int:
@@ -202,6 +255,17 @@ def mission_run(
         bool, typer.Option("--resume", help="Start where the --journal file says the run was.")
     ] = False,
     release: ReleaseOption = None,
+    plan_format: FormatOption = "auto",
+    points: PointsOption = None,
+    task: TaskOption = None,
+    offload: Annotated[
+        bool,
+        typer.Option(
+            "--offload",
+            help="Send it to the robot's task chain as one task (http://) and follow it: it "
+            "goes on when this host's link drops. With --sim: on the simulator's HTTP face.",
+        ),
+    ] = False,
     json_output: JsonOption = False,
 ) -> None:
     """Run a mission with a line per step; the exit code tells how it ended.
@@ -212,15 +276,30 @@ def mission_run(
     """
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
-    try:
-        mission = load_mission_file(file)
-    except InvalidArgument as exc:
-        fail(str(exc), ExitCode.USAGE)
+    kind = plan_format_of(plan_format)
+    from_robot = (
+        not sim
+        and _needs_robot_points(file, kind, points)
+        and link_kind(robot_url(settings)) == "http"
+    )
+    loaded: Mission | None = None
+    if not from_robot:
+        with plan_errors():
+            plan = load_plan_file(settings, file, kind, point_source(points), False, True, None)
+        loaded = mission_of(plan, file, task)
+        if not checked(file, loaded):
+            raise typer.Exit(int(ExitCode.USAGE))
     releases = _releases(release)
     show = _printer(settings.json)
+    if offload:
+        _offload_usage(settings, sim, loaded, journal is not None or resume or bool(releases))
     if sim:
+        assert loaded is not None
+        mission = loaded
 
         async def simulated() -> int:
+            if offload:
+                return await _play_offload(mission, show, until)
             return await _play(mission, show, until, settings.json)
 
         run(settings, simulated)
@@ -228,6 +307,16 @@ def mission_run(
     async def body(robot: Robot) -> int:
         from ..missions.runner import run_mission
 
+        mission = loaded
+        if mission is None:
+            source = robot_points(robot)
+            assert source is not None  # an http:// link has its REST part
+            plan = await load_plan_from_robot(settings, file, kind, source, False, True, None)
+            mission = mission_of(plan, file, task)
+            if not checked(file, mission):
+                return int(ExitCode.USAGE)
+        if offload:
+            return await _offload(robot, mission, show)
         try:
             report = await run_mission(
                 robot, mission, releases=releases, journal=journal, resume=resume,
@@ -277,6 +366,66 @@ async def _play(
     return mission_exit_code(play.report)
 
 
+def _offload_usage(
+    settings: Settings, sim: bool, mission: Mission | None, host_options: bool
+) -> None:
+    """Exit 2 unless --offload can go: an http:// robot (or --sim), no options of a run on
+    this host, and a mission (when loaded) the task chain can run."""
+    from ..missions.offload import OffloadRejected, offload_problems
+
+    if host_options:
+        fail("--offload: the robot runs the plan; --journal, --resume and --release are for "
+             "a run on this host", ExitCode.USAGE)  # fmt: skip
+    if not sim and link_kind(robot_url(settings)) != "http":
+        fail("--offload needs the robot's task chain: an http:// or https:// robot (-p URL) "
+             "or --sim", ExitCode.USAGE)  # fmt: skip
+    if mission is not None and (problems := offload_problems(mission)):
+        raise typer.Exit(_rejected(OffloadRejected(mission.mission, problems)))
+
+
+async def _offload(robot: Robot, mission: Mission, show: Callable[[MissionEvent], None]) -> int:
+    """offload_mission on ``robot``, shown as a run's events; the exit code as a run's."""
+    from ..missions.offload import ChainProgress, offload_mission
+    from ..missions.offload_events import OffloadEvents
+
+    events = OffloadEvents(mission)
+
+    def progress(seen: ChainProgress) -> None:
+        for event in events.of(seen):
+            show(event)
+
+    try:
+        report = await offload_mission(robot, mission, on_progress=progress)
+    except MissionRejected as exc:
+        return _rejected(exc)
+    ended = events.ended(report)
+    show(ended)
+    return mission_exit_code(ended.report)
+
+
+async def _play_offload(
+    mission: Mission, show: Callable[[MissionEvent], None], until: float
+) -> int:
+    """``--sim --offload``: the mission on simulated_robot(link="http")'s task chain."""
+    import asyncio
+
+    from ..testing import simulated_robot
+
+    async with simulated_robot(link="http") as (robot, _):
+        stopping: list[asyncio.Task[Any]] = []
+
+        def stop() -> None:
+            stopping.append(asyncio.ensure_future(robot.stop()))
+
+        timer = asyncio.get_running_loop().call_later(until, stop)
+        try:
+            return await _offload(robot, mission, show)
+        finally:
+            timer.cancel()
+            if stopping:
+                await asyncio.wait(stopping)
+
+
 def fleet_mission_run(
     ctx: typer.Context,
     file: FileArgument,
@@ -289,6 +438,9 @@ def fleet_mission_run(
         ),
     ] = None,
     release: ReleaseOption = None,
+    plan_format: FormatOption = "auto",
+    points: PointsOption = None,
+    task: TaskOption = None,
     json_output: JsonOption = False,
 ) -> None:
     """Run a mission on every robot of the fleet at once; the first stop stops them all.
@@ -302,15 +454,24 @@ def fleet_mission_run(
         fail("fleet commands need a fleet file: galileo --fleet fleet.toml fleet …", ExitCode.USAGE)
     try:
         spec = load_fleet_file(settings.fleet)
-        shared = load_mission_file(file)
-        missions = dict.fromkeys(spec.ports, shared)
-        for entry in per_robot or []:
-            name, _, path = entry.partition("=")
-            if name not in spec.ports or not path:
-                raise InvalidArgument(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet")
-            missions[name] = load_mission_file(Path(path))
     except InvalidArgument as exc:
         fail(str(exc), ExitCode.USAGE)
+    kind, source = plan_format_of(plan_format), point_source(points)
+
+    def load(path: Path) -> Mission:
+        with plan_errors():
+            plan = load_plan_file(settings, path, kind, source, False, True, None)
+        mission = mission_of(plan, path, task)
+        if not checked(path, mission):
+            raise typer.Exit(int(ExitCode.USAGE))
+        return mission
+
+    missions = dict.fromkeys(spec.ports, load(file))
+    for entry in per_robot or []:
+        name, _, path = entry.partition("=")
+        if name not in spec.ports or not path:
+            fail(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet", ExitCode.USAGE)
+        missions[name] = load(Path(path))
     releases = _releases(release)
     shows = {name: _printer(settings.json, name) for name in missions}
 

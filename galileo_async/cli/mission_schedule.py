@@ -26,7 +26,7 @@ from ..missions.schedule import (
     WindowOpened,
     WindowSkipped,
 )
-from .mission import PointsOption, _file_failure, _plan_errors
+from .mission import PointsOption, file_failure, plan_errors, point_source
 from .mission_run import _line, _rejected
 from .output import out_console, timestamp
 from .runner import ExitCode, fail, run, run_robot, settings_of
@@ -50,20 +50,19 @@ def _load(settings: Any, file: Path, points: Path | None) -> Schedule:
     from ..missions.files import MissionFileError
     from ..missions.importers import detect_format, load_plan
     from ..missions.schedule_model import load_schedule, schedule_from_plan
-    from .mission import _points
 
-    with _plan_errors():
+    with plan_errors():
         try:
             if detect_format(file) != "timetask":
                 return load_schedule(file)
             if points is None:
                 fail(f"{file}: a timeTask.json needs --points (its paths' points)", ExitCode.USAGE)
-            plan = load_plan(file, plan_format="timetask", points=_points(points))
+            plan = load_plan(file, plan_format="timetask", points=point_source(points))
             return schedule_from_plan(plan, name=file.stem)
         except (OSError, UnicodeDecodeError) as exc:
             fail(f"{file}: {getattr(exc, 'strerror', None) or exc}", ExitCode.USAGE)
         except MissionFileError as exc:
-            _file_failure(settings, exc)
+            file_failure(settings, exc)
         except ValueError as exc:  # a timeTask.json's windows that make no schedule
             fail(f"{file}: {exc}", ExitCode.USAGE)
 

@@ -1,4 +1,5 @@
-"""What each step needs of the robot's link, and the steps of a mission a link cannot run."""
+"""What each step needs to run: of the robot's link (the steps a link cannot run), and of
+the caller (the wait steps' releases)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,20 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .model import Mission, step_action, step_paths
+from .model import Mission, WaitStep, step_action, step_paths
 
 if TYPE_CHECKING:
     from .robot_api import MissionRobot
 
-__all__ = ["HTTP_ONLY", "REST_API", "Unsupported", "capabilities_of", "needs", "unsupported"]
+__all__ = [
+    "HTTP_ONLY",
+    "REST_API",
+    "Unsupported",
+    "capabilities_of",
+    "needs",
+    "unreleased",
+    "unsupported",
+]
 
 #: The capability of a link that speaks the robot's HTTP API (http://, https://).
 REST_API = "rest_api"
@@ -28,9 +37,14 @@ class Unsupported:
     action: str
     missing: frozenset[str]
 
+    @property
+    def reason(self) -> str:
+        """What the step needs, without where it is: ``say needs an http:// … link``."""
+        return f"{self.action} needs an http:// or https:// link"
+
     def __str__(self) -> str:
         where = self.path if self.name is None else f"{self.path} ({self.name})"
-        return f"{where}: {self.action} needs an http:// or https:// link"
+        return f"{where}: {self.reason}"
 
 
 def needs(step: Any) -> frozenset[str]:
@@ -52,3 +66,13 @@ def unsupported(mission: Mission, capabilities: Iterable[str]) -> list[Unsupport
         if missing:
             found.append(Unsupported(path, step.name, step_action(step) or "?", missing))
     return found
+
+
+def unreleased(mission: Mission, releases: Iterable[str]) -> list[tuple[str, WaitStep]]:
+    """Every wait step of ``mission`` (path, step) whose release is not in ``releases``."""
+    given = frozenset(releases)
+    return [
+        (path, step)
+        for path, step in step_paths(mission.steps)
+        if isinstance(step, WaitStep) and step.wait.release not in given
+    ]

@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
+from .capabilities import Unsupported, capabilities_of, unreleased, unsupported
 from .model import (
     ChargeStep,
     DwellStep,
@@ -26,15 +27,15 @@ from .model import (
     SwitchMapStep,
     WaitStep,
     step_action,
+    step_paths,
 )
 
 if TYPE_CHECKING:
-    from ..robot import Robot
     from .importers import ImportedPlan, ImportedWindow
+    from .robot_api import MissionRobot
 
 __all__ = [
     "BUDGET",
-    "HTTP_ONLY",
     "Budget",
     "Problem",
     "Severity",
@@ -43,15 +44,12 @@ __all__ = [
     "check_plan",
     "check_static",
     "has_errors",
-    "step_paths",
 ]
 
 #: error: the mission cannot run as written; warning: it runs, likely not as meant;
 #: note: worth knowing (a step that needs http://, a figure of the budget).
 Severity = Literal["error", "warning", "note"]
 
-#: The steps only the robot's HTTP API can run.
-HTTP_ONLY = ("goto_pose", "say", "switch_map")
 #: A dwell or a wait this long (s) is probably a unit mistake.
 LONG_WAIT = 8 * 3600.0
 
@@ -96,21 +94,12 @@ class Budget:
 BUDGET = Budget()
 
 
-def step_paths(steps: Sequence[Any], prefix: str = "steps") -> list[tuple[str, Any]]:
-    """Every step with its path (``steps[2].loop.steps[0]``), depth first in file order."""
-    found: list[tuple[str, Any]] = []
-    for index, step in enumerate(steps):
-        path = f"{prefix}[{index}]"
-        found.append((path, step))
-        if isinstance(step, LoopStep):
-            found.extend(step_paths(step.loop.steps, f"{path}.loop.steps"))
-    return found
-
-
 def check_static(mission: Mission) -> list[Problem]:
     """What is wrong or doubtful in ``mission`` itself, in file order."""
     problems: list[Problem] = []
     problems += _unreachable(mission.steps, "steps", _jump_targets(mission))
+    lacking = _lacking(mission, frozenset())
+    waits = {path: step.wait.release for path, step in unreleased(mission, ())}
     order = {step.name: index for index, (_, step) in enumerate(step_paths(mission.steps))}
     for index, (path, step) in enumerate(step_paths(mission.steps)):
         problems += [Problem(path, step.name, text, kind) for kind, text in _step_doubts(step)]
@@ -121,10 +110,19 @@ def check_static(mission: Mission) -> list[Problem]:
                 "never ends (nothing bounds the jumps); go forward (e.g. to a dock step) or "
                 "abort"
             ), "warning"))  # fmt: skip
-        action = step_action(step)
-        if action in HTTP_ONLY:
-            problems.append(Problem(path, step.name, f"{action} needs an http:// link", "note"))
+        if path in lacking:
+            problems.append(Problem(path, step.name, lacking[path].reason, "note"))
+        if path in waits:
+            problems.append(Problem(path, step.name, (
+                f"a run needs the release {waits[path]!r} (--release {waits[path]}=key|"
+                "file:PATH, run_mission's releases); check cannot know it"
+            ), "note"))  # fmt: skip
     return problems
+
+
+def _lacking(mission: Mission, capabilities: frozenset[str]) -> dict[str, Unsupported]:
+    """The steps a link with ``capabilities`` cannot run, by path."""
+    return {found.path: found for found in unsupported(mission, capabilities)}
 
 
 def _jump_targets(mission: Mission) -> set[str]:
@@ -186,7 +184,7 @@ def _step_doubts(step: Any) -> list[tuple[Severity, str]]:
 
 
 async def check_mission(
-    mission: Mission, *, robot: Robot | None = None, budget: Budget = BUDGET
+    mission: Mission, *, robot: MissionRobot | None = None, budget: Budget = BUDGET
 ) -> list[Problem]:
     """check_static, then (with ``robot``) what the robot's link tells: targets, steps its
     link can run, map names, and the battery a loop takes against the battery it has."""
@@ -194,7 +192,8 @@ async def check_mission(
     if robot is None:
         return problems
     # The robot's link settles whether the http:// steps can run: its problems say so.
-    static = [p for p in problems if not (p.severity == "note" and "http://" in p.message)]
+    notes = {Problem(f.path, f.name, f.reason, "note") for f in unsupported(mission, ())}
+    static = [problem for problem in problems if problem not in notes]
     return static + await _robot_problems(mission, robot, budget)
 
 
@@ -202,7 +201,7 @@ async def check_mission(
 _Points = dict[tuple[str | None, str | None], list[tuple[float, float]] | None]
 
 
-async def _robot_problems(mission: Mission, robot: Robot, budget: Budget) -> list[Problem]:
+async def _robot_problems(mission: Mission, robot: MissionRobot, budget: Budget) -> list[Problem]:
     problems: list[Problem] = []
     http = robot.http
     maps = await http.maps() if http is not None else None
@@ -213,12 +212,12 @@ async def _robot_problems(mission: Mission, robot: Robot, budget: Budget) -> lis
         speed = navigation_speed if navigation_speed > 0 else speed
     where: tuple[str | None, str | None] = (None, None)
     loops: dict[str, tuple[str | None, str | None]] = {}
+    lacking = _lacking(mission, capabilities_of(robot))
     for path, step in step_paths(mission.steps):
-        action = step_action(step)
         if isinstance(step, LoopStep):
             loops[path] = where
-        if http is None and action in HTTP_ONLY:
-            problems.append(Problem(path, step.name, f"{action} needs an http:// link"))
+        if path in lacking:
+            problems.append(Problem(path, step.name, lacking[path].reason))
         if isinstance(step, GotoPointStep) and http is None and robot.map_targets is None:
             problems.append(Problem(path, step.name, (
                 "goto_point needs the number of targets in the robot's map: connect with "
@@ -252,13 +251,13 @@ def _ids(count: int) -> str:
     return "none" if count == 0 else "0" if count == 1 else f"0-{count - 1}"
 
 
-def _count(robot: Robot, where: tuple[str | None, str | None]) -> int | None:
+def _count(robot: MissionRobot, where: tuple[str | None, str | None]) -> int | None:
     """The target count a non-http link knows: only for the map the robot is on."""
     return robot.map_targets if where == (None, None) else None
 
 
 async def _points(
-    robot: Robot, where: tuple[str | None, str | None], cache: _Points
+    robot: MissionRobot, where: tuple[str | None, str | None], cache: _Points
 ) -> list[tuple[float, float]] | None:
     if where not in cache:
         cache[where] = None
@@ -275,7 +274,7 @@ async def _points(
 def _battery(
     path: str,
     step: LoopStep,
-    robot: Robot,
+    robot: MissionRobot,
     budget: Budget,
     speed: float,
     known: list[tuple[float, float]] | None,
@@ -350,7 +349,7 @@ WindowCheck = Callable[[Sequence["ImportedWindow"]], list[Problem]]
 async def check_plan(
     plan: ImportedPlan,
     *,
-    robot: Robot | None = None,
+    robot: MissionRobot | None = None,
     window_checks: Sequence[WindowCheck] = (),
     budget: Budget = BUDGET,
 ) -> list[tuple[str, Problem]]:

@@ -1,4 +1,5 @@
-"""A mission offloaded to the robot's own task chain over http:// (docs/missions-offload.md).
+"""A mission offloaded to the robot's own task chain over http:// (docs/missions.md,
+"Offloading to the robot").
 
 ``offload_problems`` names every step the chain cannot run as the mission says;
 ``plan_offload`` turns a mission into the chain's actions; ``offload_mission`` asks the
@@ -46,7 +47,9 @@ from .model import (
     SwitchMapStep,
     WaitStep,
     step_action,
+    step_paths,
 )
+from .report import MissionRejected
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -87,13 +90,12 @@ EXIT_STOP_TIMEOUT = 5.0
 OffloadEnding = Literal["completed", "stopped", "failed", "link lost"]
 
 
-class OffloadRejected(ValueError):
+class OffloadRejected(MissionRejected):
     """The mission cannot be offloaded (nothing was sent): one line per problem."""
 
     def __init__(self, mission: str, problems: list[str]) -> None:
-        super().__init__(f"mission {mission!r} cannot be offloaded: " + "; ".join(problems))
-        self.mission = mission
-        self.problems = problems
+        super().__init__(mission, problems)
+        self.args = (f"mission {mission!r} cannot be offloaded: " + "; ".join(problems),)
 
 
 # --- what the chain can run ----------------------------------------------------------
@@ -103,12 +105,14 @@ def _where(path: str, step: Any) -> str:
     return path if step.name is None else f"{path} ({step.name})"
 
 
-def _chain_steps(mission: Mission) -> tuple[str, list[Any], LoopStep | None]:
-    """The steps the chain runs (a whole-mission loop's, else the mission's), their prefix."""
+def _chain_steps(mission: Mission) -> tuple[list[tuple[str, Any]], LoopStep | None]:
+    """The steps the chain runs with their paths (a whole-mission loop's, else the
+    mission's), and that loop."""
     steps = mission.steps
-    if len(steps) == 1 and isinstance(steps[0], LoopStep):
-        return "steps[0].loop.steps", list(steps[0].loop.steps), steps[0]
-    return "steps", list(steps), None
+    loop = steps[0] if len(steps) == 1 and isinstance(steps[0], LoopStep) else None
+    prefix = "steps" if loop is None else "steps[0].loop.steps"
+    chain = [pair for pair in step_paths(steps) if pair[0].rpartition("[")[0] == prefix]
+    return chain, loop
 
 
 def _policy_problems(where: str, step: Any) -> list[str]:
@@ -191,11 +195,10 @@ def offload_problems(mission: Mission, *, targets: Sequence[NavPoint] | None = N
     None: not checked. The chain ends at the first failed action, so only on_failure
     abort (the default) is kept; a loop must be the mission's only step.
     """
-    prefix, steps, loop = _chain_steps(mission)
+    chain, loop = _chain_steps(mission)
     problems = [] if loop is None else _policy_problems(_where("steps[0]", loop), loop)
-    for index, step in enumerate(steps):
-        where = _where(f"{prefix}[{index}]", step)
-        problems += _step_problems(where, step, targets, loop is not None)
+    for path, step in chain:
+        problems += _step_problems(_where(path, step), step, targets, loop is not None)
     return problems
 
 
@@ -260,23 +263,20 @@ def plan_offload(
     charger's pose (charge steps; None: a charge step is a problem).
     """
     problems = offload_problems(mission, targets=targets)
-    prefix, steps, loop = _chain_steps(mission)
+    chain, loop = _chain_steps(mission)
     if charge_pose is None:
         problems += [
-            f"{_where(f'{prefix}[{i}]', step)}: charge: the charger's pose is not known"
-            for i, step in enumerate(steps)
+            f"{_where(path, step)}: charge: the charger's pose is not known"
+            for path, step in chain
             if isinstance(step, ChargeStep)
         ]
     if problems:
         raise OffloadRejected(mission.mission, problems)
     offloaded = tuple(
         OffloadedStep(
-            f"{prefix}[{i}]",
-            step.name,
-            step_action(step) or "?",
-            _chain_action(step, targets, charge_pose),
+            path, step.name, step_action(step) or "?", _chain_action(step, targets, charge_pose)
         )
-        for i, step in enumerate(steps)
+        for path, step in chain
     )
     count = None if loop is None else loop.loop.count
     looping = loop is not None and count != 1
@@ -534,7 +534,7 @@ async def offload_mission(
     problems = offload_problems(mission)
     if problems:
         raise OffloadRejected(mission.mission, problems)
-    _, steps, _ = _chain_steps(mission)
+    steps = [step for _, step in _chain_steps(mission)[0]]
     plan = await _resolve(http, mission, steps, call_timeout)
     with anyio.fail_after(call_timeout):
         task = await http.create_task(plan.name, plan.actions, loop_flag=plan.loop_flag)

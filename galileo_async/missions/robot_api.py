@@ -26,7 +26,7 @@ StopAll = Callable[[], Awaitable[object]]
 
 
 class MissionRobot(Protocol):
-    """What run_mission uses of a Robot (galileo_async.Robot is one)."""
+    """What run_mission and check_mission use of a Robot (galileo_async.Robot is one)."""
 
     http: HttpPart | None
     speed_limits: SpeedLimits
@@ -34,6 +34,10 @@ class MissionRobot(Protocol):
     @property
     def status(self) -> GalileoStatus | None:
         """The latest status."""
+
+    @property
+    def map_targets(self) -> int | None:
+        """The number of targets in the robot's map (None: not known)."""
 
     @property
     def closed(self) -> bool:

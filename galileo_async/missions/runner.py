@@ -38,7 +38,7 @@ from ..errors import (
 from ..models import ChargeStatus, GalileoStatus, LinkState
 from ..robot.runtime import ROBOT_DEFAULT, finish_shielded
 from .calls import CallFailed, call_out
-from .capabilities import capabilities_of, unsupported
+from .capabilities import capabilities_of, unreleased, unsupported
 from .events import LoopStarted, MissionEnded, MissionEvent, StepEnded, StepStarted
 from .journal import DEFAULT_JOURNAL_MAX_AGE, Journal, JournalRecord, ResumePoint, plan_hash
 from .model import (
@@ -46,7 +46,6 @@ from .model import (
     LocalMove,
     LoopStep,
     Mission,
-    WaitStep,
     step_action,
     step_paths,
 )
@@ -180,9 +179,8 @@ class _Run:
     ) -> ResumePoint | None:
         """The point to start at; MissionRejected naming every problem."""
         problems = [str(step) for step in unsupported(self.mission, capabilities_of(self.robot))]
-        for path, step in step_paths(self.mission.steps):
-            if isinstance(step, WaitStep) and step.wait.release not in self.releases:
-                problems.append(f"{path}: no release {step.wait.release!r} was given")
+        for path, step in unreleased(self.mission, self.releases):
+            problems.append(f"{path}: no release {step.wait.release!r} was given")
         point = None
         if journal is not None:
             self.journal = Journal(journal)

@@ -64,7 +64,7 @@ def test_check_json() -> None:
     assert data["ok"] is True
     assert "port" not in data
     assert {"mission": "lobby patrol", "severity": "note", "step": "steps[2]", "name": None,
-            "message": "say needs an http:// link"} in data["problems"]  # fmt: skip
+            "message": "say needs an http:// or https:// link"} in data["problems"]  # fmt: skip
 
 
 def test_check_against_the_simulator() -> None:
@@ -75,9 +75,9 @@ def test_check_against_the_simulator() -> None:
     assert data["ok"] is False
     errors = [(p["step"], p["message"]) for p in data["problems"] if p["severity"] == "error"]
     assert errors == [
-        ("steps[2]", "say needs an http:// link"),
-        ("steps[5]", "switch_map needs an http:// link"),
-        ("steps[9]", "goto_pose needs an http:// link"),
+        ("steps[2]", "say needs an http:// or https:// link"),
+        ("steps[5]", "switch_map needs an http:// or https:// link"),
+        ("steps[9]", "goto_pose needs an http:// or https:// link"),
     ]
 
 

@@ -34,7 +34,7 @@ def test_every_mission_file_of_the_page_loads(block: str) -> None:
 def test_the_worked_example_checks_clean(tmp_path: Path) -> None:
     patrol = tmp_path / "patrol.yaml"
     patrol.write_text(YAML_BLOCKS[0], encoding="utf-8")
-    assert [p.severity for p in check_static(parse_mission(YAML_BLOCKS[0]))] == ["note"]
+    assert [p.severity for p in check_static(parse_mission(YAML_BLOCKS[0]))] == ["note", "note"]
     block = console("galileo mission check patrol.yaml")
     expected = block.split("$ ")[1].splitlines()[1:]
     result = invoke("mission", "check", str(patrol), port=None)

@@ -15,6 +15,7 @@ from galileo_async.missions import MissionReport
 from tests.cli.test_cli import invoke
 from tests.cli.test_cli_served import _read_until as read_until
 from tests.cli.test_cli_signals import finish, start
+from tests.missions.test_mission_cli import _HttpSim, http_sim  # noqa: F401  (a fixture)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -95,7 +96,7 @@ def test_a_mission_the_link_cannot_run_exits_2_naming_every_problem(tmp_path: Pa
 @pytest.mark.parametrize(
     ("text", "args", "message"),
     [
-        ("{", (), "not JSON"),
+        ("{", (), "bad.json:1: YAML: "),
         ('{"mission": "m", "steps": []}', (), "steps"),
         (json.dumps(LOBBY), ("--release", "operator"), "give NAME=key"),
         (json.dumps(LOBBY), ("--release", "operator=mouse"), "neither key nor file:PATH"),
@@ -110,6 +111,66 @@ def test_usage_errors_exit_2(
     result = invoke("mission", "run", str(path), *args, port=None)
     assert result.exit_code == ExitCode.USAGE, result.output
     assert message in result.output
+
+
+def test_a_bad_file_names_the_file_the_line_and_the_step(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("mission: m\nsteps:\n  - goto: 1\n  - dwell: -3\n", encoding="utf-8")
+    result = invoke("mission", "run", str(path), port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert f"{path}:4: steps[1]: dwell: " in result.output
+
+
+TIMETASK = {
+    "autoRunTasks": [
+        {"whichDay": 0, "startTime": "08:00", "stopTime": "09:00", "mapName": "sim",
+         "pathName": "path1", "waitTime": 1, "stopPose": 0, "loopCount": 1},
+        {"whichDay": 0, "startTime": "13:00", "stopTime": "18:00", "mapName": "floor2",
+         "pathName": "path2", "waitTime": 0, "stopPose": 1, "loopCount": 2},
+    ]
+}  # fmt: skip
+
+
+def test_a_timetask_file_runs_the_task_named_with_task(tmp_path: Path) -> None:
+    plan = write(tmp_path, TIMETASK, "timeTask.json")
+    points = tmp_path / "nav.csv"
+    points.write_text("1 0 0\n2 0 0\n", encoding="utf-8")
+    several = invoke("mission", "run", plan, "--points", str(points), "--sim", port=None)
+    assert several.exit_code == ExitCode.USAGE, several.output
+    assert "has 2 tasks: name the one to run with --task" in several.output
+    assert "'autoRunTasks[1] floor2/path2 13:00-18:00'" in several.output
+    unknown = invoke("mission", "run", plan, "--points", str(points), "--task", "x", port=None)
+    assert unknown.exit_code == ExitCode.USAGE, unknown.output
+    assert "has no task 'x'" in unknown.output
+    result = invoke(
+        "--json", "mission", "run", plan, "--points", str(points), "--task", "autoRunTasks[0]",
+        "--sim", port=None,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    events = lines(result.stdout)
+    assert {e["mission"] for e in events} == {"autoRunTasks[0] sim/path1 08:00-09:00"}
+    ended = [e["step"]["action"] for e in events if e["event"] == "step_ended"]
+    assert ended == ["switch_map", "goto", "dwell", "goto", "dwell", "goto"]
+
+
+def test_a_timetask_file_needs_the_points_of_its_paths(tmp_path: Path) -> None:
+    plan = write(tmp_path, TIMETASK, "timeTask.json")
+    result = invoke("mission", "run", plan, "--task", "autoRunTasks[0]", port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "a timeTask.json needs the points of its paths" in result.output
+
+
+def test_a_nav2_waypoint_file_runs(tmp_path: Path) -> None:
+    path = tmp_path / "waypoints.yaml"
+    path.write_text(
+        "waypoints:\n  waypoint0:\n    pose: [1.0, 0.0, 0.0]\n"
+        "    orientation: [1.0, 0.0, 0.0, 0.0]\n",
+        encoding="utf-8",
+    )
+    result = invoke("--json", "mission", "run", str(path), "--sim", port=None)
+    assert result.exit_code == 0, result.output
+    ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
+    assert ended[-1] == "reached"
 
 
 def test_a_file_release(tmp_path: Path) -> None:
@@ -243,3 +304,110 @@ def test_a_signal_stops_the_mission_and_the_robot(
     ended = [e for e in events if e.get("event") == "mission_ended"]
     assert ended[0]["report"]["ending"] == "cancelled"
     assert any(e.get("result") == "interrupted" and e.get("stop_sent") for e in events), out
+
+
+PATROL: dict[str, Any] = {
+    "mission": "patrol",
+    "steps": [{"loop": {"count": 2, "steps": [{"goto": 1}, {"dwell": 5}, {"goto": 2}]}}],
+}
+
+
+def test_offload_prints_the_lines_of_a_run(tmp_path: Path) -> None:
+    plan = write(tmp_path, PATROL)
+    result = invoke("mission", "run", plan, "--sim", "--offload", port=None)
+    assert result.exit_code == 0, result.output
+    out = result.stdout.splitlines()
+    assert out[0] == "steps[0] loop 1 of 2"
+    assert out[1].startswith("steps[0].loop.steps[0] goto reached in ")
+    assert out[2].startswith("steps[0].loop.steps[1] dwell done in ")
+    assert out[4] == "steps[0] loop 2 of 2"
+    assert out[-1].startswith("mission 'patrol' completed: 6 steps, 2 loops")
+    json_run = invoke("--json", "mission", "run", plan, "--sim", "--offload", port=None)
+    assert json_run.exit_code == 0, json_run.output
+    events = lines(json_run.stdout)
+    assert [e["event"] for e in events[:3]] == ["loop_started", "step_started", "step_ended"]
+    assert events[2]["step"]["ending"] == "reached"
+    assert events[2]["step"]["loops"] == {"steps[0]": 1}
+    assert events[-1]["report"]["ending"] == "completed"
+    assert events[-1]["report"]["loops_done"] == 2
+
+
+def test_offload_of_a_forever_loop_stops_after_until(tmp_path: Path) -> None:
+    forever = {"mission": "m", "steps": [{"loop": {"steps": [{"goto": 1}, {"goto": 2}]}}]}
+    result = invoke(
+        "mission", "run", write(tmp_path, forever), "--sim", "--offload", "--until", "120",
+        port=None,
+    )  # fmt: skip
+    assert result.exit_code == ExitCode.CANCELLED, result.output
+    assert result.stdout.splitlines()[-1].startswith("mission 'm' stopped: ")
+
+
+def test_offload_of_a_mission_the_chain_cannot_run_exits_2_naming_every_problem(
+    tmp_path: Path,
+) -> None:
+    plan = write(
+        tmp_path, {"mission": "m", "steps": [{"say": "hi"}, {"goto": 1, "on_failure": "skip"}]}
+    )
+    result = invoke("--json", "mission", "run", plan, "--sim", "--offload", port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert [line["message"] for line in lines(result.stdout)] == [
+        "mission 'm': steps[0]: say: the task chain has no speech action",
+        "mission 'm': steps[1]: on_failure skip: the task chain ends at the first failed "
+        "action (on_failure: abort)",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("args", "port", "message"),
+    [
+        ((), "sim://", "--offload needs the robot's task chain: an http:// or https://"),
+        (("--sim", "--journal", "j.json"), None, "--journal, --resume and --release are for"),
+    ],
+    ids=["not http", "journal"],
+)
+def test_offload_usage_errors_exit_2(
+    tmp_path: Path, args: tuple[str, ...], port: str | None, message: str
+) -> None:
+    result = invoke("mission", "run", write(tmp_path, PATROL), "--offload", *args, port=port)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert message in result.output
+
+
+def test_offload_to_the_http_face_of_a_simulator(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    robot: _HttpSim = request.getfixturevalue("http_sim")
+    # The robot is outside the command's loop: the real clock (as test_cli_served's).
+    plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}, {"dwell": 1}]})
+    opened = invoke("nav", "start", port=robot.url, real_clock=True)
+    assert opened.exit_code == 0, opened.output
+    result = invoke(
+        "--json", "mission", "run", plan, "--offload", port=robot.url, real_clock=True,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    ended = [e["step"]["ending"] for e in lines(result.stdout) if e["event"] == "step_ended"]
+    assert ended == ["reached", "done"]
+
+
+def test_run_checks_the_plan_first_an_error_exits_2_before_anything_moves(
+    tmp_path: Path,
+) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}, {"dwell": 30, "timeout": 10}]})
+    result = invoke("--json", "mission", "run", plan, port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert [line["message"] for line in lines(result.stdout)] == [
+        f"{plan}: steps[1]: timeout 10 s ends the dwell of 30 s"
+    ]  # no step_started: nothing moved
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(FLEET, encoding="utf-8")
+    on_fleet = invoke("--fleet", str(fleet), "fleet", "mission", "run", plan, port=None)
+    assert on_fleet.exit_code == ExitCode.USAGE, on_fleet.output
+    assert "steps[1]: timeout 10 s ends the dwell of 30 s" in on_fleet.output
+
+
+def test_run_prints_the_plans_warnings_and_runs(tmp_path: Path) -> None:
+    plan = write(tmp_path, {"mission": "m", "steps": [{"dwell": 0}, {"goto": 1}]})
+    result = invoke("mission", "run", plan, port=None)
+    assert result.exit_code == 0, result.output
+    assert f"{plan}: warning: steps[0]: dwell 0 does nothing" in result.stderr
+    assert result.stdout.splitlines()[-1].startswith("mission 'm' completed")
