@@ -13,9 +13,10 @@ from galileo_async.cli import ExitCode
 from galileo_async.cli.mission_run import mission_exit_code
 from galileo_async.missions import MissionReport
 from tests.cli.test_cli import invoke
+from tests.cli.test_cli_served import HttpServedSim
 from tests.cli.test_cli_served import _read_until as read_until
 from tests.cli.test_cli_signals import finish, start
-from tests.missions.test_mission_cli import _HttpSim, http_sim  # noqa: F401  (a fixture)
+from tests.missions.test_mission_cli import http_sim  # noqa: F401  (a fixture)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -376,7 +377,7 @@ def test_offload_usage_errors_exit_2(
 def test_offload_to_the_http_face_of_a_simulator(
     tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
-    robot: _HttpSim = request.getfixturevalue("http_sim")
+    robot: HttpServedSim = request.getfixturevalue("http_sim")
     # The robot is outside the command's loop: the real clock (as test_cli_served's).
     plan = write(tmp_path, {"mission": "m", "steps": [{"goto": 1}, {"dwell": 1}]})
     opened = invoke("nav", "start", port=robot.url, real_clock=True)
