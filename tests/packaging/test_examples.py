@@ -32,6 +32,7 @@ def test_every_example_is_tested() -> None:
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
         "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",
+        "mission.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
 
@@ -43,6 +44,15 @@ def test_http_maps_example_lists_maps_and_goes_to_a_pose() -> None:
     assert "current map: sim, path path1" in out
     assert "target 0: (" in out
     assert "arrived at (1.0, 0.5)" in out
+
+
+def test_mission_example_checks_then_runs_two_laps() -> None:
+    out = run_example("mission.py")
+    assert "check:" not in out  # nothing wrong with the plan on the simulator
+    assert out.count("steps[0].loop.steps[0] goto: reached") == 2
+    assert out.count("dwell: done") == 2
+    assert "steps[1] goto: reached" in out
+    assert "mission 'two-lap patrol': completed, 2 laps" in out
 
 
 def test_goto_example_handles_arrival_and_rejection() -> None:
