@@ -213,6 +213,22 @@ class Session:
         """Publish ``message`` on the vehicle's ``topic``; False when the broker is away."""
         return await self._publish_on(self._client, topic, message, qos=qos, retain=retain)
 
+    def publish_now(self, topic: str, message: BaseModel) -> bool:
+        """Publish ``message`` at QoS 0 without waiting; False when the broker is away.
+
+        What the socket does not take at once goes out with the client's writer callback.
+        """
+        client = self._client
+        mqtt: Any = getattr(client, "_client", None)  # aiomqtt's paho-mqtt client
+        if mqtt is None:
+            return False
+        payload = message.model_dump_json(exclude_none=True)
+        info = mqtt.publish(self.config.topic(topic), payload, 0, False)
+        if info.rc != 0:
+            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, info.rc)
+            return False
+        return True
+
     async def _publish_on(
         self, client: aiomqtt.Client | None, topic: str, message: BaseModel, *, qos: int,
         retain: bool,

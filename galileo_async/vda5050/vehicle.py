@@ -34,6 +34,7 @@ from .models import (
 from .order import OrderProgress, Rejection, check_order
 from .session import Session
 from .shutdown import Shutdown, ShutdownReport
+from .visualization import KEEP_ALIVE, clock
 
 __all__ = [
     "MAX_ORDER_ERRORS",
@@ -84,6 +85,8 @@ class Vehicle:
         self._shutdown = Shutdown(self)
         #: The significant part of the last status seen (report.significant).
         self._significant: Hashable = object()
+        #: What the last visualization was made of (_motion), and when it went out.
+        self._visualized: tuple[Hashable, float] | None = None
 
     # --- what the vehicle reports ------------------------------------------------------
 
@@ -297,8 +300,13 @@ class Vehicle:
             group.start_soon(self._publish_states)
             if self.config.broker_loss_stop_delay is not None:
                 group.start_soon(self._broker_watchdog, self.config.broker_loss_stop_delay)
+            visualizations = clock()
             if self.config.visualization_rate > 0:
-                group.start_soon(self._visualize)
+                # Each vehicle its own phase: many vehicles on one loop must not publish at once.
+                phase = zlib.crc32(self.config.topic("").encode()) % 1000 / 1000
+                visualizations.add(
+                    self, 1.0 / self.config.visualization_rate, self._visualize, phase
+                )
             if self.config.start_navigation:
                 group.start_soon(self._keep_navigation)
             self._group = group
@@ -313,6 +321,7 @@ class Vehicle:
                 raise
             finally:
                 self._group = None
+                visualizations.remove(self)
         if duplicate is not None:
             raise duplicate
 
@@ -417,22 +426,27 @@ class Vehicle:
             self._dirty = anyio.Event()
             await self.publish_state()
 
-    async def _visualize(self) -> None:
-        period = 1.0 / self.config.visualization_rate
-        # Each vehicle its own phase: many vehicles on one loop must not publish in bursts.
-        phase = zlib.crc32(self.config.topic("").encode()) % 1000 / 1000
-        next_at = anyio.current_time() + period * phase
-        while True:
-            next_at = max(next_at + period, anyio.current_time())
-            await anyio.sleep_until(next_at)
-            if self.session.connected:
-                status = self.robot.status
-                message = Visualization(
-                    **self._header("visualization"),
-                    agvPosition=report.agv_position(status, self.config.map_id),
-                    velocity=report.velocity(status),
-                )
-                await self.publish("visualization", message)
+    def _visualize(self, now: float) -> None:
+        """The clock's call: a visualization, unless unchanged for less than KEEP_ALIVE s.
+
+        VDA 5050 2.0 and 2.1 §6.13: the vehicle "can broadcast" its position and velocity,
+        at a rate the integrator defines; an unchanged one is repeated once a second only.
+        """
+        if not self.session.connected:
+            self._visualized = None  # the first after a reconnect goes out
+            return
+        status = self.robot.status
+        motion = _motion(status)
+        last = self._visualized
+        if last is not None and last[0] == motion and now - last[1] < KEEP_ALIVE:
+            return
+        message = Visualization(
+            **self._header("visualization"),
+            agvPosition=report.agv_position(status, self.config.map_id),
+            velocity=report.velocity(status),
+        )
+        if self.session.publish_now("visualization", message):
+            self._visualized = (motion, now)
 
     async def _broker_watchdog(self, delay: float) -> None:
         while True:
@@ -453,6 +467,17 @@ class Vehicle:
                 with contextlib.suppress(GalileoError):
                     await self.executor.cancel_order()
             await self.session.wait_online()
+
+
+def _motion(status: GalileoStatus | None) -> Hashable:
+    """What a visualization is made of (report.agv_position and report.velocity)."""
+    if status is None:
+        return None
+    return (
+        status.current_pose_x, status.current_pose_y, status.current_angle,
+        status.current_speed_x, status.current_speed_theta, status.navigating,
+        status.visual_status,
+    )  # fmt: skip
 
 
 def _first_problem(exc: ValidationError) -> str:

@@ -6,6 +6,7 @@ import math
 import re
 import sys
 import time
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -254,9 +255,17 @@ async def test_theta_is_reached_on_firmware_that_ignores_the_rotate_command(
 
 
 async def established(master: Master) -> None:
-    """Return once the vehicle has been connected longer than YOUNG_SESSION (10 Hz)."""
-    count = int(YOUNG_SESSION * 10) + 5
-    await master.wait_for("visualization", lambda m: m["headerId"] >= count)
+    """Return once the vehicle has been connected longer than YOUNG_SESSION.
+
+    By the visualizations' own timestamps: a vehicle standing still sends one a second only.
+    """
+    first = await master.wait_for("visualization", lambda m: True)
+    since = _stamp(first) + YOUNG_SESSION + 0.5
+    await master.wait_for("visualization", lambda m: _stamp(m) >= since)
+
+
+def _stamp(message: dict[str, Any]) -> float:
+    return datetime.fromisoformat(message["timestamp"].replace("Z", "+00:00")).timestamp()
 
 
 async def test_a_duplicate_vehicle_stops_and_leaves_the_first_connected(broker: Broker) -> None:

@@ -205,3 +205,29 @@ async def test_ended_actions_and_their_errors_are_bounded() -> None:
         assert states[-1].actionId == str(3 * MAX_ENDED_ACTIONS - 1)
         assert len(vehicle.actions.errors) == MAX_ACTION_ERRORS
         assert {e.errorType for e in vehicle.errors()} == {"unsupportedAction"}
+
+
+async def test_a_status_makes_no_state_unless_what_matters_changed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from galileo_async import connect
+    from galileo_async.vda5050 import Vehicle
+
+    def no_state(vehicle: Vehicle) -> None:
+        raise AssertionError("a state was built for a status")
+
+    monkeypatch.setattr(Vehicle, "state", no_state)
+    config = VehicleConfig(broker="mqtt://127.0.0.1", manufacturer="m", serial_number="s")
+    async with connect("sim://") as robot:
+        vehicle = Vehicle(robot, config)  # not run: the statuses are given by hand
+        changes: list[int] = []
+        monkeypatch.setattr(vehicle, "changed", lambda: changes.append(1))
+        report._battery_step.cache_clear()
+        for n in range(100):  # moving, the same battery step: one state (the first)
+            vehicle._on_status(status(current_pose_x=n / 100, power=25.0))
+        assert len(changes) == 1
+        assert report._battery_step.cache_info().hits == 99  # not worked out per status
+        vehicle._on_status(status(current_speed_x=0.0, current_speed_theta=0.0))
+        vehicle._on_status(status(current_speed_x=0.0, current_speed_theta=0.0, power=27.9))
+        vehicle._on_status(status(current_speed_x=0.0, current_speed_theta=0.0, power=27.9))
+        assert len(changes) == 3  # driving stopped, then the battery step changed
