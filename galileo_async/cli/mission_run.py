@@ -7,7 +7,6 @@ The command functions and ``register``/``register_fleet``, which add them to the
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -35,6 +34,7 @@ from .mission import (
     robot_points,
 )
 from .output import err_console, out_console, timestamp
+from .releases import parse_releases, triggered
 from .runner import (
     ExitCode,
     Settings,
@@ -53,7 +53,6 @@ if TYPE_CHECKING:
     from ..testing.robot import SimLink
 
 __all__ = [
-    "FILE_RELEASE_PERIOD",
     "SIM_UNTIL",
     "checked",
     "fleet_mission_run",
@@ -64,8 +63,6 @@ __all__ = [
     "register_fleet",
 ]
 
-#: Seconds between two looks for the file of a ``file:PATH`` release.
-FILE_RELEASE_PERIOD = 0.5
 #: Simulated seconds after which ``--sim`` stops a mission that is still running (a day).
 SIM_UNTIL = 24 * 3600.0
 
@@ -103,9 +100,11 @@ ReleaseOption = Annotated[
     list[str] | None,
     typer.Option(
         "--release",
-        metavar="NAME=key|file:PATH",
-        help="What releases the wait NAME: key (Enter on stdin) or file:PATH (once PATH "
-        "exists). Repeatable.",
+        metavar="NAME=key|file:PATH|http:[HOST:]PORT|mqtt:URL",
+        help="What releases the wait NAME: key (Enter on stdin), file:PATH (once PATH "
+        "exists), http:[HOST:]PORT (POST /release/NAME there; host 127.0.0.1 by default) or "
+        "mqtt:mqtt://HOST[:PORT]/TOPIC (any message on TOPIC). A POST or message before "
+        "the wait starts is remembered once. Repeatable.",
     ),
 ]
 JsonOption = Annotated[bool, typer.Option("--json", help="A JSON line per progress event.")]
@@ -157,34 +156,6 @@ def mission_exit_code(report: MissionReport) -> int:
         return int(_ENDING_CODES[report.ending])
     last = report.steps[-1].ending if report.steps else "failed"
     return int(_STEP_CODES.get(last, ExitCode.ERROR))
-
-
-def _releases(specs: list[str] | None) -> dict[str, Callable[[], Awaitable[object]]]:
-    releases: dict[str, Callable[[], Awaitable[object]]] = {}
-    for spec in specs or []:
-        name, _, how = spec.partition("=")
-        if not name or not how:
-            fail(f"--release {spec!r}: give NAME=key or NAME=file:PATH", ExitCode.USAGE)
-        if how == "key":
-            releases[name] = _key
-        elif how.startswith("file:") and how[5:]:
-            releases[name] = _file_release(Path(how[5:]))
-        else:
-            fail(f"--release {spec!r}: {how!r} is neither key nor file:PATH", ExitCode.USAGE)
-    return releases
-
-
-async def _key() -> None:
-    await anyio.to_thread.run_sync(sys.stdin.readline, abandon_on_cancel=True)
-
-
-def _file_release(path: Path) -> Callable[[], Awaitable[object]]:
-    async def appears() -> None:
-        # A file's appearance has no event to await without inotify: look now and then.
-        while not await anyio.Path(path).exists():  # noqa: ASYNC110
-            await anyio.sleep(FILE_RELEASE_PERIOD)
-
-    return appears
 
 
 def _line(event: MissionEvent) -> str | None:
@@ -289,7 +260,7 @@ def mission_run(
         loaded = mission_of(plan, file, task)
         if not checked(file, loaded):
             raise typer.Exit(int(ExitCode.USAGE))
-    releases = _releases(release)
+    releases = parse_releases(release)
     show = _printer(settings.json)
     if offload:
         _offload_usage(settings, sim, loaded, journal is not None or resume or bool(releases))
@@ -318,10 +289,11 @@ def mission_run(
         if offload:
             return await _offload(robot, mission, show)
         try:
-            report = await run_mission(
-                robot, mission, releases=releases, journal=journal, resume=resume,
-                on_progress=show,
-            )  # fmt: skip
+            async with triggered(releases) as given:
+                report = await run_mission(
+                    robot, mission, releases=given, journal=journal, resume=resume,
+                    on_progress=show,
+                )  # fmt: skip
         except MissionRejected as exc:
             return _rejected(exc)
         return mission_exit_code(report)
@@ -472,7 +444,7 @@ def fleet_mission_run(
         if name not in spec.ports or not path:
             fail(f"--per-robot {entry!r}: give NAME=FILE, NAME in the fleet", ExitCode.USAGE)
         missions[name] = load(Path(path))
-    releases = _releases(release)
+    releases = parse_releases(release)
     shows = {name: _printer(settings.json, name) for name in missions}
 
     async def main() -> int:
@@ -484,10 +456,11 @@ def fleet_mission_run(
                 if result.error is not None:
                     raise result.error
             try:
-                reports = await fleet.run_missions(
-                    missions, releases=releases,
-                    on_progress=lambda name, event: shows[name](event),
-                )  # fmt: skip
+                async with triggered(releases) as given:
+                    reports = await fleet.run_missions(
+                        missions, releases=given,
+                        on_progress=lambda name, event: shows[name](event),
+                    )  # fmt: skip
             except MissionRejected as exc:
                 return _rejected(exc)
         codes = [mission_exit_code(report) for report in reports.values()]

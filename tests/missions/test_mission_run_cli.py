@@ -100,7 +100,11 @@ def test_a_mission_the_link_cannot_run_exits_2_naming_every_problem(tmp_path: Pa
         ("{", (), "bad.json:1: YAML: "),
         ('{"mission": "m", "steps": []}', (), "steps"),
         (json.dumps(LOBBY), ("--release", "operator"), "give NAME=key"),
-        (json.dumps(LOBBY), ("--release", "operator=mouse"), "neither key nor file:PATH"),
+        (
+            json.dumps(LOBBY),
+            ("--release", "operator=mouse"),
+            "give NAME=key, NAME=file:PATH, NAME=http:[HOST:]PORT",
+        ),
     ],
     ids=["not a mission", "no steps", "release without how", "unknown release"],
 )
