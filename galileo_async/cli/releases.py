@@ -26,7 +26,9 @@ from .output import err_console
 from .runner import ExitCode, fail
 
 __all__ = [
+    "DEFAULT_HOST",
     "FILE_RELEASE_PERIOD",
+    "MQTT_PORT",
     "HttpTrigger",
     "MqttTrigger",
     "Release",

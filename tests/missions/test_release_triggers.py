@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import urllib.request
 from pathlib import Path
 
@@ -219,3 +220,21 @@ async def test_an_error_of_the_run_leaves_as_itself() -> None:
     with pytest.raises(LookupError):
         async with triggered(parse_releases(["a=key", f"b=http:{port}"])):
             raise LookupError("the run's")
+
+
+@pytest.mark.parametrize(
+    ("module", "spec", "extra"),
+    [
+        ("aiohttp.web", "operator=http:8090", "galileo-async[http]"),
+        ("aiomqtt", "operator=mqtt:mqtt://127.0.0.1/go", "galileo-async[vda5050]"),
+    ],
+)
+def test_a_missing_extra_exits_2_naming_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str, spec: str, extra: str
+) -> None:
+    monkeypatch.setitem(sys.modules, module, None)
+    plan = write(tmp_path, WAITING)
+    result = invoke("mission", "run", plan, "--release", spec, port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert repr(spec) in result.output
+    assert extra in result.output
