@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import anyio
 import anyio.lowlevel
-import anyio.to_thread
 import typer
 
 from ..errors import InvalidArgument
