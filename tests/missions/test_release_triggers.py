@@ -118,7 +118,7 @@ def test_a_post_releases_the_wait_of_a_run(tmp_path: Path) -> None:
     )  # fmt: skip
     try:
         assert process.stderr is not None
-        read_until(process.stderr, f"release operator: POST http://127.0.0.1:{port}/release/")
+        read_until(process.stderr, f"release operator: POST http://127.0.0.1:{port}/release/", WAIT)
         request = urllib.request.Request(f"http://127.0.0.1:{port}/release/operator", method="POST")
         with urllib.request.urlopen(request, timeout=WAIT) as response:
             assert json.load(response) == {"released": "operator"}
@@ -174,7 +174,7 @@ def test_a_message_releases_the_wait_of_a_run(tmp_path: Path) -> None:
             try:
                 assert process.stderr is not None
                 await anyio.to_thread.run_sync(
-                    read_until, process.stderr, "release on mqtt://127.0.0.1"
+                    read_until, process.stderr, "release on mqtt://127.0.0.1", WAIT
                 )
                 async with aiomqtt.Client("127.0.0.1", broker.port) as client:
                     await client.publish("site/go", b"", qos=1)
@@ -200,9 +200,12 @@ def test_a_post_releases_the_waits_of_a_fleet_run(tmp_path: Path) -> None:
     )  # fmt: skip
     try:
         assert process.stdout is not None
-        seen = read_until(process.stdout, '"step_started"')
-        if seen.count('"step_started"') < 2:
-            read_until(process.stdout, '"step_started"')
+        # Both robots wait before the POST (readline: both lines may come in one read).
+        started = 0
+        while started < 2:
+            line = process.stdout.readline()
+            assert line, "the run ended before both robots waited"
+            started += '"step_started"' in line
         request = urllib.request.Request(f"http://127.0.0.1:{port}/release/operator", method="POST")
         with urllib.request.urlopen(request, timeout=WAIT) as response:
             assert response.status == 200
