@@ -114,8 +114,8 @@ def check_static(mission: Mission) -> list[Problem]:
             problems.append(Problem(path, step.name, lacking[path].reason, "note"))
         if path in waits:
             problems.append(Problem(path, step.name, (
-                f"a run needs the release {waits[path]!r} (--release {waits[path]}=key|"
-                "file:PATH, run_mission's releases); check cannot know it"
+                f"a run needs the release {waits[path]!r} (--release {waits[path]}=key|file:PATH|"
+                "http:PORT|mqtt:URL, run_mission's releases); check cannot know it"
             ), "note"))  # fmt: skip
     return problems
 

@@ -170,7 +170,7 @@ def test_a_wait_notes_the_release_a_run_needs() -> None:
     plan = mission({"dwell": 1}, {"wait": {"release": "door", "timeout": 9}, "name": "w"})
     assert [str(p) for p in check_static(plan)] == [
         "note: steps[1] (name 'w'): a run needs the release 'door' (--release "
-        "door=key|file:PATH, run_mission's releases); check cannot know it"
+        "door=key|file:PATH|http:PORT|mqtt:URL, run_mission's releases); check cannot know it"
     ]
 
 
