@@ -54,10 +54,12 @@ if TYPE_CHECKING:
 __all__ = [
     "SIM_UNTIL",
     "checked",
+    "event_line",
     "fleet_mission_run",
     "mission_exit_code",
     "mission_of",
     "mission_run",
+    "print_rejected",
     "register",
     "register_fleet",
 ]
@@ -157,7 +159,7 @@ def mission_exit_code(report: MissionReport) -> int:
     return int(_STEP_CODES.get(last, ExitCode.ERROR))
 
 
-def _line(event: MissionEvent) -> str | None:
+def event_line(event: MissionEvent) -> str | None:
     """The text line of a progress event (None: no line)."""
     if isinstance(event, StepEnded):
         step = event.step
@@ -189,7 +191,7 @@ def _printer(as_json: bool, robot: str | None = None) -> Callable[[MissionEvent]
             line = json.dumps({"time": timestamp(), **named, **event.to_json()})
             console.print(line, markup=False, soft_wrap=True, highlight=False)
             return
-        text = _line(event)
+        text = event_line(event)
         if text is not None:
             prefix = "" if robot is None else f"{robot}: "
             console.print(prefix + text, markup=False, soft_wrap=True, highlight=False)
@@ -197,7 +199,7 @@ def _printer(as_json: bool, robot: str | None = None) -> Callable[[MissionEvent]
     return show
 
 
-def _rejected(exc: MissionRejected) -> int:
+def print_rejected(exc: MissionRejected) -> int:
     for problem in exc.problems:
         print_error(f"mission {exc.mission!r}: {problem}", kind="usage", code=ExitCode.USAGE)
     return int(ExitCode.USAGE)
@@ -294,7 +296,7 @@ def mission_run(
                     on_progress=show,
                 )  # fmt: skip
         except MissionRejected as exc:
-            return _rejected(exc)
+            return print_rejected(exc)
         return mission_exit_code(report)
 
     run_robot(settings, body, navigation=None, moving=True)
@@ -323,7 +325,7 @@ async def _play(
         try:
             play = await play_mission(robot, mission, faults={until: stop}, releases=released)
         except MissionRejected as exc:
-            return _rejected(exc)
+            return print_rejected(exc)
         finally:
             if stopping:
                 await asyncio.wait(stopping)
@@ -351,7 +353,7 @@ def _offload_usage(
         fail("--offload needs the robot's task chain: an http:// or https:// robot (-p URL) "
              "or --sim", ExitCode.USAGE)  # fmt: skip
     if mission is not None and (problems := offload_problems(mission)):
-        raise typer.Exit(_rejected(OffloadRejected(mission.mission, problems)))
+        raise typer.Exit(print_rejected(OffloadRejected(mission.mission, problems)))
 
 
 async def _offload(robot: Robot, mission: Mission, show: Callable[[MissionEvent], None]) -> int:
@@ -368,7 +370,7 @@ async def _offload(robot: Robot, mission: Mission, show: Callable[[MissionEvent]
     try:
         report = await offload_mission(robot, mission, on_progress=progress)
     except MissionRejected as exc:
-        return _rejected(exc)
+        return print_rejected(exc)
     ended = events.ended(report)
     show(ended)
     return mission_exit_code(ended.report)
@@ -461,7 +463,7 @@ def fleet_mission_run(
                         on_progress=lambda name, event: shows[name](event),
                     )  # fmt: skip
             except MissionRejected as exc:
-                return _rejected(exc)
+                return print_rejected(exc)
         codes = [mission_exit_code(report) for report in reports.values()]
         return next((code for code in codes if code != 0), 0)
 

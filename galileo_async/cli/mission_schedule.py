@@ -27,7 +27,7 @@ from ..missions.schedule import (
     WindowSkipped,
 )
 from .mission import PointsOption, file_failure, plan_errors, point_source
-from .mission_run import _line, _rejected
+from .mission_run import event_line, print_rejected
 from .output import out_console, timestamp
 from .runner import ExitCode, fail, run, run_robot, settings_of
 
@@ -110,7 +110,7 @@ def _printer(
         elif isinstance(event, MissionEnded) or (
             steps and isinstance(event, (StepEnded, LoopStarted))
         ):
-            at, text = now(), _line(event) or ""
+            at, text = now(), event_line(event) or ""
         else:
             return
         stamp = at.astimezone(zone).strftime("%Y-%m-%d %H:%M:%S")
@@ -191,7 +191,7 @@ def mission_schedule(
         try:
             await run_schedule(robot, schedule, on_progress=show)
         except MissionRejected as exc:
-            return _rejected(exc)
+            return print_rejected(exc)
         return int(ExitCode.OK)  # run_schedule returns only by cancellation
 
     run_robot(settings, body, navigation=None, moving=True)
@@ -230,7 +230,7 @@ async def _play(
         if not task.cancelled() and task.exception() is not None:
             error = task.exception()
             if isinstance(error, MissionRejected):
-                return _rejected(error)
+                return print_rejected(error)
             assert error is not None
             raise error
     return int(ExitCode.OK)

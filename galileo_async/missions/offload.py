@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 import anyio
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..errors import GalileoConnectionError, GalileoError, HttpError, InvalidArgument, NotSupported
+from ..errors import GalileoConnectionError, HttpError, InvalidArgument, NotSupported
 from ..robot.http_part import HttpPart, NavPoint
 from ..robot.task_chain import (
     TASK_ENDINGS,
@@ -33,6 +33,7 @@ from ..robot.task_chain import (
     Task,
     WaitReqAction,
 )
+from .exit_stop import exit_stop
 from .model import (
     CallStep,
     ChargeStep,
@@ -56,7 +57,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CALL_TIMEOUT",
-    "EXIT_STOP_TIMEOUT",
     "FOLLOW_PERIOD",
     "FOLLOW_TIMEOUT",
     "MAX_BACKOFF",
@@ -83,8 +83,6 @@ CALL_TIMEOUT = 5.0
 FOLLOW_TIMEOUT = 300.0
 #: The longest wait between two tries while the robot does not answer.
 MAX_BACKOFF = 30.0
-#: Seconds the stop on leaving by cancellation or an error may take (shielded).
-EXIT_STOP_TIMEOUT = 5.0
 
 #: How an offloaded mission ended, named as the runner's endings.
 OffloadEnding = Literal["completed", "stopped", "failed", "link lost"]
@@ -492,20 +490,6 @@ class _Follower:
         )  # fmt: skip
 
 
-async def _stop(robot: Robot, task_id: str) -> None:
-    """robot.stop() (it stops the chains this Robot started), shielded and bounded."""
-    with anyio.CancelScope(shield=True), anyio.move_on_after(EXIT_STOP_TIMEOUT) as scope:
-        try:
-            await robot.stop()
-            return
-        except GalileoError as exc:
-            _log.warning("task %s: stop() failed: %s; the chain may still run", task_id, exc)
-            return
-    if scope.cancelled_caught:
-        _log.warning("task %s: stop() took over %s s; the chain may still run", task_id,
-                     EXIT_STOP_TIMEOUT)  # fmt: skip
-
-
 async def offload_mission(
     robot: Robot,
     mission: Mission,
@@ -543,7 +527,7 @@ async def offload_mission(
         follower.look(await follower.ask(lambda: http.start_task(task.id)))
         return await follower.follow(follow_timeout, period)
     except BaseException:
-        await _stop(robot, task.id)
+        await exit_stop(robot, f"stopping task {task.id}")
         raise
 
 

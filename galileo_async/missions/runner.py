@@ -10,7 +10,6 @@ that runs the mission ends it too, the robot stopped on the way out.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import math
 from collections.abc import Awaitable, Callable, Mapping
@@ -36,10 +35,11 @@ from ..errors import (
     OperationFailed,
 )
 from ..models import ChargeStatus, GalileoStatus, LinkState
-from ..robot.runtime import ROBOT_DEFAULT, finish_shielded
+from ..robot.runtime import ROBOT_DEFAULT
 from .calls import CallFailed, call_out
 from .capabilities import capabilities_of, unreleased, unsupported
 from .events import LoopStarted, MissionEnded, MissionEvent, StepEnded, StepStarted
+from .exit_stop import exit_stop
 from .journal import DEFAULT_JOURNAL_MAX_AGE, Journal, JournalRecord, ResumePoint, plan_hash
 from .model import (
     ChargeUntil,
@@ -55,7 +55,6 @@ from .robot_api import MissionRobot
 __all__ = [
     "CHARGE_TIMEOUT",
     "DEFAULT_JOURNAL_MAX_AGE",
-    "EXIT_STOP_TIMEOUT",
     "LOCAL_MOVE_SPEED",
     "NAVIGATION_TIMEOUT",
     "Releases",
@@ -71,8 +70,6 @@ Releases = Mapping[str, Callable[[], Awaitable[object]]]
 CHARGE_TIMEOUT = 8 * 3600.0
 #: Seconds for navigation to be ready again after a map switch.
 NAVIGATION_TIMEOUT = 60.0
-#: Seconds the stop on the way out of a cancelled mission may take.
-EXIT_STOP_TIMEOUT = 5.0
 #: m/s of a local move's straight part (at most the Robot's speed limit).
 LOCAL_MOVE_SPEED = 0.2
 #: Metres within which a local move's distance counts as driven.
@@ -256,16 +253,8 @@ class _Run:
         return report
 
     async def _exit_stop(self) -> None:
-        """Stop the robot, shielded and bounded; a failure is logged by finish_shielded."""
-        robot = self.robot
-        if robot.closed:
-            return
-
-        async def stop() -> None:
-            with contextlib.suppress(GalileoError):
-                await robot.stop(timeout=EXIT_STOP_TIMEOUT)
-
-        await finish_shielded(asyncio.ensure_future(stop()), "the mission's exit stop")
+        """Stop the robot, shielded and bounded (exit_stop)."""
+        await exit_stop(self.robot, "the mission's exit stop")
 
     # --- what the Robot tells the run ---------------------------------------------------
 

@@ -8,7 +8,6 @@ plus an anchor taken at the start (``_Wall``): the one conversion.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, fields
@@ -21,6 +20,7 @@ import anyio
 from ..errors import GalileoError
 from ..models import ChargeStatus, GalileoStatus
 from .events import MissionEvent, StepEnded, StepStarted
+from .exit_stop import EXIT_STOP_TIMEOUT, exit_stop
 from .model import Mission
 from .report import MissionReport
 from .runner import run_mission
@@ -40,8 +40,6 @@ __all__ = [
     "run_schedule",
 ]
 
-#: Seconds the stop on leaving run_schedule may take (shielded from cancellation).
-EXIT_STOP_TIMEOUT = 5.0
 #: A wall time this close to an edge counts as the edge (loop time is a float).
 _EDGE = timedelta(milliseconds=1)
 _DOCKING = (ChargeStatus.FINDING_DOCK, ChargeStatus.DOCKING)
@@ -414,9 +412,4 @@ async def run_schedule(
             run = _Run(robot, schedule, missions, wall, on_progress, Path(journals))
             await run.run()
     finally:
-        with (
-            anyio.CancelScope(shield=True),
-            anyio.move_on_after(EXIT_STOP_TIMEOUT),
-            contextlib.suppress(GalileoError),
-        ):
-            await robot.stop()
+        await exit_stop(robot, "the schedule's exit stop")
