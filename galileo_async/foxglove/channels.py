@@ -37,8 +37,11 @@ from foxglove.messages import (
 )
 
 from .schemas import (
+    ERROR,
+    INFO,
     LINK_SCHEMA_NAME,
     STATUS_SCHEMA_NAME,
+    WARNING,
     event_level,
     event_text,
     link_json,
@@ -63,6 +66,7 @@ TOPICS = ("pose", "tf", "status", "link", "scene", "events")
 _TARGET_COLOUR = Color(r=0.6, g=0.6, b=0.6, a=0.8)
 _GOAL_COLOUR = Color(r=0.1, g=0.8, b=0.2, a=1.0)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
+_LEVELS = {INFO: LogLevel.Info, WARNING: LogLevel.Warning, ERROR: LogLevel.Error}
 _TARGET_SIZE = 0.2
 _GOAL_SIZE = 0.35
 
@@ -155,7 +159,7 @@ class RobotChannels:
     def on_event(self, event: Event) -> None:
         """Publish ``event`` as a log line; a goal event redraws the scene."""
         if self.events.has_sinks():
-            level = LogLevel(event_level(event))
+            level = _LEVELS.get(event_level(event), LogLevel.Info)
             self.events.log(Log(
                 timestamp=_now(), level=level, message=event_text(event), name=self.name,
             ))  # fmt: skip
