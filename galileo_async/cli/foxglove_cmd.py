@@ -1,8 +1,9 @@
 """``galileo foxglove``: a Foxglove live view of one robot, or of every robot of a fleet file.
 
-Ctrl-C, SIGTERM and SIGHUP close the server and the robots' connections and exit 0; as
-`galileo monitor`, the command sends no command of its own on the way out (a goal started
-from Foxglove keeps running: stop it with its stop service, or `galileo stop`).
+Ctrl-C, SIGTERM and SIGHUP close the server and the robots' connections and exit 0, as
+`galileo sim` does; like `galileo monitor`, the command sends nothing to a robot on its way
+out (a goal started from Foxglove keeps running: stop it with its stop service, or
+`galileo stop`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import typer
 from ..errors import GalileoError, InvalidArgument
 from ..fleet.file import FleetSpec, load_fleet_file
 from .runner import ExitCode, checked_port, err_console, fail, run, run_robot, settings_of
+from .signals import stop_requested
 from .watch import TargetsOption, map_model
 
 if TYPE_CHECKING:
@@ -89,7 +91,8 @@ def foxglove(
             async with _server(host, port, rate) as server:
                 found = await _http_targets(robot, known[name])
                 server.add_robot(name, robot, targets=found)
-                await asyncio.Event().wait()  # until Ctrl-C
+                with stop_requested() as stop:
+                    await stop.wait()
             return 0
 
         run_robot(settings, body, navigation=None, interrupted=ExitCode.OK, long_running=True)
@@ -141,11 +144,13 @@ async def _serve_fleet(server: FoxgloveServer, spec: FleetSpec, known: dict[str,
     fleet: Fleet
     async with spec.connect(**served) as fleet:
         waiting = list(fleet.names)
-        while True:  # robots that connect later are added when they do
-            for name in list(waiting):
-                robot = fleet.get(name)
-                if robot is not None:
-                    found = await _http_targets(robot, known[name])
-                    server.add_robot(name, robot, targets=found)
-                    waiting.remove(name)
-            await asyncio.sleep(ATTACH_POLL)
+        with stop_requested() as stop:
+            while not stop.is_set():  # robots that connect later are added when they do
+                for name in list(waiting):
+                    robot = fleet.get(name)
+                    if robot is not None:
+                        found = await _http_targets(robot, known[name])
+                        server.add_robot(name, robot, targets=found)
+                        waiting.remove(name)
+                with contextlib.suppress(asyncio.TimeoutError):
+                    await asyncio.wait_for(stop.wait(), ATTACH_POLL)
