@@ -5,6 +5,9 @@
 ``python -m benchmarks vda5050 [--vehicles N] [--[no-]robots-process]``: N VDA 5050 vehicles on
 one loop (Mosquitto); the robots in another process by default from 500 vehicles on.
 
+``python -m benchmarks foxglove``: 1000 robots (another process, socket://) behind one Foxglove
+server, with no viewer and with one subscribed to everything (--quick: 50 robots).
+
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 
 ``python -m benchmarks compare --before DIR [--after DIR] [--rounds N] [--quick] [NAME …]``:
@@ -24,7 +27,9 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual", "imports")
+BENCHMARKS = (
+    "ingest", "latency", "fleet", "fleet_merged", "vda5050", "foxglove", "virtual", "imports",
+)  # fmt: skip
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
