@@ -131,7 +131,9 @@ class RobotChannels:
         now = time.monotonic()
         if now < self._next:
             return
-        self._next = now + self._period
+        # From the last slot, not from now: frames come every 33 ms, and now + period would
+        # skip to the frame after the slot (7.5 a second for 10).
+        self._next = max(self._next + self._period, now)
         goal = _goal_of(status)
         if goal != self._goal:
             self._goal = goal
