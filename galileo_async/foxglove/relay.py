@@ -9,7 +9,6 @@ subprotocol in the opening handshake, both ways, and then copies bytes untouched
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import re
 
@@ -25,7 +24,6 @@ LEGACY_SUBPROTOCOL = "foxglove.websocket.v1"
 HANDSHAKE_TIMEOUT = 10.0
 #: The largest HTTP head accepted (a browser's upgrade request is well under 2 KiB).
 _MAX_HEAD = 16384
-_CHUNK = 65536
 _PROTOCOL_LINE = re.compile(rb"(?im)^sec-websocket-protocol:[ \t]*([^\r\n]*)\r\n")
 
 
@@ -35,7 +33,7 @@ class Relay:
     def __init__(self, host: str, port: int, inner: int) -> None:
         self._host, self._port, self._inner = host, port, inner
         self._server: asyncio.Server | None = None
-        self._tasks: set[asyncio.Task[None]] = set()
+        self._pipes: set[_ClientSide] = set()
 
     @property
     def port(self) -> int:
@@ -45,63 +43,152 @@ class Relay:
 
     async def start(self) -> None:
         """Listen; OSError when the port is taken."""
-        self._server = await asyncio.start_server(
-            self._connection, self._host, self._port, reuse_address=True
-        )
+        loop = asyncio.get_running_loop()
+        self._server = await loop.create_server(
+            lambda: _ClientSide(self._inner, self._pipes), self._host, self._port,
+            reuse_address=True,
+        )  # fmt: skip
 
     async def close(self) -> None:
         """Stop listening and end every relayed connection; nothing is left running."""
         server, self._server = self._server, None
         if server is not None:
             server.close()
-        tasks = list(self._tasks)
-        for task in tasks:
-            task.cancel()
-        if tasks:
-            await asyncio.wait(tasks)
+        for pipe in list(self._pipes):
+            pipe.end()
         if server is not None:
             await server.wait_closed()
 
-    async def _connection(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        task = asyncio.current_task()
-        assert task is not None
-        self._tasks.add(task)
-        inner: asyncio.StreamWriter | None = None
-        try:
-            inner_reader, opened = await asyncio.wait_for(
-                self._handshake(reader, writer), HANDSHAKE_TIMEOUT
-            )
-            inner = opened
-            await _pipe_both(reader, writer, inner_reader, opened)
-        except (OSError, asyncio.IncompleteReadError, asyncio.LimitOverrunError,
-                asyncio.TimeoutError):  # fmt: skip
-            _log.debug("foxglove relay: a connection ended", exc_info=True)
-        finally:
-            self._tasks.discard(task)
-            for end in (writer, inner):
-                if end is not None:
-                    end.close()
 
-    async def _handshake(
-        self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
-    ) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
-        """Pass the upgrade request on and its answer back, the subprotocol renamed."""
-        request, legacy = _rename_request(await reader.readuntil(b"\r\n\r\n"))
-        inner_reader, inner = await asyncio.open_connection("127.0.0.1", self._inner)
+class _Side(asyncio.Protocol):
+    """One side of a relayed connection: once open, what it receives goes to the other."""
+
+    transport: asyncio.Transport | None = None
+    other: _Side | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+
+    def pass_on(self, data: bytes) -> None:
+        if self.other is not None and self.other.transport is not None:
+            self.other.transport.write(data)
+
+    # A side whose writes pile up holds the other side's reads back.
+    def pause_writing(self) -> None:
+        if self.other is not None and self.other.transport is not None:
+            self.other.transport.pause_reading()
+
+    def resume_writing(self) -> None:
+        if self.other is not None and self.other.transport is not None:
+            self.other.transport.resume_reading()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.transport = None
+        if self.other is not None and self.other.transport is not None:
+            self.other.transport.close()
+
+
+class _ClientSide(_Side):
+    """A viewer's connection: its upgrade request renamed, passed on, then bytes both ways."""
+
+    def __init__(self, inner: int, pipes: set[_ClientSide]) -> None:
+        self._inner, self._pipes = inner, pipes
+        self._head = bytearray()
+        self._opening: asyncio.Task[None] | None = None
+        self._timer: asyncio.TimerHandle | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        super().connection_made(transport)
+        self._pipes.add(self)
+        self._timer = asyncio.get_running_loop().call_later(HANDSHAKE_TIMEOUT, self.end)
+
+    def data_received(self, data: bytes) -> None:
+        if self.other is not None and self.other.transport is not None and self._timer is None:
+            self.pass_on(data)
+            return
+        if self._opening is not None:  # bytes after the request, before the answer
+            self._head += data
+            return
+        self._head += data
+        end = self._head.find(b"\r\n\r\n")
+        if end < 0:
+            if len(self._head) > _MAX_HEAD:
+                self.end()
+            return
+        request, rest = bytes(self._head[: end + 4]), bytes(self._head[end + 4 :])
+        self._head = bytearray(rest)
+        renamed, legacy = _rename_request(request)
+        assert self.transport is not None
+        self.transport.pause_reading()
+        self._opening = asyncio.ensure_future(self._open(renamed, legacy))
+
+    async def _open(self, request: bytes, legacy: bool) -> None:
+        loop = asyncio.get_running_loop()
         try:
-            inner.write(request)
-            answer = await inner_reader.readuntil(b"\r\n\r\n")
-        except BaseException:
-            inner.close()
-            raise
-        writer.write(_rename_answer(answer) if legacy else answer)
-        return inner_reader, inner
+            _, inner = await loop.create_connection(
+                lambda: _InnerSide(self, legacy), "127.0.0.1", self._inner
+            )
+        except OSError:
+            _log.debug("foxglove relay: the inner server refused", exc_info=True)
+            self.end()
+            return
+        self.other = inner
+        assert inner.transport is not None
+        inner.transport.write(request + bytes(self._head))
+        self._head.clear()
+
+    def answered(self) -> None:
+        """The inner server answered the upgrade: from now on, bytes both ways."""
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        if self.transport is not None:
+            self.transport.resume_reading()
+
+    def end(self) -> None:
+        """Close both sides and forget the connection."""
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        if self._opening is not None and not self._opening.done():
+            self._opening.cancel()
+        for side in (self, self.other):
+            if side is not None and side.transport is not None:
+                side.transport.abort()
+        self._pipes.discard(self)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        super().connection_lost(exc)
+        self.end()
+
+
+class _InnerSide(_Side):
+    """The connection to the SDK's server: its answer renamed back, then bytes both ways."""
+
+    def __init__(self, client: _ClientSide, legacy: bool) -> None:
+        self.other = client
+        self._client, self._legacy = client, legacy
+        self._head: bytearray | None = bytearray()
+
+    def data_received(self, data: bytes) -> None:
+        if self._head is None:
+            self.pass_on(data)
+            return
+        self._head += data
+        end = self._head.find(b"\r\n\r\n")
+        if end < 0:
+            if len(self._head) > _MAX_HEAD:
+                self._client.end()
+            return
+        answer, rest = bytes(self._head[: end + 4]), bytes(self._head[end + 4 :])
+        self._head = None
+        self.pass_on((_rename_answer(answer) if self._legacy else answer) + rest)
+        self._client.answered()
 
 
 def _rename_request(head: bytes) -> tuple[bytes, bool]:
     """The upgrade request with foxglove.websocket.v1 asked as foxglove.sdk.v1; was it asked?"""
-    if len(head) > _MAX_HEAD:
-        raise asyncio.LimitOverrunError("the handshake is too long", len(head))
     found = _PROTOCOL_LINE.search(head)
     if found is None:
         return head, False
@@ -116,32 +203,3 @@ def _rename_answer(head: bytes) -> bytes:
     """The server's answer with the subprotocol the client asked for."""
     line = f"Sec-WebSocket-Protocol: {LEGACY_SUBPROTOCOL}\r\n".encode()
     return _PROTOCOL_LINE.sub(line.replace(b"\\", b"\\\\"), head, count=1)
-
-
-async def _pipe_both(
-    reader: asyncio.StreamReader,
-    writer: asyncio.StreamWriter,
-    inner_reader: asyncio.StreamReader,
-    inner: asyncio.StreamWriter,
-) -> None:
-    """Copy both ways until either side ends; the other copy is then cancelled."""
-    copies = {
-        asyncio.ensure_future(_copy(reader, inner)),
-        asyncio.ensure_future(_copy(inner_reader, writer)),
-    }
-    try:
-        await asyncio.wait(copies, return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        for copy in copies:
-            copy.cancel()
-        await asyncio.wait(copies)
-        for copy in copies:
-            if not copy.cancelled():
-                with contextlib.suppress(OSError):
-                    copy.result()
-
-
-async def _copy(source: asyncio.StreamReader, sink: asyncio.StreamWriter) -> None:
-    while chunk := await source.read(_CHUNK):
-        sink.write(chunk)
-        await sink.drain()
