@@ -47,11 +47,13 @@ async def _window(seconds: float) -> tuple[float, float]:
     return time.process_time() - cpu, time.perf_counter() - wall
 
 
-async def measure(robots: list[Robot], seconds: float) -> dict[str, Any]:
+async def measure(
+    robots: list[Robot], seconds: float, rate: float = DEFAULT_RATE
+) -> dict[str, Any]:
     """The three windows on ``robots``: CPU in cores, RSS, the client's counts."""
     bare_cpu, bare_wall = await _window(seconds)
     before = _rss()
-    async with FoxgloveServer(port=0) as server:
+    async with FoxgloveServer(port=0, rate=rate) as server:
         for index, robot in enumerate(robots):
             server.add_robot(f"r{index}", robot)
         rss = (_rss() - before) / len(robots)
@@ -84,36 +86,38 @@ async def measure(robots: list[Robot], seconds: float) -> dict[str, Any]:
     }
 
 
-async def _measure_on(server: _Server, seconds: float) -> dict[str, Any]:
+async def _measure_on(server: _Server, seconds: float, rate: float) -> dict[str, Any]:
     robots = await _connect(server)
     try:
         await asyncio.sleep(1.0)  # every robot's first frames in
-        return await measure(robots, seconds)
+        return await measure(robots, seconds, rate)
     finally:
         await asyncio.gather(*(robot.close() for robot in robots), return_exceptions=True)
 
 
 def run(
-    *, quick: bool = False, robots: int | None = None, seconds: float | None = None
-) -> list[Row]:
-    """The three windows at N robots (default 1000; --quick 50), ``seconds`` each (10; 3)."""
+    *, quick: bool = False, robots: int | None = None, seconds: float | None = None,
+    rate: float = DEFAULT_RATE,
+) -> list[Row]:  # fmt: skip
+    """The three windows at N robots (default 1000; --quick 50), ``seconds`` each (10; 3);
+    ``rate``: the server's pose and status messages a second per robot."""
     count = robots or (50 if quick else 1000)
     seconds = seconds or (3.0 if quick else 10.0)
     raise_fd_limit()
     server = _Server(count, traffic="spread")
     try:
-        figures = asyncio.run(_measure_on(server, seconds))
+        figures = asyncio.run(_measure_on(server, seconds, rate))
     finally:
         server.close()
     extra = {
-        "robots": count, "rate": DEFAULT_RATE, "robots_from": "fleet_server, socket://",
+        "robots": count, "rate": rate, "robots_from": "fleet_server, socket://",
         "messages_per_second": figures["messages_per_second"],
         "bytes_per_second": figures["bytes_per_second"],
     }  # fmt: skip
     bare = figures["bare_cores"]
     per = 100 / count
     return [
-        Row("foxglove", f"CPU per robot, server, no client ({count} robots)",
+        Row("foxglove", f"CPU per robot, server, no client ({count} robots, rate {rate:g})",
             figures["idle_cores"] * per, "% core", bare * per, "no server", extra=extra),
         Row("foxglove", "CPU per robot, server, one client subscribed to everything",
             figures["busy_cores"] * per, "% core", bare * per, "no server", extra=extra),
