@@ -43,6 +43,9 @@ DEFAULT_PORT = 8765
 DEFAULT_RATE = 10.0
 #: Seconds between the link and scene messages of every robot.
 TICK = 1.0
+#: Messages queued per viewer before the oldest is dropped: a second of 1000 robots at the
+#: default rate (the SDK's default, 1024, is 30 ms of them: a loop a little late drops).
+BACKLOG = 32768
 
 Targets = Sequence[tuple[int, float, float]]
 
@@ -96,6 +99,7 @@ class FoxgloveServer:
         self._sdk = foxglove.start_server(
             name=self.name, host="127.0.0.1", port=0, context=self._context,
             capabilities=[Capability.Services], supported_encodings=["json"],
+            message_backlog_size=BACKLOG,
         )  # fmt: skip
         try:
             self._relay = Relay(self.host, self._port, self._sdk.port)

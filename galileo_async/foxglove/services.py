@@ -118,16 +118,21 @@ def _takes(name: str) -> str:
     return "{" + ", ".join(f'"{key}": …' for key in fields) + "}" if fields else "{}"
 
 
-async def _until_accepted(robot: Robot, goal: Coroutine[Any, Any, object]) -> _Json:
+async def _until_accepted(
+    robot: Robot, goal: Coroutine[Any, Any, object], target: int | None = None
+) -> _Json:
     """Run ``goal`` (a goto with cancel_on_exit False) until the robot accepts it or it ends.
 
-    Once accepted the goto is left (nothing is sent): the goal runs on the robot.
+    ``target``: the goal id to wait for (None: the first goal accepted). Once accepted the
+    goto is left (nothing is sent): the goal runs on the robot.
     """
     loop = asyncio.get_running_loop()
     accepted: asyncio.Future[int | None] = loop.create_future()
 
     def listen(event: Event) -> None:
-        if isinstance(event, GoalAccepted) and not accepted.done():
+        if not isinstance(event, GoalAccepted) or accepted.done():
+            return
+        if target is None or event.target_id == target:
             accepted.set_result(event.target_id)
 
     robot.add_event_listener(listen)
@@ -153,7 +158,8 @@ def _call(robot: Robot, name: str, request: _Json) -> Coroutine[Any, Any, _Json]
     """The coroutine that performs service ``name`` on ``robot``."""
 
     async def goto() -> _Json:
-        return await _until_accepted(robot, robot.goto(request["target"], cancel_on_exit=False))
+        target = request["target"]
+        return await _until_accepted(robot, robot.goto(target, cancel_on_exit=False), target)
 
     async def goto_point() -> _Json:
         x, y = float(request["x"]), float(request["y"])
