@@ -18,7 +18,8 @@ def test_foxglove_benchmark_rows() -> None:
     assert rows[0].baseline_name == "no server"
     assert rows[0].baseline is not None
     assert rows[0].baseline > 0
-    assert rows[4].value > 0  # the channels and services take memory
+    # RSS per robot: 3 robots' channels may fit in pages the process had (0 is a measure).
+    assert rows[4].value >= 0
     # The client subscribed to every channel of 3 robots and got their messages.
     assert rows[5].value > 0
     assert rows[0].extra["robots"] == 3

@@ -50,7 +50,8 @@ def test_vda5050_benchmark_robots_in_their_own_process() -> None:
     # The server was measured (NaN when there is none); /proc counts CPU in 10 ms ticks, so
     # three idle robots over one second may show none.
     assert rows[3].value >= 0
-    assert rows[3].baseline is not None and rows[3].baseline >= 0
+    assert rows[3].baseline is not None
+    assert rows[3].baseline >= 0
     assert rows[0].extra["samples"] > 0  # flips went over the socket and reached the master
     assert rows[1].target == "≤ 0.0015 cores"  # 0.5 cores per 1000, pro rata
 
