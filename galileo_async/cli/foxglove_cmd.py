@@ -36,7 +36,10 @@ HTTP_TARGETS_TIMEOUT = 10.0
 
 Targets = list[tuple[int, float, float]]
 
-_NEEDS_SDK = "galileo foxglove needs the Foxglove SDK: pip install 'galileo-async[foxglove]'"
+_NEEDS_SDK = (
+    "galileo foxglove needs the Foxglove SDK (foxglove is not installed): "
+    "pip install 'galileo-async[foxglove]'"
+)
 
 
 def foxglove(
@@ -65,7 +68,7 @@ def foxglove(
     try:
         import foxglove as _sdk  # noqa: F401
     except ImportError:
-        fail(_NEEDS_SDK, ExitCode.USAGE)
+        fail(_NEEDS_SDK)
     fleet = fleet or settings.fleet
     if fleet is not None and settings.port_source in ("--port", "--robot"):
         fail(f"--fleet takes each robot's port from {fleet}: drop {settings.port_source}",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import re
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -84,9 +85,21 @@ async def test_one_robot_is_served_under_its_name() -> None:
     assert code == 0
 
 
-def test_fleet_and_port_together_are_a_usage_error(tmp_path: Path) -> None:
-    import subprocess
+def test_without_the_sdk_the_command_says_how_to_get_it() -> None:
+    code = (
+        "import runpy, sys\nsys.modules['foxglove'] = None\n"
+        "sys.argv = ['galileo', '-p', 'sim://', 'foxglove']\n"
+        "runpy.run_module('galileo_async', run_name='__main__')\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=WAIT, check=False
+    )
+    assert result.returncode == 1
+    assert result.stderr.count("\n") == 1, result.stderr  # one line, no traceback
+    assert "(foxglove is not installed): pip install 'galileo-async[foxglove]'" in result.stderr
 
+
+def test_fleet_and_port_together_are_a_usage_error(tmp_path: Path) -> None:
     fleet = tmp_path / "fleet.toml"
     fleet.write_text('[robots.alpha]\nport = "sim://"\n')
     result = subprocess.run(
