@@ -4,7 +4,8 @@ The SDK calls a handler on a thread of its own: the handler parses the JSON requ
 hands the call to the event loop and waits for its answer at most SERVICE_TIMEOUT seconds
 (then the call is cancelled on the loop). A goto or goto_point answers once the robot
 accepted the goal, not when it arrives; the goal then runs on the robot, followed on the
-events channel. A stop is the Robot's stop(): it supersedes every goal still waiting to be
+events channel (a goal never shown accepted within accept_timeout is cancelled, as goto's
+own exit would). A stop is the Robot's stop(): it supersedes every goal still waiting to be
 sent, a Foxglove goto's too; a goto called after it is a new command and moves the robot.
 """
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextlib
 import json
 import math
 from collections.abc import Callable, Coroutine
@@ -19,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import foxglove
 
+from ..errors import AcceptTimeout, GalileoError
 from ..events import Event, GoalAccepted
 from .schemas import SERVICE_REQUESTS, service_schema
 
@@ -142,7 +145,14 @@ async def _until_accepted(
         await asyncio.wait(either, return_when=asyncio.FIRST_COMPLETED)
         if accepted.done():
             return {"accepted": True, "target": accepted.result(), "arrived": False}
-        result = task.result()  # the goal ended before its acceptance showed: raises or arrived
+        try:
+            result = task.result()  # ended before its acceptance showed: raises or arrived
+        except AcceptTimeout:
+            # What goto's own exit cancel would have sent: the goal written and never
+            # shown accepted must not start later.
+            with contextlib.suppress(GalileoError):
+                await robot.cancel()
+            raise
         return {"accepted": True, "target": getattr(result, "target_id", None), "arrived": True}
     finally:
         robot.remove_event_listener(listen)
