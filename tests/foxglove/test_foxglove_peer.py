@@ -19,7 +19,7 @@ from galileo_async.foxglove import LEGACY_SUBPROTOCOL, FoxgloveServer
 from galileo_async.testing import SimulatedDevice, simulated_robot
 from tests.support.foxglove_support import PEER_DIR, WAIT, require_node_peer
 
-MAP = [(0.0, 0.0), (3.0, 0.0), (3.0, 3.0)]
+MAP = [(0.0, 0.0), (3.0, 0.0), (6.0, 6.0)]
 
 
 @pytest.fixture
@@ -68,4 +68,4 @@ async def test_the_ws_protocol_client_subscribes_moves_and_stops_the_robot(
     assert steps["ended"]["target_status"] != 1
     assert "target must be a target id 0..255, got 'three'" in steps["failure"]["message"]
     where = device.pose
-    assert (where.x, where.y) != pytest.approx((3.0, 3.0), abs=0.3)  # stopped on the way
+    assert (where.x, where.y) != pytest.approx((6.0, 6.0), abs=0.3)  # stopped on the way

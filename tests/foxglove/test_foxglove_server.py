@@ -34,7 +34,7 @@ from galileo_async.testing import SimulatedDevice, simulated_robot
 from tests.support.cancel_ways import WAYS, stop_waiting
 from tests.support.foxglove_support import WAIT, ServiceFailed, connected
 
-MAP = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0)]
+MAP = [(0.0, 0.0), (2.0, 0.0), (8.0, 8.0)]  # target 2 is seconds away
 TARGETS = [(i, x, y) for i, (x, y) in enumerate(MAP)]
 SIM = {"speed": 5.0}
 
@@ -106,7 +106,7 @@ async def test_goto_returns_on_acceptance_and_stop_stops_the_robot(
         stopped = await bot.wait_until(lambda s: s.target_status != TargetStatus.WORKING, WAIT)
         where = device.pose
         assert stopped.target_status != TargetStatus.WORKING
-        assert (where.x, where.y) != pytest.approx((2.0, 2.0), abs=0.2)
+        assert (where.x, where.y) != pytest.approx((8.0, 8.0), abs=0.2)
 
 
 async def test_a_goto_still_waiting_when_stop_comes_is_never_sent(
@@ -224,7 +224,7 @@ async def test_closing_the_server_sends_nothing_and_frees_the_port(
     sent = bot.link.commands_sent
     # The goal runs on to its end: closing the server cancelled nothing.
     await bot.wait_until(lambda s: s.target_status == TargetStatus.FREE, timeout=WAIT)
-    assert (device.pose.x, device.pose.y) == pytest.approx((2.0, 2.0), abs=0.3)
+    assert (device.pose.x, device.pose.y) == pytest.approx((8.0, 8.0), abs=0.3)
     assert bot.link.commands_sent == sent
     async with aiohttp.ClientSession() as session:
         with pytest.raises(aiohttp.ClientConnectionError):
