@@ -5,6 +5,9 @@
 ``python -m benchmarks vda5050 [--vehicles N] [--[no-]robots-process]``: N VDA 5050 vehicles on
 one loop (Mosquitto); the robots in another process by default from 500 vehicles on.
 
+``python -m benchmarks foxglove [--rate HZ]``: 1000 robots (another process, socket://) behind
+one Foxglove server, with no viewer and with one subscribed to everything (--quick: 50).
+
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 
 ``python -m benchmarks compare --before DIR [--after DIR] [--rounds N] [--quick] [NAME …]``:
@@ -24,7 +27,9 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual", "imports")
+BENCHMARKS = (
+    "ingest", "latency", "fleet", "fleet_merged", "vda5050", "foxglove", "virtual", "imports",
+)  # fmt: skip
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -95,6 +100,10 @@ def main(argv: list[str] | None = None) -> int:
         "socket:// (spread traffic), so that the process measured runs the adapters and "
         "not the simulation (default: on from 500 vehicles, else in-process sim://)",
     )
+    parser.add_argument(
+        "--rate", type=float, default=None,
+        help="foxglove: pose and status messages a second per robot (default 10)",
+    )  # fmt: skip
     parser.add_argument("--json", type=Path, default=None, help="where to write the results")
     args = parser.parse_args(argv)  # fmt: skip
     names = args.names or list(BENCHMARKS)
@@ -117,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
         if name == "vda5050":
             options["vehicles"] = args.vehicles
             options["robots_process"] = args.robots_process
+        if name == "foxglove" and args.rate is not None:
+            options["rate"] = args.rate
         if name == "breakdown":
             options["instructions"] = args.instructions
         if name in ("fleet", "fleet_merged"):

@@ -15,6 +15,7 @@ from . import (
     capture,
     demo,
     fleet_cmd,
+    foxglove_cmd,
     mission,
     mission_run,
     mission_schedule,
@@ -215,6 +216,8 @@ app.command("replay")(serve.replay)
 app.command("demo")(demo.demo)
 # VDA 5050 (extra [vda5050]): the module imports aiomqtt only when the command runs.
 app.command("vda5050")(vda5050.vda5050)
+# Foxglove live view (extra [foxglove]): the module imports the SDK only when the command runs.
+app.command("foxglove")(foxglove_cmd.foxglove)
 app.add_typer(fleet_cmd.fleet_app, name="fleet")  # --fleet FILE fleet status | monitor
 # Missions (extra [missions]): the module imports yaml only when a command runs.
 app.add_typer(mission.mission_app, name="mission")

@@ -104,6 +104,6 @@ def test_the_core_needs_no_extra_and_dev_installs_every_extra() -> None:
     assert requirement_names(extras["cli"]) == {"typer", "rich"}
     assert extras["ros"] == []
     # `make demo` and `make test` install [dev]: the command line and every extra's tests.
-    for extra in ("cli", "vda5050"):
+    for extra in ("cli", "vda5050", "foxglove"):
         assert set(extras[extra]) <= set(extras["dev"]), extra
     assert project["scripts"] == {"galileo": "galileo_async.cli:main"}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -32,9 +33,17 @@ def test_every_example_is_tested() -> None:
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
         "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",
-        "mission.py",
+        "mission.py", "foxglove_view.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
+
+
+def test_foxglove_view_example_serves_two_touring_robots() -> None:
+    pytest.importorskip("foxglove")
+    out = run_example("foxglove_view.py", "4", "0")
+    assert re.search(r"open ws://127\.0\.0\.1:\d+ in Foxglove or Lichtblick", out), out
+    assert "alpha: arrived at" in out
+    assert "beta: arrived at" in out
 
 
 def test_http_maps_example_lists_maps_and_goes_to_a_pose() -> None:

@@ -126,6 +126,7 @@ PARTS = {
     "galileo_async.robot": "robot",
     "galileo_async.fleet": "fleet",
     "galileo_async.vda5050": "vda5050",
+    "galileo_async.foxglove": "foxglove",
     "galileo_async.missions": "missions",
     "galileo_async.cli": "cli",
     "galileo_async.testing": "testing",
@@ -149,6 +150,8 @@ MAY_IMPORT = {
     "robot": {"base", "protocol", "transitions", "state", "transports", "links", "options"},
     "fleet": {"base", "transitions", "state", "robot", "links", "options"},
     "vda5050": {"base", "transitions", "robot"},
+    # The Foxglove live view: on the public Robot API, like VDA 5050.
+    "foxglove": {"base", "transitions", "robot"},
     # Plans of steps on the public Robot and Fleet API (docs/missions.md).
     "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
     # Tests of applications: a Robot on the simulator, from both sides.
