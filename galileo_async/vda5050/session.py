@@ -147,7 +147,7 @@ class PacketWriter:
             self._prefixes[topic] = prefix
         return prefix
 
-    def publish(self, topic: str, payload: bytes) -> Any:
+    def publish(self, topic: str, payload: bytes) -> MQTTMessageInfo | None:
         """Write ``payload`` on ``topic`` at QoS 0; paho-mqtt's message info, or None.
 
         None: written whole to the socket. Otherwise the info of what paho-mqtt queued
@@ -159,7 +159,8 @@ class PacketWriter:
             not self._direct or sock is None or mqtt._out_packet or mqtt.on_log is not None
             or (mqtt._logger is not None and mqtt._logger.isEnabledFor(logging.DEBUG))
         ):  # fmt: skip
-            return mqtt.publish(topic, payload, 0, False)
+            info: MQTTMessageInfo = mqtt.publish(topic, payload, 0, False)
+            return info
         body = self._prefix(topic)
         packet = b"".join(
             (bytes((_PUBLISH_QOS0,)), _remaining_length(len(body) + len(payload)), body, payload)
@@ -172,20 +173,16 @@ class PacketWriter:
             sent = 0  # paho-mqtt meets the error again on its write and handles it
         if sent == len(packet):
             with mqtt._msgtime_mutex:
-                mqtt._last_msg_out = time.monotonic()
+                mqtt._last_msg_out = time.monotonic()  # paho-mqtt's clock: no ping needed yet
             return None
         return self._queue(packet[sent:])
 
-    def _queue(self, rest: bytes) -> Any:
+    def _queue(self, rest: bytes) -> MQTTMessageInfo:
         """Hand the unsent end of a packet to paho-mqtt's queue (its writer callback)."""
         mqtt = self._mqtt
-        info = _message_info(mqtt._mid_generate())
+        info = MQTTMessageInfo(mqtt._mid_generate())
         info.rc = mqtt._packet_queue(_PUBLISH_QOS0, rest, info.mid, 0, info)
         return info
-
-
-def _message_info(mid: int) -> MQTTMessageInfo:
-    return MQTTMessageInfo(mid)
 
 
 def _json(message: BaseModel) -> bytes:
@@ -349,6 +346,7 @@ class Session:
         info = writer.publish(self.config.topic(topic), _json(message))
         if info is None:
             return True
+        failure: object = info.rc
         if info.rc == 0 and not info.is_published():
             # aiomqtt's wait for its writer callback's on_publish, at most its timeout.
             pending: dict[int, asyncio.Event] = client._pending_publishes
@@ -358,10 +356,9 @@ class Session:
                     await written.wait()
             finally:
                 pending.pop(info.mid, None)
-            if not info.is_published():
-                info.rc = -1
-        if info.rc != 0:
-            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, info.rc)
+            failure = 0 if info.is_published() else "not written in time"
+        if failure != 0:
+            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, failure)
             return False
         return True
 
