@@ -6,6 +6,7 @@ import functools
 import math
 from collections.abc import Hashable, Sequence
 from datetime import datetime, timezone
+from typing import Any
 
 from ..battery import battery_charge
 from ..models import GalileoStatus, TargetStatus, VisualStatus
@@ -16,6 +17,7 @@ __all__ = [
     "ERROR_HINTS",
     "INSTANT_ACTIONS",
     "agv_position",
+    "agv_position_fields",
     "battery_state",
     "driving",
     "factsheet_sections",
@@ -24,6 +26,7 @@ __all__ = [
     "status_errors",
     "timestamp",
     "velocity",
+    "velocity_fields",
     "with_hints",
 ]
 
@@ -88,25 +91,44 @@ def _wrap(theta: float) -> float:
 
 def agv_position(status: GalileoStatus | None, map_id: str) -> AgvPosition | None:
     """agvPosition; positionInitialized when navigation is open and the camera tracks."""
-    pose = status.pose if status is not None else None
-    if status is None or pose is None:
-        return None
+    fields = agv_position_fields(*_pose_parts(status), map_id)
+    return None if fields is None else AgvPosition(**fields)
+
+
+def _pose_parts(
+    status: GalileoStatus | None,
+) -> tuple[float | None, float | None, float | None, bool]:
+    if status is None:
+        return None, None, None, False
     initialized = status.navigating and status.visual_status == VisualStatus.TRACKING
-    return AgvPosition(
-        x=round(pose.x, 4), y=round(pose.y, 4), theta=round(_wrap(pose.theta), 4),
-        mapId=map_id, positionInitialized=initialized,
-    )  # fmt: skip
+    return status.current_pose_x, status.current_pose_y, status.current_angle, initialized
+
+
+def agv_position_fields(
+    x: float | None, y: float | None, theta: float | None, initialized: bool, map_id: str
+) -> dict[str, Any] | None:
+    """agv_position's fields from the status's pose (None: unknown, as GalileoStatus.pose)."""
+    if x is None or y is None or theta is None or (x == -1.0 and y == -1.0 and theta == -1.0):
+        return None
+    return {
+        "x": round(x, 4), "y": round(y, 4), "theta": round(_wrap(theta), 4), "mapId": map_id,
+        "positionInitialized": initialized,
+    }  # fmt: skip
 
 
 def velocity(status: GalileoStatus | None) -> Velocity | None:
     """Velocity in the vehicle frame (a differential drive: vy is 0)."""
-    if status is None or status.current_speed_x is None:
+    if status is None:
         return None
-    omega = status.current_speed_theta
-    return Velocity(
-        vx=round(status.current_speed_x, 4), vy=0.0,
-        omega=round(omega, 4) if omega is not None else None,
-    )  # fmt: skip
+    fields = velocity_fields(status.current_speed_x, status.current_speed_theta)
+    return None if fields is None else Velocity(**fields)
+
+
+def velocity_fields(vx: float | None, omega: float | None) -> dict[str, Any] | None:
+    """velocity's fields from the status's speeds (None without a forward speed)."""
+    if vx is None:
+        return None
+    return {"vx": round(vx, 4), "vy": 0.0, "omega": round(omega, 4) if omega is not None else None}
 
 
 def driving(status: GalileoStatus | None) -> bool:

@@ -7,11 +7,13 @@ import contextlib
 import logging
 import ssl
 import threading
+import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 import aiomqtt
 import anyio
+from paho.mqtt.client import MQTTMessageInfo  # aiomqtt's MQTT client
 from pydantic import BaseModel
 
 from ..errors import DuplicateVehicle, InvalidArgument
@@ -25,6 +27,7 @@ __all__ = [
     "OFFLINE_TIMEOUT",
     "PROBE_WAIT",
     "YOUNG_SESSION",
+    "PacketWriter",
     "Session",
     "tls_context",
     "write_at_once",
@@ -95,6 +98,96 @@ def write_at_once(client: aiomqtt.Client) -> bool:
 
     mqtt.on_socket_register_write = register_write
     return True
+
+
+#: The first byte of a PUBLISH packet at QoS 0, not retained, not a duplicate (MQTT 3.1.1 §3.3.1).
+_PUBLISH_QOS0 = 0x30
+#: The protocol level of MQTT 5 (paho-mqtt's MQTTv5), whose PUBLISH carries properties.
+_MQTT5 = 5
+
+
+def _remaining_length(length: int) -> bytes:
+    """MQTT's variable-length encoding of ``length`` (MQTT 3.1.1 §2.2.3)."""
+    encoded = bytearray()
+    while True:
+        length, digit = length >> 7, length & 0x7F
+        encoded.append(digit | 0x80 if length else digit)
+        if not length:
+            return bytes(encoded)
+
+
+class PacketWriter:
+    """QoS 0 PUBLISH packets built here and written to the client's socket in one call.
+
+    The same bytes paho-mqtt's ``publish`` would write, without its per-message Python
+    path (message info, packet queue, writer callbacks, the on_publish callback); the
+    topic's part of the packet is made once. Whatever this path cannot take (packets
+    already queued, a socket that does not take everything, per-packet DEBUG logging on,
+    a client that is not the expected paho-mqtt one) goes through paho-mqtt as before, so
+    the order of packets and the keep-alive bookkeeping stay paho-mqtt's.
+    """
+
+    def __init__(self, client: aiomqtt.Client) -> None:
+        # aiomqtt's paho-mqtt client; its lower layer, looked for by what it does.
+        mqtt: Any = getattr(client, "_client", None)
+        names = ("_sock", "_out_packet", "_packet_queue", "_mid_generate", "_protocol",
+                 "_last_msg_out", "_msgtime_mutex", "_logger", "on_log", "publish")  # fmt: skip
+        self._mqtt: Any = mqtt
+        self._direct = all(hasattr(mqtt, name) for name in names)
+        self._prefixes: dict[str, bytes] = {}
+
+    def _prefix(self, topic: str) -> bytes:
+        """The topic name (and MQTT 5's empty properties) of a PUBLISH packet."""
+        prefix = self._prefixes.get(topic)
+        if prefix is None:
+            name = topic.encode()
+            prefix = len(name).to_bytes(2, "big") + name
+            if self._mqtt._protocol == _MQTT5:
+                prefix += b"\x00"
+            self._prefixes[topic] = prefix
+        return prefix
+
+    def publish(self, topic: str, payload: bytes) -> MQTTMessageInfo | None:
+        """Write ``payload`` on ``topic`` at QoS 0; paho-mqtt's message info, or None.
+
+        None: written whole to the socket. Otherwise the info of what paho-mqtt queued
+        (its ``rc`` not 0 when it could not).
+        """
+        mqtt = self._mqtt
+        sock = mqtt._sock
+        if (
+            not self._direct or sock is None or mqtt._out_packet or mqtt.on_log is not None
+            or (mqtt._logger is not None and mqtt._logger.isEnabledFor(logging.DEBUG))
+        ):  # fmt: skip
+            info: MQTTMessageInfo = mqtt.publish(topic, payload, 0, False)
+            return info
+        body = self._prefix(topic)
+        packet = b"".join(
+            (bytes((_PUBLISH_QOS0,)), _remaining_length(len(body) + len(payload)), body, payload)
+        )
+        try:
+            sent = sock.send(packet)
+        except (BlockingIOError, ssl.SSLWantReadError, ssl.SSLWantWriteError):
+            sent = 0
+        except OSError:
+            sent = 0  # paho-mqtt meets the error again on its write and handles it
+        if sent == len(packet):
+            with mqtt._msgtime_mutex:
+                mqtt._last_msg_out = time.monotonic()  # paho-mqtt's clock: no ping needed yet
+            return None
+        return self._queue(packet[sent:])
+
+    def _queue(self, rest: bytes) -> MQTTMessageInfo:
+        """Hand the unsent end of a packet to paho-mqtt's queue (its writer callback)."""
+        mqtt = self._mqtt
+        info = MQTTMessageInfo(mqtt._mid_generate())
+        info.rc = mqtt._packet_queue(_PUBLISH_QOS0, rest, info.mid, 0, info)
+        return info
+
+
+def _json(message: BaseModel) -> bytes:
+    """``message`` as model_dump_json(exclude_none=True) makes it, UTF-8."""
+    return message.__pydantic_serializer__.to_json(message, exclude_none=True)
 
 
 def _no_key_password() -> str:
@@ -171,6 +264,8 @@ class Session:
         #: Why the last connection attempt failed; None once connected.
         self.last_error: str | None = None
         self._client: aiomqtt.Client | None = None
+        #: The connected client's QoS 0 writer.
+        self._writer: PacketWriter | None = None
         self._online = anyio.Event()
         self._offline = anyio.Event()
         self._offline.set()
@@ -218,13 +313,11 @@ class Session:
 
         What the socket does not take at once goes out with the client's writer callback.
         """
-        client = self._client
-        mqtt: Any = getattr(client, "_client", None)  # aiomqtt's paho-mqtt client
-        if mqtt is None:
+        writer = self._writer
+        if writer is None:
             return False
-        payload = message.model_dump_json(exclude_none=True)
-        info = mqtt.publish(self.config.topic(topic), payload, 0, False)
-        if info.rc != 0:
+        info = writer.publish(self.config.topic(topic), _json(message))
+        if info is not None and info.rc != 0:
             _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, info.rc)
             return False
         return True
@@ -235,11 +328,37 @@ class Session:
     ) -> bool:  # fmt: skip
         if client is None:
             return False
+        writer = self._writer
+        if qos == 0 and not retain and writer is not None and client is self._client:
+            return await self._publish_qos0(client, writer, topic, message)
         payload = message.model_dump_json(exclude_none=True)
         try:
             await client.publish(self.config.topic(topic), payload, qos=qos, retain=retain)
         except aiomqtt.MqttError as exc:
             _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, exc)
+            return False
+        return True
+
+    async def _publish_qos0(
+        self, client: aiomqtt.Client, writer: PacketWriter, topic: str, message: BaseModel
+    ) -> bool:
+        """As aiomqtt's publish at QoS 0: returns once the packet is written, False if not."""
+        info = writer.publish(self.config.topic(topic), _json(message))
+        if info is None:
+            return True
+        failure: object = info.rc
+        if info.rc == 0 and not info.is_published():
+            # aiomqtt's wait for its writer callback's on_publish, at most its timeout.
+            pending: dict[int, asyncio.Event] = client._pending_publishes
+            written = pending[info.mid] = asyncio.Event()
+            try:
+                with anyio.move_on_after(client.timeout):
+                    await written.wait()
+            finally:
+                pending.pop(info.mid, None)
+            failure = 0 if info.is_published() else "not written in time"
+        if failure != 0:
+            _log.debug("%s: publish %s failed: %s", self.config.serial_number, topic, failure)
             return False
         return True
 
@@ -353,6 +472,7 @@ class Session:
             for topic in SUBSCRIBED:
                 await client.subscribe(self.config.topic(topic), qos=0)
             self._client = client
+            self._writer = PacketWriter(client)
             self._offline = anyio.Event()
             self._online.set()
             online = self._connection("ONLINE")
@@ -376,6 +496,7 @@ class Session:
                 await self._before_offline()
         with anyio.CancelScope(shield=True), anyio.move_on_after(OFFLINE_TIMEOUT):
             self._client = None
+            self._writer = None
             self._online = anyio.Event()
             self._offline.set()
             if clean_stop:

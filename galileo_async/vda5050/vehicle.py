@@ -12,7 +12,7 @@ import anyio
 from pydantic import BaseModel, ValidationError
 
 from ..errors import DuplicateVehicle, GalileoError, InvalidArgument
-from ..models import GalileoStatus, LinkState, TargetStatus
+from ..models import GalileoStatus, LinkState, TargetStatus, VisualStatus
 from ..robot import Robot
 from . import report
 from .actions import ActionRunner
@@ -435,17 +435,20 @@ class Vehicle:
         if not self.session.connected:
             self._visualized = None  # the first after a reconnect goes out
             return
-        status = self.robot.status
-        motion = _motion(status)
+        motion = _motion(self.robot.status)
         last = self._visualized
         if last is not None and last[0] == motion and now - last[1] < KEEP_ALIVE:
             return
-        message = Visualization(
-            **self._header("visualization"),
-            agvPosition=report.agv_position(status, self.config.map_id),
-            velocity=report.velocity(status),
-        )
-        if self.session.publish_now("visualization", message):
+        # One validation of the whole message: its parts from what _motion read.
+        fields = self._header("visualization")
+        if motion is not None:
+            x, y, theta, vx, omega, navigating, visual = motion
+            initialized = navigating and visual == VisualStatus.TRACKING
+            fields["agvPosition"] = report.agv_position_fields(
+                x, y, theta, initialized, self.config.map_id
+            )
+            fields["velocity"] = report.velocity_fields(vx, omega)
+        if self.session.publish_now("visualization", Visualization.model_validate(fields)):
             self._visualized = (motion, now)
 
     async def _broker_watchdog(self, delay: float) -> None:
@@ -469,7 +472,10 @@ class Vehicle:
             await self.session.wait_online()
 
 
-def _motion(status: GalileoStatus | None) -> Hashable:
+def _motion(
+    status: GalileoStatus | None,
+) -> tuple[float | None, float | None, float | None, float | None, float | None, bool,
+           VisualStatus | None] | None:  # fmt: skip
     """What a visualization is made of (report.agv_position and report.velocity)."""
     if status is None:
         return None

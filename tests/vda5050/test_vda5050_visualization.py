@@ -13,8 +13,8 @@ import galileo_async as galileo
 from galileo_async.models import GalileoStatus, NavStatus, VisualStatus
 from galileo_async.robot import Robot
 from galileo_async.testing import VirtualClock
-from galileo_async.vda5050 import Vehicle, VehicleConfig
-from galileo_async.vda5050.models import BaseModel
+from galileo_async.vda5050 import Vehicle, VehicleConfig, report
+from galileo_async.vda5050.models import BaseModel, Visualization
 from galileo_async.vda5050.visualization import KEEP_ALIVE, TICK, VisualizationClock, clock
 from tests.support.vda5050_support import Broker, broker_fixture  # noqa: F401 (fixture)
 from tests.vda5050.test_vda5050_vehicle import FAST_SIM
@@ -143,3 +143,56 @@ async def test_vehicles_on_one_loop_share_one_clock(broker: Broker) -> None:
         group.cancel_scope.cancel()
     assert len(shared) == 0  # nothing left on the loop
     assert not shared.running
+
+
+class _Json:
+    """Stands in for the session: records each message's JSON as published."""
+
+    connected = True
+
+    def __init__(self) -> None:
+        self.published: list[str] = []
+
+    def publish_now(self, topic: str, message: BaseModel) -> bool:
+        self.published.append(message.model_dump_json(exclude_none=True))
+        return True
+
+
+@pytest.mark.parametrize(
+    "fields",
+    [
+        {},
+        {"current_pose_x": 1.23456, "current_pose_y": -2.0, "current_angle": 7.0,
+         "current_speed_x": 0.123456, "current_speed_theta": -0.5},
+        {"current_pose_x": -1.0, "current_pose_y": -1.0, "current_angle": -1.0,
+         "current_speed_x": 0.0},
+        {"current_pose_x": 0.1, "current_pose_y": 0.2, "current_angle": -3.5,
+         "visual_status": VisualStatus.LOST, "current_speed_theta": 0.3},
+        {"current_pose_x": 3.0, "current_pose_y": 4.0, "current_angle": 0.0,
+         "nav_status": NavStatus.CLOSED, "current_speed_x": -0.25},
+        None,
+    ],
+    ids=["nothing", "driving", "unknown pose", "tracking lost", "navigation closed", "no status"],
+)  # fmt: skip
+async def test_a_visualization_is_the_message_of_its_state_parts(
+    monkeypatch: pytest.MonkeyPatch, fields: dict[str, Any] | None
+) -> None:
+    """Byte for byte what report.agv_position and report.velocity make of the status."""
+    base = {"nav_status": NavStatus.OPEN, "visual_status": VisualStatus.TRACKING}
+    status = None if fields is None else GalileoStatus(**{**base, **fields})
+    monkeypatch.setattr(Robot, "status", property(lambda robot: status))
+    config = VehicleConfig(broker="mqtt://127.0.0.1", manufacturer="m", serial_number="s",
+                           map_id="hall")  # fmt: skip
+    async with galileo.connect("sim://") as robot:
+        vehicle = Vehicle(robot, config)
+        session = _Json()
+        vehicle.session = session  # type: ignore[assignment]
+        vehicle._visualize(100.0)
+    [published] = session.published
+    sent = Visualization.model_validate_json(published)
+    expected = Visualization(
+        headerId=0, timestamp=sent.timestamp, version="2.0.0", manufacturer="m",
+        serialNumber="s", agvPosition=report.agv_position(status, "hall"),
+        velocity=report.velocity(status),
+    )  # fmt: skip
+    assert published == expected.model_dump_json(exclude_none=True)
