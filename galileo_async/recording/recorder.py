@@ -16,7 +16,8 @@ from ..events import Event
 from ..fleet import Fleet
 from ..models import GalileoStatus
 from ..robot import Robot
-from .writer import DEFAULT_MAX_QUEUED, McapFileWriter
+from ..robot.runtime import CLEANUP_TIMEOUT, finish_shielded
+from .writer import DEFAULT_CHUNK_SIZE, DEFAULT_MAX_QUEUED, McapFileWriter
 
 __all__ = ["CLOSE_TIMEOUT", "DEFAULT_ROBOT_NAME", "McapRecorder"]
 
@@ -24,8 +25,8 @@ _log = logging.getLogger(__name__)
 
 #: The name of a single Robot's channels (``/robot/raw`` …) unless told otherwise.
 DEFAULT_ROBOT_NAME = "robot"
-#: Seconds close() waits for the writer thread to finish the file (it finishes it anyway).
-CLOSE_TIMEOUT = 30.0
+#: Seconds aclose() waits for the writer thread to finish the file (it finishes it anyway).
+CLOSE_TIMEOUT = CLEANUP_TIMEOUT
 #: Seconds between two looks for fleet robots that connected since.
 _JOIN_POLL = 0.5
 
@@ -69,8 +70,10 @@ class McapRecorder:
     ``/<name>/events`` every event as a foxglove.Log; log times are the loop clock's,
     anchored to the wall clock at the start. Nothing is written on the loop: a thread
     writes the file. When it falls ``max_queued`` messages behind, later messages are
-    dropped and counted (``dropped``), never waited for. On every exit (an error, a
-    cancellation) the file is finished: its summary and indexes written.
+    dropped and counted (``dropped``), never waited for. A chunk is finished every
+    ``chunk_size`` bytes of messages and every few seconds, so a file cut short is read up
+    to its last chunk. On every exit (an error, a cancellation) the file is finished: its
+    summary and indexes written.
     """
 
     def __init__(
@@ -80,12 +83,15 @@ class McapRecorder:
         *,
         name: str = DEFAULT_ROBOT_NAME,
         max_queued: int = DEFAULT_MAX_QUEUED,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
     ) -> None:
         if not isinstance(source, (Robot, Fleet)):
             raise InvalidArgument(f"McapRecorder records a Robot or a Fleet, got {source!r}")
         if not isinstance(name, str) or not name or "/" in name:
             raise InvalidArgument(f"name must be a non-empty name without '/', got {name!r}")
         check_int("max_queued", max_queued, 1, 10_000_000)
+        check_int("chunk_size", chunk_size, 1, 1 << 30)
+        self._chunk_size = chunk_size
         self.path = Path(path)
         self._source = source
         self._name = name
@@ -94,7 +100,8 @@ class McapRecorder:
         self._attached: dict[str, _Attached] = {}
         self._joiner: asyncio.Task[None] | None = None
         self._stamp: Callable[[], int] = time.time_ns
-        self._started = self._closed = False
+        self._finishing: asyncio.Task[None] | None = None
+        self._started = False
 
     @property
     def dropped(self) -> int:
@@ -126,7 +133,9 @@ class McapRecorder:
         except OSError as exc:
             raise InvalidArgument(f"cannot write {self.path}: {exc.strerror or exc}") from None
         try:
-            self._writer = McapFileWriter(stream, max_queued=self._max_queued)
+            self._writer = McapFileWriter(
+                stream, max_queued=self._max_queued, chunk_size=self._chunk_size
+            )
         except BaseException:
             stream.close()
             raise
@@ -157,22 +166,27 @@ class McapRecorder:
             self._attach_connected(fleet)
 
     async def aclose(self) -> None:
-        """Stop recording and finish the file (idempotent, bounded by CLOSE_TIMEOUT).
-
-        Everything but the wait is synchronous: once it is called nothing more is queued,
-        and the writer thread finishes the file even if the wait is cancelled.
-        """
-        if not self._started or self._closed:
+        """Stop recording and finish the file: idempotent, shielded from cancellation and
+        bounded (the caller's cancellation is raised once the file is finished)."""
+        if not self._started:
             return
-        self._closed = True
-        joiner, self._joiner = self._joiner, None
+        if self._finishing is None:
+            joiner, self._joiner = self._joiner, None
+            if joiner is not None:
+                joiner.cancel()
+            for attached in self._attached.values():
+                attached.detach()
+            self._writer.stop()  # from here nothing is queued; the thread finishes the file
+            self._finishing = asyncio.get_running_loop().create_task(
+                self._finish(joiner), name="mcap finish"
+            )
+        await finish_shielded(self._finishing, f"finishing the recording {self.path}")
+        if self._writer.error is not None:
+            raise OSError(f"recording to {self.path} failed: {self._writer.error}")
+
+    async def _finish(self, joiner: asyncio.Task[None] | None) -> None:
         if joiner is not None:
-            joiner.cancel()
-        for attached in self._attached.values():
-            attached.detach()
-        self._writer.stop()
-        if joiner is not None:
-            await asyncio.wait([joiner])  # its end, not its CancelledError
+            await asyncio.wait([joiner])
         if not await asyncio.to_thread(self._writer.join, CLOSE_TIMEOUT):
             _log.warning("the MCAP writer is still finishing %s", self.path)
         if self.dropped:
@@ -180,8 +194,6 @@ class McapRecorder:
                 "the disk could not keep up: %d messages were not recorded to %s (%s)",
                 self.dropped, self.path, self.dropped_by_kind,
             )  # fmt: skip
-        if self._writer.error is not None:
-            raise OSError(f"recording to {self.path} failed: {self._writer.error}")
 
     async def __aenter__(self) -> McapRecorder:
         await self.start()

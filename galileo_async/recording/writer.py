@@ -31,7 +31,13 @@ from .schemas import (
     status_schema,
 )
 
-__all__ = ["CHUNK_SECONDS", "DEFAULT_MAX_QUEUED", "FLUSH_INTERVAL", "McapFileWriter"]
+__all__ = [
+    "CHUNK_SECONDS",
+    "DEFAULT_CHUNK_SIZE",
+    "DEFAULT_MAX_QUEUED",
+    "FLUSH_INTERVAL",
+    "McapFileWriter",
+]
 
 _log = logging.getLogger(__name__)
 
@@ -41,6 +47,8 @@ FLUSH_INTERVAL = 0.05
 CHUNK_SECONDS = 5.0
 #: Messages waiting for the thread at most (a second of 1000 robots' frames, about).
 DEFAULT_MAX_QUEUED = 100_000
+#: Bytes of messages per chunk (the mcap writer's default).
+DEFAULT_CHUNK_SIZE = 1024 * 1024
 #: The raw channel's message encoding: the serial protocol's bytes, as read.
 RAW_ENCODING = "galileo.serial"
 
@@ -61,8 +69,14 @@ def _writer_module() -> Any:
 class McapFileWriter:
     """Writes one MCAP file from its own thread; ``add_*`` are called on the loop only."""
 
-    def __init__(self, stream: IO[bytes], *, max_queued: int = DEFAULT_MAX_QUEUED) -> None:
-        self._mcap = _writer_module().Writer(stream)
+    def __init__(
+        self,
+        stream: IO[bytes],
+        *,
+        max_queued: int = DEFAULT_MAX_QUEUED,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+    ) -> None:
+        self._mcap = _writer_module().Writer(stream, chunk_size=chunk_size)
         self._stream = stream
         self._queue: collections.deque[tuple[int, str, int, Any]] = collections.deque()
         self._max_queued = max_queued
