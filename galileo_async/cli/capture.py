@@ -8,6 +8,7 @@ and MCAP recordings (mcap_cmd.py), told by their first bytes.
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import sys
 from dataclasses import asdict
@@ -61,7 +62,8 @@ def decode(
         )
     except OSError as exc:
         fail(f"cannot read {source}: {exc.strerror or exc}")
-    if is_mcap(_peek(handle, len(MCAP_MAGIC))):
+    head, handle = _peek(handle, len(MCAP_MAGIC))
+    if is_mcap(head):
         with handle:
             decode_mcap(
                 handle, source, settings, robot=robot, summary_only=summary_only,
@@ -172,10 +174,14 @@ def record(
     run(settings, main)
 
 
-def _peek(handle: IO[bytes], size: int) -> bytes:
-    """The first ``size`` bytes of ``handle``, left unread (a buffered reader's peek)."""
+def _peek(handle: IO[bytes], size: int) -> tuple[bytes, IO[bytes]]:
+    """The first ``size`` bytes of ``handle`` and a stream that still starts with them."""
     peek = getattr(handle, "peek", None)
-    return b"" if peek is None else bytes(peek(size)[:size])
+    head = b"" if peek is None else bytes(peek(size)[:size])
+    if len(head) < size:  # no buffer to peek into, or a pipe's first bytes: read into one
+        handle = io.BytesIO(handle.read())
+        head = handle.getvalue()[:size]
+    return head, handle
 
 
 async def _cancel_on(event: asyncio.Event, scope: anyio.CancelScope) -> None:

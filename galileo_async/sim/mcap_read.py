@@ -62,7 +62,9 @@ def iter_mcap(stream: IO[bytes], name: str = "the recording") -> Iterator[McapMe
     InvalidArgument when ``stream`` is not an MCAP file at all.
     """
     stream_reader, records, exceptions = _reader_module()
-    reader = stream_reader.StreamReader(stream, skip_magic=False)
+    if not is_mcap(stream.read(len(MCAP_MAGIC))):
+        raise InvalidArgument(f"{name} is not an MCAP file")
+    reader = stream_reader.StreamReader(stream, skip_magic=True)
     channels: dict[int, tuple[str, str] | None] = {}
     produced = False
     try:
@@ -76,8 +78,6 @@ def iter_mcap(stream: IO[bytes], name: str = "the recording") -> Iterator[McapMe
                 where = channels.get(record.channel_id)
                 if where is not None:
                     yield where[0], where[1], record.log_time, bytes(record.data)
-    except exceptions.InvalidMagic:
-        raise InvalidArgument(f"{name} is not an MCAP file") from None
     except (exceptions.McapError, struct.error, ValueError, EOFError) as exc:
         if not produced:
             raise InvalidArgument(f"{name} is not a readable MCAP file: {exc}") from None
