@@ -179,8 +179,10 @@ def _peek(handle: IO[bytes], size: int) -> tuple[bytes, IO[bytes]]:
     peek = getattr(handle, "peek", None)
     head = b"" if peek is None else bytes(peek(size)[:size])
     if len(head) < size:  # no buffer to peek into, or a pipe's first bytes: read into one
-        handle = io.BytesIO(handle.read())
-        head = handle.getvalue()[:size]
+        read = io.BytesIO(handle.read())
+        if handle is not sys.stdin.buffer:
+            handle.close()
+        handle, head = read, read.getvalue()[:size]
     return head, handle
 
 
