@@ -26,7 +26,7 @@ from .common import Row, machine, render_table
 
 BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual", "imports")
 #: Run only when named: analysis, not targets.
-EXTRA = ("breakdown",)
+EXTRA = ("breakdown", "mcap")
 RESULTS = Path(__file__).resolve().parent / "results"
 
 

@@ -93,7 +93,7 @@ def _open(path: str | Path) -> IO[bytes]:
 
 def pick_robot(robots: list[str], robot: str | None, name: str) -> str:
     """``robot`` if the recording has it, or its only robot; InvalidArgument naming them."""
-    present = ", ".join(robots) or "none"
+    present = ", ".join(sorted(robots)) or "none"
     if robot is not None:
         if robot not in robots:
             raise InvalidArgument(f"{name} has no robot {robot!r} (robots: {present})")
