@@ -1,7 +1,8 @@
 """McapFileWriter: an MCAP file written by a thread of its own, fed without blocking the loop.
 
 The loop only appends (robot, kind, log time, payload) to a bounded deque: no file call,
-no serialisation, no lock. The thread drains it every ``FLUSH_INTERVAL`` seconds,
+no serialisation, no lock. The thread drains it every ``FLUSH_INTERVAL`` seconds, in
+slices of ``SLICE`` seconds with a ``PAUSE`` after each (it shares the GIL with the loop),
 serialises the statuses and events, and writes through ``mcap.writer.Writer`` (its
 defaults: zstd chunks of 1 MiB, chunk and message indexes, statistics and the summary). A
 chunk is also finished every ``CHUNK_SECONDS``, so a file cut short (a crash, a power cut)
@@ -47,6 +48,12 @@ FLUSH_INTERVAL = 0.05
 CHUNK_SECONDS = 5.0
 #: Messages waiting for the thread at most (a second of 1000 robots' frames, about).
 DEFAULT_MAX_QUEUED = 100_000
+#: Longest the thread works without a pause (it holds the GIL meanwhile) …
+SLICE = 0.001
+#: … and its pause after each slice (the loop holds the GIL alone): a quarter of a core.
+PAUSE = 0.003
+#: Compact JSON, no check for circles (the values are plain).
+_ENCODER = json.JSONEncoder(separators=(",", ":"), check_circular=False)
 #: Bytes of messages per chunk (the mcap writer's default).
 DEFAULT_CHUNK_SIZE = 1024 * 1024
 #: The raw channel's message encoding: the serial protocol's bytes, as read.
@@ -89,6 +96,8 @@ class McapFileWriter:
         #: The error that ended the thread early (the disk full …), else None.
         self.error: BaseException | None = None
         self._channels: dict[tuple[str, int], int] = {}
+        #: The schema ids of the raw (none), status and events channels.
+        self._schemas = (0, 0, 0)
 
     def start(self) -> None:
         """Start the thread (it writes the header first)."""
@@ -145,8 +154,10 @@ class McapFileWriter:
             )
             self._schemas = (0, status_id, log_id)
             chunk_started = time.monotonic()
+            main = threading.main_thread()
             while True:
-                stopping = self._stopping.wait(FLUSH_INTERVAL)
+                # A program that ends without closing its recorder still gets a whole file.
+                stopping = self._stopping.wait(FLUSH_INTERVAL) or not main.is_alive()
                 self._drain()
                 if stopping:
                     break
@@ -165,9 +176,19 @@ class McapFileWriter:
                 self.error = self.error or exc
 
     def _drain(self) -> None:
+        """Write everything queued, in slices of SLICE seconds with a PAUSE between them."""
         queue, mcap, channels = self._queue, self._mcap, self._channels
-        dumps = json.dumps
+        dumps = _ENCODER.encode
+        clock = time.perf_counter
+        slice_ends = clock() + SLICE
+        count = 0
         while queue:
+            count += 1
+            if not count % 8 and clock() > slice_ends:
+                # Asleep, the thread does not wait for the GIL: the loop's every system
+                # call would hand it over otherwise, and the loop wait for it each time.
+                time.sleep(PAUSE)
+                slice_ends = clock() + SLICE
             kind, robot, log_time, payload = queue.popleft()
             if kind == _ADD:
                 self._register(robot, payload)

@@ -87,7 +87,7 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         if frames_log.isEnabledFor(_DEBUG):
             frames_log.debug("rx %s", buffer[:nbytes].hex(" "))
         if self._channel.raw_listeners:
-            self._channel.tell_raw(bytes(buffer[:nbytes]))
+            self._channel.tell_raw(self._view[:nbytes].tobytes())
         # Read in place: the decoder copies whatever it holds back, never keeps the buffer.
         statuses = self._decoder.feed_from(buffer, nbytes)  # counts into the link's stats
         if statuses:

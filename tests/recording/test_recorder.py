@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import anyio
@@ -239,3 +241,40 @@ async def test_a_cancelled_aclose_still_finishes_the_file(tmp_path: Path) -> Non
             await closing
         assert finished(path) > 5  # finished before the cancellation was raised
         await recorder.aclose()  # idempotent
+
+
+async def test_a_link_without_raw_bytes_records_statuses_and_events(tmp_path: Path) -> None:
+    path = tmp_path / "http.mcap"
+    async with simulated_robot(link="http") as (robot, _device):
+        async with McapRecorder(path, robot) as recording:
+            await robot.wait_until(lambda status: status.time_stamp > 20, timeout=30)
+        assert recording.written["raw"] == 0
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    assert {c.topic for c in summary.channels.values()} == {"/robot/status", "/robot/events"}
+    assert read_recording(path).robot().statuses
+    with pytest.raises(InvalidArgument, match="has no raw bytes"):
+        recorded_statuses(path)
+
+
+def test_a_program_that_never_closes_its_recorder_still_gets_a_whole_file(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "forgotten.mcap"
+    script = (
+        "import asyncio, sys\n"
+        "from galileo_async import connect\n"
+        "from galileo_async.recording import McapRecorder\n"
+        "async def main():\n"
+        "    async with connect('sim://?speed=20') as robot:\n"
+        "        await McapRecorder(sys.argv[1], robot).start()\n"
+        "        await robot.wait_until(lambda status: status.time_stamp > 40, timeout=30)\n"
+        "asyncio.run(main())\n"
+    )
+    ran = subprocess.run(
+        [sys.executable, "-c", script, str(path)], capture_output=True, text=True, timeout=60,
+        check=False,
+    )  # fmt: skip
+    assert ran.returncode == 0, ran.stderr
+    assert finished(path) > 10
