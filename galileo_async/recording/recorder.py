@@ -16,17 +16,15 @@ from ..events import Event
 from ..fleet import Fleet
 from ..models import GalileoStatus
 from ..robot import Robot
-from ..robot.runtime import CLEANUP_TIMEOUT, finish_shielded
+from ..robot.runtime import finish_shielded
 from .writer import DEFAULT_CHUNK_SIZE, DEFAULT_MAX_QUEUED, McapFileWriter
 
-__all__ = ["CLOSE_TIMEOUT", "DEFAULT_ROBOT_NAME", "McapRecorder"]
+__all__ = ["DEFAULT_ROBOT_NAME", "McapRecorder"]
 
 _log = logging.getLogger(__name__)
 
 #: The name of a single Robot's channels (``/robot/raw`` …) unless told otherwise.
 DEFAULT_ROBOT_NAME = "robot"
-#: Seconds aclose() waits for the writer thread to finish the file (it finishes it anyway).
-CLOSE_TIMEOUT = CLEANUP_TIMEOUT
 #: Seconds between two looks for fleet robots that connected since.
 _JOIN_POLL = 0.5
 
@@ -68,9 +66,10 @@ class McapRecorder:
     when it connects): ``/<name>/raw`` the bytes as they came off the link (serial,
     socket://, sim:// only), ``/<name>/status`` every status as JSON and
     ``/<name>/events`` every event as a foxglove.Log; log times are the loop clock's,
-    anchored to the wall clock at the start. Nothing is written on the loop: a thread
-    writes the file. When it falls ``max_queued`` messages behind, later messages are
-    dropped and counted (``dropped``), never waited for. A chunk is finished every
+    anchored to the wall clock at the start. The loop never waits for the disk: the
+    listeners only queue, a task builds the records in slices of a millisecond, and a
+    worker thread writes them. When it falls ``max_queued`` messages behind, later
+    messages are dropped and counted (``dropped``), never waited for. A chunk is finished every
     ``chunk_size`` bytes of messages and every few seconds, so a file cut short is read up
     to its last chunk. On every exit (an error, a cancellation) the file is finished: its
     summary and indexes written.
@@ -176,7 +175,6 @@ class McapRecorder:
                 joiner.cancel()
             for attached in self._attached.values():
                 attached.detach()
-            self._writer.stop()  # from here nothing is queued; the thread finishes the file
             self._finishing = asyncio.get_running_loop().create_task(
                 self._finish(joiner), name="mcap finish"
             )
@@ -187,8 +185,7 @@ class McapRecorder:
     async def _finish(self, joiner: asyncio.Task[None] | None) -> None:
         if joiner is not None:
             await asyncio.wait([joiner])
-        if not await asyncio.to_thread(self._writer.join, CLOSE_TIMEOUT):
-            _log.warning("the MCAP writer is still finishing %s", self.path)
+        await self._writer.finish()
         if self.dropped:
             _log.warning(
                 "the disk could not keep up: %d messages were not recorded to %s (%s)",

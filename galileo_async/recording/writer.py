@@ -1,22 +1,29 @@
-"""McapFileWriter: an MCAP file written by a thread of its own, fed without blocking the loop.
+"""McapFileWriter: an MCAP file fed without blocking the loop; the disk written off it.
 
-The loop only appends (robot, kind, log time, payload) to a bounded deque: no file call,
-no serialisation, no lock. The thread drains it every ``FLUSH_INTERVAL`` seconds, in
-slices of ``SLICE`` seconds with a ``PAUSE`` after each (it shares the GIL with the loop),
-serialises the statuses and events, and writes through ``mcap.writer.Writer`` (its
-defaults: zstd chunks of 1 MiB, chunk and message indexes, statistics and the summary). A
-chunk is also finished every ``CHUNK_SECONDS``, so a file cut short (a crash, a power cut)
-is readable up to its last chunk. When ``max_queued`` messages wait, later ones are dropped
-and counted, never waited for.
+The listeners only append (robot, kind, log time, payload) to a bounded deque: no file
+call, no serialisation. A task on the loop (the pump) drains it every ``FLUSH_INTERVAL``
+seconds in slices of at most ``SLICE`` seconds with a ``PAUSE`` after each, so it never
+holds the loop longer than a slice nor takes more than half of it: it serialises the
+statuses and events and builds the records with ``mcap.writer.Writer`` (its defaults but
+for the chunk size: zstd chunks, chunk and message indexes, statistics and the summary)
+into memory; the finished bytes go to the file in a worker thread (``asyncio.to_thread``),
+where the write does not hold the GIL. A thread of its own doing the serialising was
+measured and dropped: sharing the GIL with the loop, it made the loop wait up to the
+interpreter's switch interval at each of its system calls (BENCHMARKS.md, "MCAP
+recordings"). A chunk is finished every ``chunk_size`` bytes and every ``CHUNK_SECONDS``,
+so a file cut short is readable up to its last chunk. When ``max_queued`` messages wait,
+later ones are dropped and counted, never waited for.
 """
 
 from __future__ import annotations
 
+import asyncio
 import collections
+import concurrent.futures
 import json
 import logging
-import threading
 import time
+from collections.abc import Callable
 from typing import IO, Any
 
 from ..errors import InvalidArgument
@@ -42,22 +49,22 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: Seconds between two drains of the queue by the writer thread.
+#: Seconds between two drains of the queue.
 FLUSH_INTERVAL = 0.05
-#: Seconds of wall time after which the chunk in progress is finished and flushed.
-CHUNK_SECONDS = 5.0
-#: Messages waiting for the thread at most (a second of 1000 robots' frames, about).
-DEFAULT_MAX_QUEUED = 100_000
-#: Longest the thread works without a pause (it holds the GIL meanwhile) …
+#: Longest the pump holds the loop at a time …
 SLICE = 0.001
-#: … and its pause after each slice (the loop holds the GIL alone): a quarter of a core.
-PAUSE = 0.003
-#: Compact JSON, no check for circles (the values are plain).
-_ENCODER = json.JSONEncoder(separators=(",", ":"), check_circular=False)
-#: Bytes of messages per chunk (the mcap writer's default).
-DEFAULT_CHUNK_SIZE = 1024 * 1024
+#: … and the pause after a slice that did not empty the queue: at most half the loop.
+PAUSE = 0.001
+#: Seconds after which the chunk in progress is finished and written.
+CHUNK_SECONDS = 5.0
+#: Messages waiting at most (about a second of 1000 robots' frames).
+DEFAULT_MAX_QUEUED = 100_000
+#: Bytes of messages per chunk: small enough to compress within a slice or so.
+DEFAULT_CHUNK_SIZE = 128 * 1024
 #: The raw channel's message encoding: the serial protocol's bytes, as read.
 RAW_ENCODING = "galileo.serial"
+#: Compact JSON, no check for circles (the values are plain).
+_ENCODER = json.JSONEncoder(separators=(",", ":"), check_circular=False)
 
 _RAW, _STATUS, _EVENT, _ADD = 0, 1, 2, 3
 _KIND_NAMES = ("raw", "status", "events")
@@ -73,8 +80,31 @@ def _writer_module() -> Any:
     return writer
 
 
+class _Pending:
+    """What the mcap writer wrote, held until the pump hands it to the file."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+        self.position = 0
+
+    def write(self, data: bytes) -> int:
+        self.parts.append(bytes(data))
+        self.position += len(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self.position
+
+    def flush(self) -> None:
+        return None
+
+    def take(self) -> bytes:
+        data, self.parts = b"".join(self.parts), []
+        return data
+
+
 class McapFileWriter:
-    """Writes one MCAP file from its own thread; ``add_*`` are called on the loop only."""
+    """Writes one MCAP file to ``stream``; every method is called on the loop."""
 
     def __init__(
         self,
@@ -83,34 +113,42 @@ class McapFileWriter:
         max_queued: int = DEFAULT_MAX_QUEUED,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
     ) -> None:
-        self._mcap = _writer_module().Writer(stream, chunk_size=chunk_size)
+        self._pending = _Pending()
+        self._mcap = _writer_module().Writer(self._pending, chunk_size=chunk_size)
         self._stream = stream
         self._queue: collections.deque[tuple[int, str, int, Any]] = collections.deque()
         self._max_queued = max_queued
-        self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="mcap writer", daemon=False)
-        #: Messages not written because the thread fell ``max_queued`` behind, by kind.
+        self._stopping = False
+        self._pump: asyncio.Task[None] | None = None
+        #: One worker, so that the file's writes keep their order, even on the way out.
+        self._disk = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="mcap file")
+        #: Messages not written because the pump fell ``max_queued`` behind, by kind.
         self.dropped = {"raw": 0, "status": 0, "events": 0}
-        #: Messages written, by kind (read once the writer is closed).
+        #: Messages written, by kind.
         self.written = {"raw": 0, "status": 0, "events": 0}
-        #: The error that ended the thread early (the disk full …), else None.
+        #: The error that ended the recording early (the disk full …), else None.
         self.error: BaseException | None = None
         self._channels: dict[tuple[str, int], int] = {}
-        #: The schema ids of the raw (none), status and events channels.
-        self._schemas = (0, 0, 0)
+        self._mcap.start(profile="", library="galileo_async")
+        self._status_schema = self._mcap.register_schema(
+            STATUS_SCHEMA_NAME, "jsonschema", json.dumps(status_schema()).encode()
+        )
+        self._log_schema = self._mcap.register_schema(
+            LOG_SCHEMA_NAME, "jsonschema", json.dumps(LOG_SCHEMA).encode()
+        )
 
     def start(self) -> None:
-        """Start the thread (it writes the header first)."""
-        self._thread.start()
+        """Start the pump on the running loop."""
+        self._pump = asyncio.get_running_loop().create_task(self._run(), name="mcap writer")
 
     def add_robot(self, robot: str, raw: bool) -> None:
         """Register ``robot``'s channels (raw only when its link carries bytes); never dropped."""
         self._queue.append((_ADD, robot, 0, raw))
 
     def add(self, kind: int, robot: str, log_time: int, payload: Any) -> None:
-        """Queue a message, or count it dropped when the thread is ``max_queued`` behind."""
+        """Queue a message, or count it dropped when the pump is ``max_queued`` behind."""
         queue = self._queue
-        if len(queue) >= self._max_queued or self.error is not None:
+        if len(queue) >= self._max_queued or self.error is not None or self._stopping:
             self.dropped[_KIND_NAMES[kind]] += 1
             return
         queue.append((kind, robot, log_time, payload))
@@ -120,75 +158,83 @@ class McapFileWriter:
         self.add(_RAW, robot, log_time, data)
 
     def add_status(self, robot: str, log_time: int, status: GalileoStatus) -> None:
-        """Queue one status (serialised by the thread)."""
+        """Queue one status (serialised by the pump)."""
         self.add(_STATUS, robot, log_time, status)
 
     def add_event(self, robot: str, log_time: int, event: Event) -> None:
-        """Queue one event (serialised by the thread)."""
+        """Queue one event (serialised by the pump)."""
         self.add(_EVENT, robot, log_time, event)
 
-    def stop(self) -> None:
-        """Ask the thread to write what is queued, finish the file and end (returns at once)."""
-        self._stopping.set()
+    async def finish(self) -> None:
+        """Write what is queued, finish the file and close it (once; later calls wait)."""
+        self._stopping = True
+        if self._pump is not None:
+            await asyncio.wait([self._pump])  # its end, not a cancellation of its own
 
-    def join(self, timeout: float | None = None) -> bool:
-        """Wait for the thread (in a thread, never on the loop); True once it ended."""
-        self._thread.join(timeout)
-        return not self._thread.is_alive()
+    # --- the pump ------------------------------------------------------------------------
 
-    @property
-    def alive(self) -> bool:
-        """True while the thread runs."""
-        return self._thread.is_alive()
-
-    # --- the thread --------------------------------------------------------------------
-
-    def _run(self) -> None:
+    async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
+        chunk_started = loop.time()
         try:
-            self._mcap.start(profile="", library="galileo_async")
-            status_id = self._mcap.register_schema(
-                STATUS_SCHEMA_NAME, "jsonschema", json.dumps(status_schema()).encode()
-            )
-            log_id = self._mcap.register_schema(
-                LOG_SCHEMA_NAME, "jsonschema", json.dumps(LOG_SCHEMA).encode()
-            )
-            self._schemas = (0, status_id, log_id)
-            chunk_started = time.monotonic()
-            main = threading.main_thread()
             while True:
-                # A program that ends without closing its recorder still gets a whole file.
-                stopping = self._stopping.wait(FLUSH_INTERVAL) or not main.is_alive()
-                self._drain()
+                stopping = self._stopping
+                await self._drain()
+                if loop.time() - chunk_started >= CHUNK_SECONDS:
+                    self._mcap.flush()
+                    chunk_started = loop.time()
+                await self._write_out()
                 if stopping:
                     break
-                if time.monotonic() - chunk_started >= CHUNK_SECONDS:
-                    self._mcap.flush()
-                    chunk_started = time.monotonic()
-            self._drain()
+                await asyncio.sleep(FLUSH_INTERVAL)
             self._mcap.finish()
-        except BaseException as exc:
+            await self._write_out()
+            await self._on_disk(self._stream.close)
+        except asyncio.CancelledError:
+            # The loop is going away with the recording open: finish it here and now.
+            self._finish_blocking()
+            raise
+        except Exception as exc:
             self.error = exc
             _log.error("the MCAP recording failed: %s", exc)
+            self._disk.submit(self._stream.close).result()
         finally:
-            try:
-                self._stream.close()
-            except OSError as exc:
-                self.error = self.error or exc
+            self._disk.shutdown(wait=False)
 
-    def _drain(self) -> None:
+    async def _on_disk(self, call: Callable[..., object], *args: object) -> None:
+        await asyncio.get_running_loop().run_in_executor(self._disk, call, *args)
+
+    async def _write_out(self) -> None:
+        data = self._pending.take()
+        if data:
+            await self._on_disk(self._stream.write, data)
+
+    def _finish_blocking(self) -> None:
+        """Finish the file on this thread, after the writes already handed to the disk."""
+        try:
+            self._drain_slice(None)
+            self._mcap.finish()
+            self._disk.submit(self._stream.write, self._pending.take()).result()
+        except Exception as exc:
+            self.error = exc
+        finally:
+            self._disk.submit(self._stream.close).result()
+
+    async def _drain(self) -> None:
         """Write everything queued, in slices of SLICE seconds with a PAUSE between them."""
-        queue, mcap, channels = self._queue, self._mcap, self._channels
-        dumps = _ENCODER.encode
-        clock = time.perf_counter
-        slice_ends = clock() + SLICE
+        while self._queue:
+            if self._drain_slice(time.perf_counter() + SLICE):
+                await asyncio.sleep(PAUSE)
+
+    def _drain_slice(self, until: float | None) -> bool:
+        """Build the queued messages' records until ``until``; True when some are left."""
+        queue, mcap, channels, written = self._queue, self._mcap, self._channels, self.written
+        dumps, clock = _ENCODER.encode, time.perf_counter
         count = 0
         while queue:
             count += 1
-            if not count % 8 and clock() > slice_ends:
-                # Asleep, the thread does not wait for the GIL: the loop's every system
-                # call would hand it over otherwise, and the loop wait for it each time.
-                time.sleep(PAUSE)
-                slice_ends = clock() + SLICE
+            if until is not None and not count % 8 and clock() > until:
+                return True
             kind, robot, log_time, payload = queue.popleft()
             if kind == _ADD:
                 self._register(robot, payload)
@@ -203,17 +249,17 @@ class McapFileWriter:
             if channel is None:
                 continue  # a robot's channel that was never registered (raw on udp://)
             mcap.add_message(channel, log_time=log_time, data=data, publish_time=log_time)
-            self.written[_KIND_NAMES[kind]] += 1
+            written[_KIND_NAMES[kind]] += 1
+        return False
 
     def _register(self, robot: str, raw: bool) -> None:
-        _none, status_id, log_id = self._schemas
         if raw:
             self._channels[(robot, _RAW)] = self._mcap.register_channel(
                 topic(robot, "raw"), RAW_ENCODING, 0, {"robot": robot}
             )
         self._channels[(robot, _STATUS)] = self._mcap.register_channel(
-            topic(robot, "status"), "json", status_id, {"robot": robot}
+            topic(robot, "status"), "json", self._status_schema, {"robot": robot}
         )
         self._channels[(robot, _EVENT)] = self._mcap.register_channel(
-            topic(robot, "events"), "json", log_id, {"robot": robot}
+            topic(robot, "events"), "json", self._log_schema, {"robot": robot}
         )

@@ -165,18 +165,18 @@ def test_a_bad_file_is_a_clear_error(tmp_path: Path) -> None:
         read_recording(tmp_path / "missing.mcap")
 
 
-def test_the_writer_drops_and_counts_what_it_cannot_queue(tmp_path: Path) -> None:
-    stream = (tmp_path / "drops.mcap").open("wb")
-    writer = McapFileWriter(stream, max_queued=3)
+async def test_the_writer_drops_and_counts_what_it_cannot_queue(tmp_path: Path) -> None:
+    path = tmp_path / "drops.mcap"
+    writer = McapFileWriter(path.open("wb"), max_queued=3)
     writer.add_robot("robot", raw=True)  # registrations are never dropped
     for index in range(5):
         writer.add_raw("robot", index, b"\xcd")
     assert writer.dropped == {"raw": 3, "status": 0, "events": 0}
     writer.start()
-    writer.stop()
-    assert writer.join(10)
+    await writer.finish()
     assert writer.written["raw"] == 2
     assert writer.error is None
+    assert finished(path) == 2
 
 
 async def test_an_unwritable_file_is_refused_before_recording(tmp_path: Path) -> None:
