@@ -2,8 +2,9 @@
 
 The listeners only append (robot, kind, log time, payload) to a bounded deque: no file
 call, no serialisation. A task on the loop (the pump) drains it every ``FLUSH_INTERVAL``
-seconds in slices of at most ``SLICE`` seconds with a ``PAUSE`` after each, so it never
-holds the loop longer than a slice nor takes more than half of it: it serialises the
+seconds in slices of at most ``SLICE`` seconds with a pause after each, longer while the
+loop is busy, so it never holds the loop longer than a slice nor takes more than half of
+it: it serialises the
 statuses and events and builds the records with ``mcap.writer.Writer`` (its defaults but
 for the chunk size: zstd chunks, chunk and message indexes, statistics and the summary)
 into memory; the finished bytes go to the file in a worker thread (``asyncio.to_thread``),
@@ -53,8 +54,10 @@ _log = logging.getLogger(__name__)
 FLUSH_INTERVAL = 0.05
 #: Longest the pump holds the loop at a time …
 SLICE = 0.001
-#: … and the pause after a slice that did not empty the queue: at most half the loop.
+#: … and the pause after a slice that left messages, at least (at most half the loop) …
 PAUSE = 0.001
+#: … and at most, while the loop is busy with other work (the recorder drops, then).
+MAX_PAUSE = 0.032
 #: Seconds after which the chunk in progress is finished and written.
 CHUNK_SECONDS = 5.0
 #: Messages waiting at most (about a second of 1000 robots' frames).
@@ -120,6 +123,7 @@ class McapFileWriter:
         self._max_queued = max_queued
         self._stopping = False
         self._pump: asyncio.Task[None] | None = None
+        self._pause = PAUSE
         #: One worker, so that the file's writes keep their order, even on the way out.
         self._disk = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="mcap file")
         #: Messages not written because the pump fell ``max_queued`` behind, by kind.
@@ -212,7 +216,7 @@ class McapFileWriter:
     def _finish_blocking(self) -> None:
         """Finish the file on this thread, after the writes already handed to the disk."""
         try:
-            self._drain_slice(None)
+            self._drain_slice(None, len(self._queue))
             self._mcap.finish()
             self._disk.submit(self._stream.write, self._pending.take()).result()
         except Exception as exc:
@@ -221,20 +225,31 @@ class McapFileWriter:
             self._disk.submit(self._stream.close).result()
 
     async def _drain(self) -> None:
-        """Write everything queued, in slices of SLICE seconds with a PAUSE between them."""
-        while self._queue:
-            if self._drain_slice(time.perf_counter() + SLICE):
-                await asyncio.sleep(PAUSE)
+        """Write what is queued now, in slices of SLICE seconds with a pause after each.
 
-    def _drain_slice(self, until: float | None) -> bool:
-        """Build the queued messages' records until ``until``; True when some are left."""
+        The pause grows (to MAX_PAUSE) while the loop comes back late from it, a loop with
+        other work, and shrinks back to PAUSE once it does not: the loop comes first.
+        """
+        left, pause, clock = len(self._queue), self._pause, time.perf_counter
+        while left > 0:
+            left = self._drain_slice(clock() + SLICE, left)
+            if left > 0:
+                began = clock()
+                await asyncio.sleep(pause)
+                late = clock() - began - pause
+                pause = min(MAX_PAUSE, pause * 2) if late > SLICE else max(PAUSE, pause / 2)
+        self._pause = pause
+
+    def _drain_slice(self, until: float | None, most: int) -> int:
+        """Build at most ``most`` queued messages' records until ``until``; how many of the
+        ``most`` are left."""
         queue, mcap, channels, written = self._queue, self._mcap, self._channels, self.written
         dumps, clock = _ENCODER.encode, time.perf_counter
         count = 0
-        while queue:
+        while queue and count < most:
             count += 1
             if until is not None and not count % 8 and clock() > until:
-                return True
+                return most - count + 1
             kind, robot, log_time, payload = queue.popleft()
             if kind == _ADD:
                 self._register(robot, payload)
@@ -250,7 +265,7 @@ class McapFileWriter:
                 continue  # a robot's channel that was never registered (raw on udp://)
             mcap.add_message(channel, log_time=log_time, data=data, publish_time=log_time)
             written[_KIND_NAMES[kind]] += 1
-        return False
+        return 0 if not queue else most - count
 
     def _register(self, robot: str, raw: bool) -> None:
         if raw:
