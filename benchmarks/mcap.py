@@ -6,8 +6,8 @@ round, on the same connections, a phase **without** the recorder (the baseline) 
 phase **with** one McapRecorder on the whole fleet (raw bytes, statuses and events of
 every robot into one file in a temporary folder). Per phase, over a window:
 
-* CPU per frame: the process's CPU seconds (time.process_time: the loop and the writer
-  thread) over the frames the links received;
+* CPU per frame: the process's CPU seconds (time.process_time: the loop and the file's
+  worker thread) over the frames the links received;
 * loop lag: a probe task sleeping 10 ms again and again, how late each wake-up was
   (p99 and the worst);
 * in the recorded phase, bytes on disk per status recorded (the file's size over the
@@ -123,7 +123,7 @@ def run(
 
     statuses = sum(p.statuses for p in recs)
     return [
-        Row(name, "CPU per frame, recorder on (loop + writer thread)", per_frame(recs), "µs",
+        Row(name, "CPU per frame, recorder on (the whole process)", per_frame(recs), "µs",
             per_frame(bares), "recorder off", "", None,
             {"frames": [p.frames for p in recs], "cores": os.cpu_count()}),
         Row(name, "loop lag p99 of a 10 ms sleep, recorder on", lag(recs, 99), "ms",

@@ -60,8 +60,9 @@ PAUSE = 0.001
 MAX_PAUSE = 0.032
 #: Seconds after which the chunk in progress is finished and written.
 CHUNK_SECONDS = 5.0
-#: Messages waiting at most (about a second of 1000 robots' frames).
-DEFAULT_MAX_QUEUED = 100_000
+#: Messages waiting at most: a third of a second of 1000 robots, a backlog a busy loop
+#: still finishes within the close's 8 s.
+DEFAULT_MAX_QUEUED = 20_000
 #: Bytes of messages per chunk: small enough to compress within a slice or so.
 DEFAULT_CHUNK_SIZE = 128 * 1024
 #: The raw channel's message encoding: the serial protocol's bytes, as read.
