@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -150,3 +154,28 @@ def test_fleet_record_without_a_fleet_file_is_a_usage_error(tmp_path: Path) -> N
     result = invoke_fleet("fleet", "record", str(tmp_path / "x.mcap"))
     assert result.exit_code == ExitCode.USAGE, result.output
     assert json.dumps("fleet commands need a fleet file")[1:-1] in result.output
+
+
+@pytest.mark.parametrize("signal_name", ["SIGTERM", "SIGINT"])
+def test_record_ended_by_a_signal_finishes_the_file(tmp_path: Path, signal_name: str) -> None:
+    path = tmp_path / "signal.mcap"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "galileo_async", "--port", "sim://?speed=20", "record", str(path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 30
+        # Another process: its file growing is the one sign that it records.
+        while not (path.exists() and path.stat().st_size > 0) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        process.send_signal(getattr(signal, signal_name))
+        out, err = process.communicate(timeout=30)
+    finally:
+        process.kill()
+    assert process.returncode == 0, err
+    assert "statuses" in out
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    assert summary.statistics is not None
+    assert summary.statistics.message_count > 0
