@@ -4,16 +4,15 @@ The listeners only append (robot, kind, log time, payload) to a bounded deque: n
 call, no serialisation. A task on the loop (the pump) drains it every ``FLUSH_INTERVAL``
 seconds in slices of at most ``SLICE`` seconds with a pause after each, longer while the
 loop is busy, so it never holds the loop longer than a slice nor takes more than half of
-it: it serialises the
-statuses and events and builds the records with ``mcap.writer.Writer`` (its defaults but
-for the chunk size: zstd chunks, chunk and message indexes, statistics and the summary)
-into memory; the finished bytes go to the file in a worker thread (``asyncio.to_thread``),
-where the write does not hold the GIL. A thread of its own doing the serialising was
-measured and dropped: sharing the GIL with the loop, it made the loop wait up to the
-interpreter's switch interval at each of its system calls (BENCHMARKS.md, "MCAP
-recordings"). A chunk is finished every ``chunk_size`` bytes and every ``CHUNK_SECONDS``,
-so a file cut short is readable up to its last chunk. When ``max_queued`` messages wait,
-later ones are dropped and counted, never waited for.
+it: it serialises the statuses and events and builds the records with
+``mcap.writer.Writer`` (its defaults but for the chunk size: zstd chunks, chunk and
+message indexes, statistics and the summary) into memory; the finished bytes go to the
+file through one worker thread of its own, where the write does not hold the GIL. A
+thread doing the serialising was measured and dropped: sharing the GIL with the loop, it
+made the loop wait up to the interpreter's switch interval at each of its system calls
+(BENCHMARKS.md, "MCAP recordings"). A chunk is finished every ``chunk_size`` bytes and
+every ``CHUNK_SECONDS``, so a file cut short is readable up to its last chunk. When
+``max_queued`` messages wait, later ones are dropped and counted, never waited for.
 """
 
 from __future__ import annotations
@@ -125,6 +124,7 @@ class McapFileWriter:
         self._stopping = False
         self._pump: asyncio.Task[None] | None = None
         self._pause = PAUSE
+        self._finished = False
         #: One worker, so that the file's writes keep their order, even on the way out.
         self._disk = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="mcap file")
         #: Messages not written because the pump fell ``max_queued`` behind, by kind.
@@ -193,6 +193,7 @@ class McapFileWriter:
                     break
                 await asyncio.sleep(FLUSH_INTERVAL)
             self._mcap.finish()
+            self._finished = True
             await self._write_out()
             await self._on_disk(self._stream.close)
         except asyncio.CancelledError:
@@ -217,9 +218,12 @@ class McapFileWriter:
     def _finish_blocking(self) -> None:
         """Finish the file on this thread, after the writes already handed to the disk."""
         try:
-            self._drain_slice(None, len(self._queue))
-            self._mcap.finish()
-            self._disk.submit(self._stream.write, self._pending.take()).result()
+            if not self._finished:
+                self._drain_slice(None, len(self._queue))
+                self._mcap.finish()
+                self._finished = True
+            if data := self._pending.take():
+                self._disk.submit(self._stream.write, data).result()
         except Exception as exc:
             self.error = exc
         finally:
