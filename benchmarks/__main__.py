@@ -31,7 +31,7 @@ BENCHMARKS = (
     "ingest", "latency", "fleet", "fleet_merged", "vda5050", "foxglove", "virtual", "imports",
 )  # fmt: skip
 #: Run only when named: analysis, not targets.
-EXTRA = ("breakdown",)
+EXTRA = ("breakdown", "mcap")
 RESULTS = Path(__file__).resolve().parent / "results"
 
 

@@ -16,6 +16,7 @@ from . import (
     demo,
     fleet_cmd,
     foxglove_cmd,
+    mcap_cmd,
     mission,
     mission_run,
     mission_schedule,
@@ -225,6 +226,7 @@ mission_run.register(mission.mission_app)
 mission_schedule.register(mission.mission_app)
 # `galileo --fleet F fleet mission run FILE`
 mission_run.register_fleet(fleet_cmd.fleet_app)
+fleet_cmd.fleet_app.command("record")(mcap_cmd.fleet_record)
 
 
 def main() -> None:

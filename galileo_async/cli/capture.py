@@ -1,12 +1,14 @@
 """``record`` raw bytes from a link (with timestamps) and ``decode`` captures into JSON lines.
 
 The recording format is described in galileo_async/sim/replay.py (which replays it).
-``decode`` reads recordings and plain raw byte dumps (anything without the magic) alike.
+``decode`` reads recordings and plain raw byte dumps (anything without the magic) alike,
+and MCAP recordings (mcap_cmd.py), told by their first bytes.
 """
 
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import sys
 from dataclasses import asdict
@@ -17,8 +19,10 @@ import anyio
 import typer
 
 from ..protocol import StatusDecoder
+from ..sim.mcap_read import MCAP_MAGIC, is_mcap
 from ..sim.replay import MAGIC, RECORD, iter_capture
 from . import connectors
+from .mcap_cmd import decode_mcap, record_mcap, wants_mcap
 from .render import status_dict
 from .runner import (
     ExitCode,
@@ -45,6 +49,9 @@ def decode(
     raw: Annotated[
         bool, typer.Option("--raw", help="Every digit of the floats (default: rounded as shown).")
     ] = False,
+    robot: Annotated[
+        str | None, typer.Option("--robot", help="The robot of an MCAP fleet recording.")
+    ] = None,
 ) -> None:
     """Decode captured bytes: one JSON line per status, then a summary of the stream."""
     settings = settings_of(ctx)
@@ -55,6 +62,16 @@ def decode(
         )
     except OSError as exc:
         fail(f"cannot read {source}: {exc.strerror or exc}")
+    head, handle = _peek(handle, len(MCAP_MAGIC))
+    if is_mcap(head):
+        with handle:
+            decode_mcap(
+                handle, source, settings, robot=robot, summary_only=summary_only,
+                as_json=as_json, raw=raw,
+            )  # fmt: skip
+    if robot is not None:
+        handle.close()
+        fail(f"--robot picks a robot of an MCAP recording; {source} is not one", ExitCode.USAGE)
     decoder = StatusDecoder(settings.layout)
     out = sys.stdout
     total = chunks = 0
@@ -101,9 +118,20 @@ def record(
         float | None, typer.Option(min=0.01, help="Stop after seconds (default: Ctrl-C).")
     ] = None,
     raw: Annotated[bool, typer.Option("--raw", help="Plain bytes, no timestamps.")] = False,
+    mcap: Annotated[
+        bool,
+        typer.Option(
+            "--mcap", help="Write MCAP: raw bytes, statuses and events (also for FILE.mcap)."
+        ),
+    ] = False,
 ) -> None:
-    """Capture the raw byte stream from --port into a file (a recording, or --raw bytes)."""
+    """Capture the raw byte stream from --port into a file (a recording, --raw bytes, or
+    MCAP with --mcap or a FILE ending in .mcap)."""
     settings = settings_of(ctx)
+    if wants_mcap(path, mcap):
+        if raw:
+            fail("--raw and MCAP (--mcap, FILE.mcap) exclude each other", ExitCode.USAGE)
+        record_mcap(settings, path, duration)
     url = robot_url(settings)
 
     async def main() -> int:
@@ -144,6 +172,18 @@ def record(
         return int(code)
 
     run(settings, main)
+
+
+def _peek(handle: IO[bytes], size: int) -> tuple[bytes, IO[bytes]]:
+    """The first ``size`` bytes of ``handle`` and a stream that still starts with them."""
+    peek = getattr(handle, "peek", None)
+    head = b"" if peek is None else bytes(peek(size)[:size])
+    if len(head) < size:  # no buffer to peek into, or a pipe's first bytes: read into one
+        read = io.BytesIO(handle.read())
+        if handle is not sys.stdin.buffer:
+            handle.close()
+        handle, head = read, read.getvalue()[:size]
+    return head, handle
 
 
 async def _cancel_on(event: asyncio.Event, scope: anyio.CancelScope) -> None:

@@ -182,7 +182,8 @@ def sim(
 def replay(
     ctx: typer.Context,
     capture: Annotated[
-        Path, typer.Argument(help="A recording made by galileo record.", dir_okay=False)
+        Path,
+        typer.Argument(help="A recording made by galileo record (or MCAP).", dir_okay=False),
     ],
     tcp: Annotated[
         str | None,
@@ -190,6 +191,9 @@ def replay(
     ] = None,
     pty: Annotated[bool, typer.Option("--pty", help="Serve on a pseudo-terminal.")] = False,
     speed: Annotated[float, typer.Option(min=0.01, help="Pace (2 = twice as fast).")] = 1.0,
+    robot: Annotated[
+        str | None, typer.Option("--robot", help="The robot of an MCAP fleet recording.")
+    ] = None,
 ) -> None:
     """Serve a recording as a robot until Ctrl-C: each connection gets its bytes at their
     recorded pace from the start; the commands it sends are printed on stderr, not acted on."""
@@ -198,10 +202,11 @@ def replay(
         fail("choose --tcp or --pty, not both", ExitCode.USAGE)
     from ..sim import Simulator
 
+    query: dict[str, object] = {"speed": speed, "replay": str(capture)}
+    if robot is not None:
+        query["robot"] = robot
     try:
-        simulator = Simulator.from_url(
-            "sim://?" + urlencode({"speed": speed, "replay": str(capture)})
-        )
+        simulator = Simulator.from_url("sim://?" + urlencode(query))
     except InvalidArgument as exc:
         fail(str(exc), ExitCode.USAGE)
 

@@ -279,6 +279,19 @@ class Robot:
         """Stop calling ``listener`` (no-op if it is not one)."""
         self._store.remove_event_listener(listener)
 
+    def add_raw_listener(self, listener: Callable[[bytes], None]) -> bool:
+        """Call ``listener(data)`` with every read's bytes as they came off the link.
+
+        Synchronously, before they are decoded (keep it cheap); True on links that carry
+        the serial protocol's bytes (serial, socket://, sim://), False (never called) on
+        udp://, http:// and ros://.
+        """
+        return self._link.channel.add_raw_listener(listener)
+
+    def remove_raw_listener(self, listener: Callable[[bytes], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        self._link.channel.remove_raw_listener(listener)
+
     def add_stop_listener(self, listener: Callable[[str], None]) -> None:
         """Call ``listener(name)`` after every user stop of this Robot, synchronously.
 

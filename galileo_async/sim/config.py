@@ -151,6 +151,8 @@ class SimConfig:
     #: A ``galileo record`` capture: every connection gets its bytes (at ``speed``) instead
     #: of the simulated robot's frames; its commands are logged, not acted on.
     replay: str | None = None
+    #: The robot of an MCAP ``replay`` recording to play (needed when it holds several).
+    robot: str | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -261,7 +263,7 @@ def _parse_value(name: str, text: str) -> Any:
             return "next" if text == "next" else float(text)
     except ValueError:
         raise InvalidArgument(f"bad value for simulator option {name}: {text!r}") from None
-    return text  # layout, udp_layout, firmware: validated by SimConfig; replay: a path
+    return text  # layout, udp_layout, firmware: validated by SimConfig; replay: a path; robot
 
 
 def parse_sim_url(url: str, base: SimConfig | None = None) -> SimConfig:

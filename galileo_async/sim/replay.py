@@ -3,7 +3,9 @@
 Capture format (written by ``galileo record``): the 18-byte magic ``GALILEO-CAPTURE 1\\n``,
 then one record per chunk received: a little-endian float64 (seconds since the recording
 started), a little-endian uint32 byte count, and that many bytes exactly as they came off
-the link. Plain raw dumps (no magic) carry no timing and cannot be replayed.
+the link. Plain raw dumps (no magic) carry no timing and cannot be replayed. An MCAP recording
+(``galileo record --mcap``, told by its own magic) is replayed from a robot's raw channel
+(mcap_read.py).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import IO
 
 from ..errors import InvalidArgument
 from ..protocol import CommandDecoder
+from .mcap_read import MCAP_MAGIC, is_mcap, load_mcap_raw
 
 __all__ = ["MAGIC", "RECORD", "ReplayConnection", "iter_capture", "load_capture"]
 
@@ -51,13 +54,25 @@ def iter_capture(stream: IO[bytes]) -> Iterator[tuple[float | None, bytes]]:
             return
 
 
-def load_capture(path: str | Path) -> list[tuple[float, bytes]]:
-    """The timed chunks of a recording; InvalidArgument when unreadable, raw or empty."""
+def load_capture(path: str | Path, robot: str | None = None) -> list[tuple[float, bytes]]:
+    """The timed chunks of a recording; InvalidArgument when unreadable, raw or empty.
+
+    An MCAP recording (told by its first bytes) gives ``robot``'s raw channel; ``robot``
+    may be left out when it holds one robot.
+    """
     try:
         with Path(path).open("rb") as stream:
-            chunks = list(iter_capture(stream))
+            mcap = is_mcap(stream.read(len(MCAP_MAGIC)))
+            stream.seek(0)
+            chunks = [] if mcap else list(iter_capture(stream))
     except OSError as exc:
         raise InvalidArgument(f"cannot read the capture {path}: {exc.strerror or exc}") from None
+    if mcap:
+        return load_mcap_raw(path, robot)
+    if robot is not None:
+        raise InvalidArgument(
+            f"robot={robot} picks a robot of an MCAP recording: {path} is not one"
+        )
     timed = [(seconds, data) for seconds, data in chunks if seconds is not None]
     if len(timed) != len(chunks):
         raise InvalidArgument(

@@ -129,7 +129,9 @@ class Simulator:
             )
         self.config = config
         self._device = SimDevice(config, ticker or Ticker(config.speed), self._stop_serving)
-        self._capture = None if config.replay is None else load_capture(config.replay)
+        if config.robot is not None and config.replay is None:
+            raise InvalidArgument("robot= picks the robot of a replay= recording: give replay=")
+        self._capture = None if config.replay is None else load_capture(config.replay, config.robot)
         self._replays: list[ReplayConnection] = []
         self._servers: list[asyncio.Server] = []
         self._ptys: list[PtyTransport] = []

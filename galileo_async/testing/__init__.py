@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from .fleet import simulated_fleet
     from .leaks import LeakCheck
     from .missions import MissionPlay, play_mission
+    from .replay import recorded_statuses, replayed_robot
     from .robot import Clock, map_of, simulated_robot
 
 __all__ = [
@@ -30,6 +31,8 @@ __all__ = [
     "VirtualClock",
     "map_of",
     "play_mission",
+    "recorded_statuses",
+    "replayed_robot",
     "simulated_fleet",
     "simulated_robot",
 ]
@@ -44,6 +47,8 @@ _LAZY: dict[str, str] = {
     "LeakCheck": "leaks",
     "MissionPlay": "missions",
     "play_mission": "missions",
+    "recorded_statuses": "replay",
+    "replayed_robot": "replay",
     "Clock": "robot",
     "map_of": "robot",
     "simulated_robot": "robot",

@@ -128,3 +128,11 @@ class Channel(abc.ABC):
     def map_target_count(self) -> int | None:
         """How many targets the robot's map has, when the channel can tell (once open)."""
         return None
+
+    def add_raw_listener(self, listener: Callable[[bytes], None]) -> bool:
+        """Call ``listener(data)`` with every read's bytes; False: this channel has none."""
+        return False
+
+    def remove_raw_listener(self, listener: Callable[[bytes], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        return None

@@ -86,6 +86,8 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         buffer = self._buffer
         if frames_log.isEnabledFor(_DEBUG):
             frames_log.debug("rx %s", buffer[:nbytes].hex(" "))
+        if self._channel.raw_listeners:
+            self._channel.tell_raw(self._view[:nbytes].tobytes())
         # Read in place: the decoder copies whatever it holds back, never keeps the buffer.
         statuses = self._decoder.feed_from(buffer, nbytes)  # counts into the link's stats
         if statuses:
@@ -102,6 +104,8 @@ class _StreamProtocol(asyncio.BufferedProtocol, asyncio.Protocol):
         self._stats.bytes_received += len(data)
         if frames_log.isEnabledFor(_DEBUG):
             frames_log.debug("rx %s", data.hex(" "))
+        if self._channel.raw_listeners:
+            self._channel.tell_raw(bytes(data))
         statuses = self._decoder.feed_from(data, len(data))
         if statuses:
             stats = self._stats
@@ -124,7 +128,7 @@ class StreamChannel(Channel):
 
     __slots__ = (
         "_closers", "_connector", "_feed", "_protocol", "_transport", "decoder", "name",
-        "simulator",
+        "raw_listeners", "simulator",
     )  # fmt: skip
 
     capabilities = Capabilities(byte_stream=True)
@@ -145,6 +149,8 @@ class StreamChannel(Channel):
         self._transport: asyncio.WriteTransport | None = None
         self._protocol: _StreamProtocol | None = None
         self._closers: list[Callable[[], Awaitable[None]]] = []
+        #: Called with every read's bytes as they came off the transport (add_raw_listener).
+        self.raw_listeners: list[Callable[[bytes], None]] = []
 
     def __repr__(self) -> str:
         return f"<StreamChannel {self.name or 'custom'}>"
@@ -162,6 +168,24 @@ class StreamChannel(Channel):
     def map_target_count(self) -> int | None:
         """The in-process simulator's map size on ``sim://``; else None (serial cannot tell)."""
         return None if self.simulator is None else len(self.simulator.config.targets)
+
+    def add_raw_listener(self, listener: Callable[[bytes], None]) -> bool:
+        """Call ``listener(data)`` with every read's bytes, before they are decoded."""
+        self.raw_listeners.append(listener)
+        return True
+
+    def remove_raw_listener(self, listener: Callable[[bytes], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        if listener in self.raw_listeners:
+            self.raw_listeners.remove(listener)
+
+    def tell_raw(self, data: bytes) -> None:
+        """Hand ``data`` to every raw listener; one that raises is logged, the others run."""
+        for listener in list(self.raw_listeners):
+            try:
+                listener(data)
+            except Exception:
+                _log.exception("raw listener %r failed", listener)
 
     def add_closer(self, closer: Callable[[], Awaitable[None]]) -> None:
         """Await ``closer()`` when the channel closes (for resources the link owns)."""

@@ -33,17 +33,25 @@ def test_every_example_is_tested() -> None:
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
         "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",
-        "mission.py", "foxglove_view.py",
+        "mission.py", "foxglove_view.py", "record_mcap.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
 
 
 def test_foxglove_view_example_serves_two_touring_robots() -> None:
-    pytest.importorskip("foxglove")
     out = run_example("foxglove_view.py", "4", "0")
     assert re.search(r"open ws://127\.0\.0\.1:\d+ in Foxglove or Lichtblick", out), out
     assert "alpha: arrived at" in out
     assert "beta: arrived at" in out
+
+
+def test_record_mcap_example_records_a_goal_and_reads_it_back(tmp_path: Path) -> None:
+    path = tmp_path / "drive.mcap"
+    out = run_example("record_mcap.py", FAST_SIM, str(path))
+    assert path.read_bytes().startswith(b"\x89MCAP0\r\n")
+    assert f"{path}: " in out
+    assert "GoalAccepted target_id=1" in out
+    assert "GoalReached target_id=1" in out
 
 
 def test_http_maps_example_lists_maps_and_goes_to_a_pose() -> None:

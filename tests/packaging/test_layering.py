@@ -130,6 +130,7 @@ PARTS = {
     "galileo_async.missions": "missions",
     "galileo_async.cli": "cli",
     "galileo_async.testing": "testing",
+    "galileo_async.recording": "recording",
 }
 #: What each part may import besides itself. transports and ros know nothing of goals or
 #: state; state knows no transport; sim speaks from the device side on protocol and models
@@ -154,6 +155,8 @@ MAY_IMPORT = {
     "foxglove": {"base", "transitions", "robot"},
     # Plans of steps on the public Robot and Fleet API (docs/missions.md).
     "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
+    # MCAP recordings of a Robot or a Fleet; the file's reading is the simulator's (replay).
+    "recording": {"base", "transitions", "robot", "fleet", "sim"},
     # Tests of applications: a Robot on the simulator, from both sides.
     "testing": {"base", "protocol", "options", "sim", "robot", "fleet", "missions"},
 }

@@ -35,6 +35,8 @@ ARGUMENTS: dict[str, tuple[Any, ...]] = {
     "add_event_listener": (print,),
     "remove_event_listener": (print,),
     "add_stop_listener": (print,),
+    "add_raw_listener": (print,),
+    "remove_raw_listener": (print,),
     "remove_stop_listener": (print,),
     "run_mission": (Mission.model_validate({"mission": "m", "steps": [{"dwell": 1}]}),),
 }
