@@ -11,8 +11,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("foxglove")
-
 from tests.support.foxglove_support import WAIT, connected
 
 GALILEO = [sys.executable, "-m", "galileo_async"]

@@ -13,9 +13,6 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
-import pytest
-
-pytest.importorskip("foxglove")
 
 from galileo_async.foxglove.schemas import SERVICE_REQUESTS
 

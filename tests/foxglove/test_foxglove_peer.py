@@ -13,8 +13,6 @@ from collections.abc import AsyncIterator
 
 import pytest
 
-pytest.importorskip("foxglove")
-
 from galileo_async.foxglove import LEGACY_SUBPROTOCOL, FoxgloveServer
 from galileo_async.testing import SimulatedDevice, simulated_robot
 from tests.support.foxglove_support import PEER_DIR, WAIT, require_node_peer

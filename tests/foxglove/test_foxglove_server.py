@@ -15,8 +15,6 @@ from typing import Any
 import aiohttp
 import pytest
 
-pytest.importorskip("foxglove")
-
 from galileo_async.foxglove import (
     LEGACY_SUBPROTOCOL,
     SDK_SUBPROTOCOL,

@@ -9,8 +9,6 @@ from typing import Any
 
 import pytest
 
-pytest.importorskip("foxglove")
-
 from galileo_async.errors import AcceptTimeout, GoalRejected
 from galileo_async.events import Event, GoalAccepted
 from galileo_async.foxglove.services import _until_accepted
