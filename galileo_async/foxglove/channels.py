@@ -7,6 +7,7 @@ once a second and when the goal changes.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -36,20 +37,8 @@ from foxglove.messages import (
     Vector3,
 )
 
-from .schemas import (
-    ERROR,
-    INFO,
-    LINK_SCHEMA_NAME,
-    STATUS_SCHEMA_NAME,
-    WARNING,
-    event_level,
-    event_text,
-    link_json,
-    link_schema,
-    status_json,
-    status_schema,
-    yaw_quaternion,
-)
+from ..schemas import LOG_LEVELS, STATUS_SCHEMA_NAME, event_message, log_level, status_json
+from .schemas import LINK_SCHEMA_NAME, link_json, link_schema, status_schema_bytes, yaw_quaternion
 
 if TYPE_CHECKING:
     from ..events import Event
@@ -66,7 +55,11 @@ TOPICS = ("pose", "tf", "status", "link", "scene", "events")
 _TARGET_COLOUR = Color(r=0.6, g=0.6, b=0.6, a=0.8)
 _GOAL_COLOUR = Color(r=0.1, g=0.8, b=0.2, a=1.0)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
-_LEVELS = {INFO: LogLevel.Info, WARNING: LogLevel.Warning, ERROR: LogLevel.Error}
+_LEVELS = {
+    LOG_LEVELS["INFO"]: LogLevel.Info,
+    LOG_LEVELS["WARNING"]: LogLevel.Warning,
+    LOG_LEVELS["ERROR"]: LogLevel.Error,
+}
 _TARGET_SIZE = 0.2
 _GOAL_SIZE = 0.35
 
@@ -105,7 +98,7 @@ class RobotChannels:
         self.pose = PoseInFrameChannel(f"{prefix}/pose", context=context)
         self.tf = FrameTransformChannel(f"{prefix}/tf", context=context)
         self.status = _json_channel(
-            f"{prefix}/status", STATUS_SCHEMA_NAME, status_schema(), context
+            f"{prefix}/status", STATUS_SCHEMA_NAME, status_schema_bytes(), context
         )
         self.link = _json_channel(f"{prefix}/link", LINK_SCHEMA_NAME, link_schema(), context)
         self.scene = SceneUpdateChannel(f"{prefix}/scene", context=context)
@@ -139,7 +132,7 @@ class RobotChannels:
             self._goal = goal
             self.publish_scene()
         if self.status.has_sinks():
-            self.status.log(status_json(status))
+            self.status.log(json.dumps(status_json(status), separators=(",", ":")).encode())
         pose_subscribed, tf_subscribed = self.pose.has_sinks(), self.tf.has_sinks()
         if not (pose_subscribed or tf_subscribed):
             return
@@ -161,9 +154,9 @@ class RobotChannels:
     def on_event(self, event: Event) -> None:
         """Publish ``event`` as a log line; a goal event redraws the scene."""
         if self.events.has_sinks():
-            level = _LEVELS.get(event_level(event), LogLevel.Info)
+            level = _LEVELS.get(log_level(event), LogLevel.Info)
             self.events.log(Log(
-                timestamp=_now(), level=level, message=event_text(event), name=self.name,
+                timestamp=_now(), level=level, message=event_message(event), name=self.name,
             ))  # fmt: skip
 
     # --- once a second, from the server's task ------------------------------------------

@@ -1,5 +1,5 @@
-"""What the Foxglove channels carry, without the SDK: JSON schemas, the status and link as JSON,
-events as log lines, and the services' request schemas (docs/observability.md)."""
+"""What the Foxglove channels carry besides galileo_async.schemas, without the SDK: the link as
+JSON, the services' request schemas, the status schema encoded (docs/observability.md)."""
 
 from __future__ import annotations
 
@@ -8,54 +8,23 @@ import math
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
-from ..events import (
-    AbandonedGoalCancelled,
-    ConnectionLostEvent,
-    Event,
-    GoalAbortedEvent,
-    GoalCancelledEvent,
-    GoalRejectedEvent,
-    GoalStalledEvent,
-    LinkStaleEvent,
-    VisualLost,
-)
-from ..models import GalileoStatus
+from ..schemas import status_schema
 
 if TYPE_CHECKING:
     from ..robot import Robot
 
 __all__ = [
-    "ERROR",
-    "INFO",
     "LINK_SCHEMA_NAME",
     "SERVICE_REQUESTS",
-    "STATUS_SCHEMA_NAME",
-    "WARNING",
-    "event_level",
-    "event_text",
     "link_json",
     "link_schema",
     "service_schema",
-    "status_json",
-    "status_schema",
+    "status_schema_bytes",
     "yaw_quaternion",
 ]
 
-#: The schema name of the status channels (JSON Schema of GalileoStatus).
-STATUS_SCHEMA_NAME = "galileo_async.GalileoStatus"
 #: The schema name of the link channels.
 LINK_SCHEMA_NAME = "galileo_async.LinkStats"
-
-#: foxglove.Log levels (the values of foxglove.messages.LogLevel), as plain numbers.
-INFO, WARNING, ERROR = 2, 3, 4
-
-#: Events an operator should look at: a goal that ended short, a link in trouble, the
-#: robot lost; every other event is INFO.
-_WARNINGS: tuple[type[Event], ...] = (
-    GoalAbortedEvent, GoalCancelledEvent, AbandonedGoalCancelled, GoalStalledEvent,
-    LinkStaleEvent, VisualLost,
-)  # fmt: skip
-_ERRORS: tuple[type[Event], ...] = (GoalRejectedEvent, ConnectionLostEvent)
 
 _NUMBER = {"type": "number"}
 _INTEGER = {"type": "integer"}
@@ -82,16 +51,9 @@ SERVICE_REQUESTS: dict[str, dict[str, Any]] = {
 
 
 @cache
-def status_schema() -> bytes:
-    """GalileoStatus's JSON Schema, as the status channels carry it (built once)."""
-    schema = GalileoStatus.model_json_schema()
-    schema["title"] = STATUS_SCHEMA_NAME
-    return json.dumps(schema).encode()
-
-
-def status_json(status: GalileoStatus) -> bytes:
-    """One status message: the status's JSON dump (its schema is status_schema())."""
-    return status.model_dump_json().encode()
+def status_schema_bytes() -> bytes:
+    """The status channels' JSON Schema (galileo_async.schemas.status_schema), encoded once."""
+    return json.dumps(status_schema()).encode()
 
 
 @cache
@@ -136,20 +98,6 @@ def link_json(robot: Robot) -> bytes:
 def service_schema(name: str) -> bytes:
     """The JSON Schema of service ``name``'s request."""
     return json.dumps({"title": f"galileo_async.{name}", **SERVICE_REQUESTS[name]}).encode()
-
-
-def event_level(event: Event) -> int:
-    """The foxglove.Log level of ``event``: ERROR, WARNING or INFO."""
-    if isinstance(event, _ERRORS):
-        return ERROR
-    if isinstance(event, _WARNINGS):
-        return WARNING
-    return INFO
-
-
-def event_text(event: Event) -> str:
-    """The log line of ``event``: its str() (``GoalReached(target_id=3, distance=0.05)``)."""
-    return str(event)
 
 
 def yaw_quaternion(theta: float) -> tuple[float, float, float, float]:

@@ -8,10 +8,7 @@ that wants the same (Foxglove's Log panel reads ``event_log``'s messages).
 
 from __future__ import annotations
 
-from ..sim.mcap_read import MCAP_MAGIC, is_mcap, topic
-from .reader import RecordedRobot, Recording, read_recording
-from .recorder import DEFAULT_ROBOT_NAME, McapRecorder
-from .schemas import (
+from ..schemas import (
     LOG_SCHEMA,
     LOG_SCHEMA_NAME,
     STATUS_SCHEMA_NAME,
@@ -20,6 +17,9 @@ from .schemas import (
     status_json,
     status_schema,
 )
+from ..sim.mcap_read import MCAP_MAGIC, is_mcap, topic
+from .reader import RecordedRobot, Recording, read_recording
+from .recorder import DEFAULT_ROBOT_NAME, McapRecorder
 
 __all__ = [
     "DEFAULT_ROBOT_NAME",

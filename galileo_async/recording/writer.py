@@ -29,8 +29,7 @@ from typing import IO, Any
 from ..errors import InvalidArgument
 from ..events import Event
 from ..models import GalileoStatus
-from ..sim.mcap_read import topic
-from .schemas import (
+from ..schemas import (
     LOG_SCHEMA,
     LOG_SCHEMA_NAME,
     STATUS_SCHEMA_NAME,
@@ -38,6 +37,7 @@ from .schemas import (
     status_json,
     status_schema,
 )
+from ..sim.mcap_read import topic
 
 __all__ = [
     "CHUNK_SECONDS",

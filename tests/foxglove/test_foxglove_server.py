@@ -24,10 +24,10 @@ from galileo_async.foxglove import (
     serve_foxglove,
 )
 from galileo_async.foxglove import channels as channels_module
-from galileo_async.foxglove.schemas import STATUS_SCHEMA_NAME
 from galileo_async.models import TargetStatus
 from galileo_async.protocol.commands import Goto
 from galileo_async.robot import Robot
+from galileo_async.schemas import STATUS_SCHEMA_NAME
 from galileo_async.testing import SimulatedDevice, simulated_robot
 from tests.support.cancel_ways import WAYS, stop_waiting
 from tests.support.foxglove_support import WAIT, ServiceFailed, connected
@@ -99,7 +99,7 @@ async def test_goto_returns_on_acceptance_and_stop_stops_the_robot(
         assert bot.status is not None
         assert bot.status.target_num_id == 2  # accepted: the robot works on it
         await bot.wait_until(lambda s: (s.current_speed_x or 0) > 0, timeout=WAIT)
-        assert b"GoalAccepted(target_id=2)" in await client.next_message("/alpha/events")
+        assert b"GoalAccepted target_id=2" in await client.next_message("/alpha/events")
         assert await client.call("/alpha/stop", {}) == {"stopped": True}
         stopped = await bot.wait_until(lambda s: s.target_status != TargetStatus.WORKING, WAIT)
         where = device.pose

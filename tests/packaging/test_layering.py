@@ -113,6 +113,7 @@ PARTS = {
     "galileo_async.errors": "base",
     "galileo_async._checks": "base",
     "galileo_async.battery": "base",
+    "galileo_async.schemas": "schemas",
     "galileo_async.protocol": "protocol",
     "galileo_async.options": "options",
     "galileo_async.sim": "sim",
@@ -152,11 +153,12 @@ MAY_IMPORT = {
     "fleet": {"base", "transitions", "state", "robot", "links", "options"},
     "vda5050": {"base", "transitions", "robot"},
     # The Foxglove live view: on the public Robot API, like VDA 5050.
-    "foxglove": {"base", "transitions", "robot"},
+    "schemas": {"base", "transitions"},
+    "foxglove": {"base", "transitions", "robot", "schemas"},
     # Plans of steps on the public Robot and Fleet API (docs/missions.md).
     "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
     # MCAP recordings of a Robot or a Fleet; the file's reading is the simulator's (replay).
-    "recording": {"base", "transitions", "robot", "fleet", "sim"},
+    "recording": {"base", "transitions", "robot", "fleet", "sim", "schemas"},
     # Tests of applications: a Robot on the simulator, from both sides.
     "testing": {"base", "protocol", "options", "sim", "robot", "fleet", "missions"},
 }

@@ -1,10 +1,12 @@
-"""The JSON a status and an event are recorded as, and their JSON schemas (no I/O).
+"""The JSON a viewer gets of a status and an event, and their JSON schemas (no I/O).
 
 ``status_json`` is a status as ``GalileoStatus.model_dump(mode="json")`` gives it (enums
 as their wire integers, the layout as its name), built without pydantic: it runs for every
 frame recorded. ``STATUS_SCHEMA`` is the status model's JSON schema. ``event_log`` is an
 event as a ``foxglove.Log`` message (so Foxglove's and Lichtblick's Log panel shows it),
-with the event's name and fields kept in ``event``; ``LOG_SCHEMA`` its schema.
+with the event's name and fields kept in ``event``; ``LOG_SCHEMA`` its schema. MCAP
+recordings (galileo_async.recording) and the Foxglove view (galileo_async.foxglove) both
+carry these.
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ import enum
 import functools
 from typing import Any
 
-from ..events import (
+from .events import (
+    AbandonedGoalCancelled,
     ConnectionLostEvent,
     Event,
     GoalAbortedEvent,
@@ -23,7 +26,7 @@ from ..events import (
     LinkStaleEvent,
     VisualLost,
 )
-from ..models import STATUS_FIELDS, GalileoStatus
+from .models import STATUS_FIELDS, GalileoStatus
 
 __all__ = [
     "LOG_LEVELS",
@@ -31,6 +34,7 @@ __all__ = [
     "LOG_SCHEMA_NAME",
     "STATUS_SCHEMA_NAME",
     "event_log",
+    "event_message",
     "log_level",
     "status_json",
     "status_schema",
@@ -43,7 +47,8 @@ LOG_SCHEMA_NAME = "foxglove.Log"
 #: foxglove.Log levels.
 LOG_LEVELS = {"UNKNOWN": 0, "DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 _WARNINGS = (
-    GoalAbortedEvent, GoalRejectedEvent, GoalStalledEvent, LinkStaleEvent, VisualLost,
+    GoalAbortedEvent, GoalRejectedEvent, GoalStalledEvent, AbandonedGoalCancelled,
+    LinkStaleEvent, VisualLost,
 )  # fmt: skip
 _ERRORS = (ConnectionLostEvent,)
 
@@ -99,8 +104,8 @@ def status_json(status: GalileoStatus) -> dict[str, Any]:
 
 
 def log_level(event: Event) -> int:
-    """The foxglove.Log level of ``event``: WARNING for a failed goal, a stale link or lost
-    tracking, ERROR for a lost connection, INFO otherwise."""
+    """The foxglove.Log level of ``event``: WARNING for a failed or abandoned goal, a stale
+    link or lost tracking, ERROR for a lost connection, INFO otherwise (a user's cancel too)."""
     if isinstance(event, _ERRORS):
         return LOG_LEVELS["ERROR"]
     if isinstance(event, _WARNINGS):
@@ -122,14 +127,23 @@ def _event_fields(event: Event) -> dict[str, Any]:
     return values
 
 
+def event_message(event: Event) -> str:
+    """The log line of ``event``: its name and fields (``GoalReached target_id=3 …``)."""
+    return _message(_event_fields(event))
+
+
+def _message(fields: dict[str, Any]) -> str:
+    details = " ".join(f"{key}={value}" for key, value in fields.items() if key != "event")
+    return f"{fields['event']} {details}".strip()
+
+
 def event_log(event: Event, when_ns: int, robot: str) -> dict[str, Any]:
     """``event`` as a foxglove.Log message of ``robot`` at ``when_ns`` (ns since the epoch)."""
     fields = _event_fields(event)
-    details = " ".join(f"{key}={value}" for key, value in fields.items() if key != "event")
     return {
         "timestamp": {"sec": when_ns // 1_000_000_000, "nsec": when_ns % 1_000_000_000},
         "level": log_level(event),
-        "message": f"{event.name} {details}".strip(),
+        "message": _message(fields),
         "name": robot,
         "file": "",
         "line": 0,
