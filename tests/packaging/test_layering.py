@@ -127,6 +127,7 @@ PARTS = {
     "galileo_async.fleet": "fleet",
     "galileo_async.vda5050": "vda5050",
     "galileo_async.missions": "missions",
+    "galileo_async.metrics": "metrics",
     "galileo_async.cli": "cli",
     "galileo_async.testing": "testing",
 }
@@ -151,6 +152,8 @@ MAY_IMPORT = {
     "vda5050": {"base", "transitions", "robot"},
     # Plans of steps on the public Robot and Fleet API (docs/missions.md).
     "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
+    # Prometheus metrics on the public Robot and Fleet API (docs/observability.md).
+    "metrics": {"base", "transitions", "robot", "fleet"},
     # Tests of applications: a Robot on the simulator, from both sides.
     "testing": {"base", "protocol", "options", "sim", "robot", "fleet", "missions"},
 }
