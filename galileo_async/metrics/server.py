@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import os
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -72,9 +73,8 @@ async def serve_metrics(
         try:
             await site.start()
         except OSError as exc:
-            raise OSError(
-                exc.errno, f"cannot serve metrics on {host}:{port}: {exc.strerror or exc}"
-            ) from exc
+            why = os.strerror(exc.errno) if exc.errno else str(exc)
+            raise OSError(exc.errno, f"cannot serve metrics on {host}:{port}: {why}") from exc
         server = site._server  # the one asyncio.Server a TCPSite holds
         assert isinstance(server, asyncio.Server)
         bound: int = server.sockets[0].getsockname()[1]
