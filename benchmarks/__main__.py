@@ -5,6 +5,9 @@
 ``python -m benchmarks vda5050 [--vehicles N] [--[no-]robots-process]``: N VDA 5050 vehicles on
 one loop (Mosquitto); the robots in another process by default from 500 vehicles on.
 
+``python -m benchmarks metrics [--robots N] [--[no-]robots-process]``: one Metrics following N
+robots (default 1000): its CPU and memory, scrape times.
+
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 
 ``python -m benchmarks compare --before DIR [--after DIR] [--rounds N] [--quick] [NAME …]``:
@@ -24,7 +27,9 @@ from pathlib import Path
 
 from .common import Row, machine, render_table
 
-BENCHMARKS = ("ingest", "latency", "fleet", "fleet_merged", "vda5050", "virtual", "imports")
+BENCHMARKS = (
+    "ingest", "latency", "fleet", "fleet_merged", "vda5050", "metrics", "virtual", "imports",
+)  # fmt: skip
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown",)
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -88,10 +93,16 @@ def main(argv: list[str] | None = None) -> int:
         "--vehicles", type=int, default=None, help="vda5050: vehicles (default 100; --quick 20)"
     )
     parser.add_argument(
+        "--robots",
+        type=int,
+        default=None,
+        help="metrics: robots followed (default 1000; --quick 50)",
+    )
+    parser.add_argument(
         "--robots-process",
         action=argparse.BooleanOptionalAction,
         default=None,
-        help="vda5050: the robots in a benchmarks.fleet_server process, connected over "
+        help="vda5050, metrics: the robots in a benchmarks.fleet_server process, connected over "
         "socket:// (spread traffic), so that the process measured runs the adapters and "
         "not the simulation (default: on from 500 vehicles, else in-process sim://)",
     )
@@ -116,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
             options["malloc"] = args.malloc
         if name == "vda5050":
             options["vehicles"] = args.vehicles
+            options["robots_process"] = args.robots_process
+        if name == "metrics":
+            options["robots"] = args.robots
             options["robots_process"] = args.robots_process
         if name == "breakdown":
             options["instructions"] = args.instructions

@@ -1,0 +1,160 @@
+"""Prometheus metrics of N robots in one process: the collector's CPU and memory, scrapes.
+
+``python -m benchmarks metrics [--robots N] [--[no-]robots-process]``. The N robots are
+simulated robots served by a ``benchmarks.fleet_server`` process (traffic spread over the
+frame period), each connected here over ``socket://`` (from ROBOTS_PROCESS_FROM robots on, by
+default), else in-process ``sim://`` robots. One Metrics follows all of them.
+
+* **CPU per robot**: this process's CPU time over the window / wall time / N, with the
+  collector following every robot (no scrape in the window). Baseline, same run: the same
+  robots with no collector; the phases alternate, ROUNDS of each, medians reported.
+* **collector's CPU**: the difference times N, in cores.
+* **scrape**: GET /metrics of serve_metrics on loopback from this process, SCRAPES times
+  (p50, p99 in ms, end to end: collect, encode, HTTP), Prometheus text and OpenMetrics;
+  the size of one answer.
+* **RSS per robot followed**: this process's resident memory after Metrics follows every
+  robot, less just before, / N.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import statistics
+import time
+from collections.abc import AsyncIterator
+from contextlib import AsyncExitStack, asynccontextmanager
+from typing import Any
+
+import aiohttp
+
+import galileo_async
+from galileo_async import Robot
+from galileo_async.metrics import Metrics, serve_metrics
+
+from .common import Row, percentile, raise_fd_limit, rss_bytes
+from .fleet import _connect, _Server
+
+__all__ = ["ROBOTS_PROCESS_FROM", "measure", "run"]
+
+#: From this many robots on, the robots run in their own process unless told otherwise.
+ROBOTS_PROCESS_FROM = 500
+#: Bare and followed windows, alternating.
+ROUNDS = 3
+#: Scrapes per format.
+SCRAPES = 40
+OPENMETRICS = "application/openmetrics-text; version=1.0.0"
+
+
+@asynccontextmanager
+async def _robots(count: int, server: _Server | None) -> AsyncIterator[list[Robot]]:
+    """``count`` in-process sim robots, or the server's robots connected over ``socket://``."""
+    async with AsyncExitStack() as stack:
+        if server is not None:
+            robots = await _connect(server)
+            for robot in robots:
+                stack.push_async_callback(robot.close)
+        else:
+            robots = [
+                await stack.enter_async_context(galileo_async.connect("sim://"))
+                for _ in range(count)
+            ]
+        yield robots
+
+
+async def _cores(seconds: float) -> float:
+    """This process's CPU over ``seconds`` of wall time, in cores."""
+    cpu, wall = time.process_time(), time.perf_counter()
+    await asyncio.sleep(seconds)
+    return (time.process_time() - cpu) / (time.perf_counter() - wall)
+
+
+async def _scrapes(url: str, accept: str | None, count: int) -> tuple[list[float], int]:
+    """``count`` GETs of ``url``: their times in s, and the size of the last answer."""
+    headers = {} if accept is None else {"Accept": accept}
+    times: list[float] = []
+    size = 0
+    async with aiohttp.ClientSession() as session:
+        for _ in range(count):
+            began = time.perf_counter()
+            async with session.get(url, headers=headers) as answer:
+                body = await answer.read()
+            times.append(time.perf_counter() - began)
+            size = len(body)
+            await asyncio.sleep(0.05)  # frames arrive between scrapes, as they would
+    return times, size
+
+
+async def measure(
+    count: int, seconds: float, *, server: _Server | None = None, scrapes: int = SCRAPES,
+    rounds: int = ROUNDS,
+) -> dict[str, Any]:  # fmt: skip
+    """Bare and followed windows of ``count`` robots, RSS of following them, scrape times."""
+    bare: list[float] = []
+    followed: list[float] = []
+    rss = 0.0
+    async with _robots(count, server) as robots:
+        await asyncio.sleep(1.0)  # every robot's frames flowing
+        for round_ in range(rounds):
+            bare.append(await _cores(seconds))
+            before = rss_bytes()
+            metrics = Metrics()
+            for index, robot in enumerate(robots):
+                metrics.add_robot(robot, name=f"robot{index}")
+            if round_ == 0:
+                rss = (rss_bytes() - before) / count
+            followed.append(await _cores(seconds))
+            if round_ < rounds - 1:
+                metrics.close()
+        frames = sum(robot.link.frames for robot in robots)
+        async with serve_metrics(metrics, port=0) as endpoint:
+            text, text_size = await _scrapes(endpoint.url, None, scrapes)
+            om, om_size = await _scrapes(endpoint.url, OPENMETRICS, scrapes)
+        metrics.close()
+    return {
+        "bare": statistics.median(bare), "followed": statistics.median(followed),
+        "rss_per_robot": rss, "text": text, "text_size": text_size, "openmetrics": om,
+        "openmetrics_size": om_size, "frames": frames,
+    }  # fmt: skip
+
+
+def run(
+    quick: bool = False,
+    robots: int | None = None,
+    seconds: float | None = None,
+    robots_process: bool | None = None,
+) -> list[Row]:
+    """The metrics rows for ``robots`` robots (default 1000; --quick 50)."""
+    count = robots or (50 if quick else 1000)
+    seconds = seconds or (2.0 if quick else 6.0)
+    if robots_process is None:
+        robots_process = count >= ROBOTS_PROCESS_FROM
+    raise_fd_limit()
+    server = _Server(count, traffic="spread", idle=True) if robots_process else None
+    try:
+        figures = asyncio.run(
+            measure(count, seconds, server=server, scrapes=10 if quick else SCRAPES)
+        )
+    finally:
+        if server is not None:
+            server.close()
+    where = "fleet_server process, socket://" if robots_process else "in-process sim://"
+    extra = {"robots": count, "where": where, "rounds": ROUNDS, "seconds": seconds}
+    collector = (figures["followed"] - figures["bare"]) * 1000 / count
+    text, om = figures["text"], figures["openmetrics"]
+
+    def ms(values: list[float], q: float) -> float:
+        return percentile(values, q) * 1000
+
+    return [
+        Row("metrics", f"CPU per robot, followed ({count} robots)",
+            figures["followed"] * 100 / count, "% core", figures["bare"] * 100 / count,
+            "no collector", extra=extra),
+        Row("metrics", "collector's CPU per 1000 robots", collector, "cores"),
+        Row("metrics", "RSS per robot followed", figures["rss_per_robot"], "bytes"),
+        Row("metrics", "scrape p50, Prometheus text", ms(text, 50), "ms"),
+        Row("metrics", "scrape p99, Prometheus text", ms(text, 99), "ms"),
+        Row("metrics", "scrape p50, OpenMetrics", ms(om, 50), "ms"),
+        Row("metrics", "scrape p99, OpenMetrics", ms(om, 99), "ms"),
+        Row("metrics", "scrape size, Prometheus text", figures["text_size"] / 1024, "KiB",
+            extra={"openmetrics_kib": round(figures["openmetrics_size"] / 1024, 1)}),
+    ]  # fmt: skip
