@@ -12,6 +12,9 @@ default), else in-process ``sim://`` robots. One Metrics follows all of them.
 * **scrape**: GET /metrics of serve_metrics on loopback from this process, SCRAPES times
   (p50, p99 in ms, end to end: collect, encode, HTTP), Prometheus text and OpenMetrics;
   the size of one answer.
+* **loop lag**: how late a 10 ms sleep of this loop wakes (p99) while it answers the
+  scrapes back to back; baseline, same run: the same robots and collector, no scrape.
+  A scrape reads the robots on the loop and encodes in a worker thread.
 * **RSS per robot followed**: this process's resident memory after Metrics follows every
   robot, less just before, / N.
 """
@@ -68,6 +71,24 @@ async def _cores(seconds: float) -> float:
     return (time.process_time() - cpu) / (time.perf_counter() - wall)
 
 
+async def _lags(lags: list[float]) -> None:
+    """How late each 10 ms sleep of this loop wakes, into ``lags`` (s), until cancelled."""
+    loop = asyncio.get_running_loop()
+    while True:
+        began = loop.time()
+        await asyncio.sleep(0.01)
+        lags.append(loop.time() - began - 0.01)
+
+
+async def _lagging(seconds: float) -> list[float]:
+    """The loop's lags over ``seconds`` with nothing else added."""
+    lags: list[float] = []
+    probe = asyncio.ensure_future(_lags(lags))
+    await asyncio.sleep(seconds)
+    probe.cancel()
+    return lags
+
+
 async def _scrapes(url: str, accept: str | None, count: int) -> tuple[list[float], int]:
     """``count`` GETs of ``url``: their times in s, and the size of the last answer."""
     headers = {} if accept is None else {"Accept": accept}
@@ -106,14 +127,19 @@ async def measure(
             if round_ < rounds - 1:
                 metrics.close()
         frames = sum(robot.link.frames for robot in robots)
+        quiet = await _lagging(seconds)
+        scraped: list[float] = []
+        probe = asyncio.ensure_future(_lags(scraped))
         async with serve_metrics(metrics, port=0) as endpoint:
             text, text_size = await _scrapes(endpoint.url, None, scrapes)
             om, om_size = await _scrapes(endpoint.url, OPENMETRICS, scrapes)
+        probe.cancel()
         metrics.close()
     return {
         "bare": statistics.median(bare), "followed": statistics.median(followed),
         "rss_per_robot": rss, "text": text, "text_size": text_size, "openmetrics": om,
         "openmetrics_size": om_size, "frames": frames,
+        "lag_quiet": quiet, "lag_scraped": scraped,
     }  # fmt: skip
 
 
@@ -155,6 +181,8 @@ def run(
         Row("metrics", "scrape p99, Prometheus text", ms(text, 99), "ms"),
         Row("metrics", "scrape p50, OpenMetrics", ms(om, 50), "ms"),
         Row("metrics", "scrape p99, OpenMetrics", ms(om, 99), "ms"),
+        Row("metrics", "loop lag p99 while scraped back to back", ms(figures["lag_scraped"], 99),
+            "ms", ms(figures["lag_quiet"], 99), "not scraped"),
         Row("metrics", "scrape size, Prometheus text", figures["text_size"] / 1024, "KiB",
             extra={"openmetrics_kib": round(figures["openmetrics_size"] / 1024, 1)}),
     ]  # fmt: skip
