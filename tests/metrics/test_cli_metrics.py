@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import signal
 import socket
 import subprocess
@@ -19,6 +20,7 @@ from galileo_async.cli.metrics_opt import metrics_address
 from galileo_async.metrics import DEFAULT_METRICS_HOST
 from tests.cli.test_cli import invoke
 from tests.support.metrics_support import WAIT, free_port, prometheus, query
+from tests.support.vda5050_support import Broker
 
 FAST = "sim://?speed=20"
 #: The long-running commands with --metrics, each with what it needs besides.
@@ -132,3 +134,18 @@ async def test_a_real_prometheus_scrapes_galileo_fleet_monitor(tmp_path: Path) -
     ):
         series = await query(base, "galileo_frames_received_total > 0", until_series=3)
         assert {s["metric"]["robot"] for s in series} == {"r0", "r1", "r2"}
+
+
+async def test_vda5050_fleet_serves_each_connected_robot(tmp_path: Path) -> None:
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text("".join(f'[robots.v{i}]\nport = "{FAST}"\n' for i in range(2)))
+    port = free_port()
+    url = f"http://127.0.0.1:{port}/metrics"
+    async with Broker.running(tmp_path) as broker:
+        args = ["vda5050", "--fleet", str(fleet), "--broker", broker.url, "--manufacturer", "m"]
+        with galileo(*args, "--metrics", str(port)) as process:
+            for name in ("v0", "v1"):
+                needle = f'galileo_frames_received_total{{robot="{name}"}}'
+                await asyncio.to_thread(scrape_until, url, needle, process)
+            process.send_signal(signal.SIGINT)
+            assert await asyncio.to_thread(process.wait, WAIT) == ExitCode.OK
