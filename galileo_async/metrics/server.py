@@ -41,7 +41,7 @@ class MetricsServer:
 
 
 class _Snapshot(Collector):
-    """The metrics one scrape collected: plain values, which any thread may encode."""
+    """Metrics one scrape collected (plain values), for an encoder that wants a collector."""
 
     def __init__(self, families: list[Metric]) -> None:
         self._families = families
@@ -50,14 +50,34 @@ class _Snapshot(Collector):
         return self._families
 
 
+#: How an OpenMetrics exposition ends; encoded family by family, only the last keeps it.
+_EOF = b"# EOF\n"
+
+
+async def _encode(
+    encoder: Callable[[Collector], bytes], families: list[Metric], openmetrics: bool
+) -> bytes:
+    """``families`` encoded one at a time, the loop running between two (a 1000 robots'
+    family takes tens of ms; a worker thread would hold the GIL against the loop's reads)."""
+    if not families:
+        return encoder(_Snapshot([]))
+    parts = []
+    for family in families:
+        part = encoder(_Snapshot([family]))
+        parts.append(part.removesuffix(_EOF) if openmetrics else part)
+        await asyncio.sleep(0)
+    if openmetrics:
+        parts.append(_EOF)
+    return b"".join(parts)
+
+
 def _handler(registry: CollectorRegistry) -> Callable[[web.Request], Awaitable[web.Response]]:
     async def metrics(request: web.Request) -> web.Response:
         # OpenMetrics text when the Accept header asks for it, else the Prometheus text.
         encoder, content_type = choose_encoder(request.headers.get("Accept", ""))
-        # The robots are read here, on their loop; the text, which takes several times as
-        # long at 1000 robots (BENCHMARKS.md), is written in a worker thread from the values.
-        snapshot = _Snapshot(list(registry.collect()))
-        body = await asyncio.get_running_loop().run_in_executor(None, encoder, snapshot)
+        families = list(registry.collect())  # the robots, read on their loop
+        openmetrics = content_type.startswith("application/openmetrics-text")
+        body = await _encode(encoder, families, openmetrics)
         return web.Response(body=body, headers={"Content-Type": content_type})
 
     return metrics
@@ -71,8 +91,8 @@ async def serve_metrics(
 ) -> AsyncIterator[MetricsServer]:
     """Serve ``metrics`` (a Metrics, or any collector) at http://host:port/metrics while open.
 
-    Each scrape reads the robots on this event loop and encodes what it read in a worker
-    thread (the loop runs on meanwhile). Port 0 binds a free port (see ``.port``); an
+    Each scrape reads the robots on this event loop, then encodes what it read one metric
+    at a time, letting the loop run between two. Port 0 binds a free port (see ``.port``); an
     address that cannot be bound (in use, not local) raises OSError naming it, and leaving
     the block, however it is left, closes the endpoint within about a second.
     """
