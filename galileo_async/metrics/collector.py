@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from prometheus_client.core import (
     CounterMetricFamily,
@@ -191,83 +191,80 @@ class Metrics(Collector):
             yield name, followed.robot.link_state
 
     def collect(self) -> Iterator[Metric]:
-        """The metrics now (called by the registry at each scrape)."""
-        labels = ["robot"]
+        """The metrics now, one family per step (the registry calls it at each scrape).
+
+        Each family is read when it is reached: a caller may let the loop run between two
+        (serve_metrics does), so two families can be a few milliseconds apart.
+        """
         state = StateSetMetricFamily(
-            "galileo_link_state", "The link's state (LinkState).", labels=labels
-        )
-        connected = GaugeMetricFamily(
-            "galileo_link_connected", "1 while the link's transport is open.", labels=labels
+            "galileo_link_state", "The link's state (LinkState).", labels=["robot"]
         )
         for name, now in self._states():
             state.add_metric([name], {value: now.value == value for value in _STATES})
-            followed = self._robots.get(name)
-            connected.add_metric(
-                [name], 1.0 if followed is not None and followed.robot.link.connected else 0.0
-            )
         yield state
+        connected = GaugeMetricFamily(
+            "galileo_link_connected", "1 while the link's transport is open.", labels=["robot"]
+        )
+        for name, _ in self._states():
+            followed = self._robots.get(name)
+            is_open = followed is not None and followed.robot.link.connected
+            connected.add_metric([name], 1.0 if is_open else 0.0)
         yield connected
-        yield from self._counters(labels)
-        yield from self._status_gauges(labels)
-
-    def _counters(self, labels: list[str]) -> Iterator[Metric]:
-        def counter(name: str, doc: str) -> CounterMetricFamily:
-            return CounterMetricFamily(name, doc, labels=labels)
-
-        frames = counter("galileo_frames_received", "Valid status frames received.")
-        lost = counter("galileo_frames_lost", "Frames missing from the time_stamp sequence.")
-        stale = counter("galileo_link_stale", "Times the link went stale (LinkStale events).")
-        dropped = counter(
-            "galileo_link_lost", "Times the connection was lost (ConnectionLost events)."
-        )
-        sent = counter("galileo_commands_sent", "Commands written to the robot.")
-        superseded = counter(
-            "galileo_commands_superseded",
-            "Queued commands dropped unwritten: replaced by a later one or withdrawn by a stop.",
-        )
-        driven = counter(
-            "galileo_odometer_meters",
-            "Metres driven, summed from the status poses (jumps left out).",
-        )
-        cycles = counter("galileo_charge_cycles", "Charging starts (charge_status to charging).")
+        for name, doc, read in _COUNTERS:
+            family = CounterMetricFamily(name, doc, labels=["robot"])
+            for robot, followed in self._robots.items():
+                family.add_metric([robot], read(followed))
+            yield family
         endings = CounterMetricFamily(
             "galileo_goals_ended", "Goals ended, by ending.", labels=["robot", "ending"]
         )
-        for name, followed in self._robots.items():
-            link = followed.robot.link
-            key = [name]
-            frames.add_metric(key, link.frames)
-            lost.add_metric(key, link.lost_frames)
-            stale.add_metric(key, followed.stale)
-            dropped.add_metric(key, followed.lost)
-            sent.add_metric(key, link.commands_sent)
-            superseded.add_metric(key, link.commands_superseded)
-            driven.add_metric(key, followed.metres)
-            cycles.add_metric(key, followed.charge_cycles)
+        for robot, followed in self._robots.items():
             for ending, count in followed.endings.items():
-                endings.add_metric([name, ending], count)
-        yield from (frames, lost, stale, dropped, sent, superseded, driven, cycles, endings)
+                endings.add_metric([robot, ending], count)
+        yield endings
+        for name, doc, gauge in _GAUGES:
+            reading = GaugeMetricFamily(name, doc, labels=["robot"])
+            for robot, followed in self._robots.items():
+                value = gauge(followed)
+                if value is not None:
+                    reading.add_metric([robot], value)
+            yield reading
 
-    def _status_gauges(self, labels: list[str]) -> Iterator[Metric]:
-        volts = GaugeMetricFamily(
-            "galileo_battery_volts", "Battery voltage (the status's power).", labels=labels
-        )
-        percent = GaugeMetricFamily(
-            "galileo_battery_percent",
-            "Estimated battery charge, 0 to 100, from the voltage (galileo_async.battery).",
-            labels=labels,
-        )
-        age = GaugeMetricFamily(
-            "galileo_last_frame_age_seconds", "Seconds since the last valid frame.", labels=labels
-        )
-        for name, followed in self._robots.items():
-            robot = followed.robot
-            status = robot.status
-            power = None if status is None else status.power
-            if power is not None:
-                volts.add_metric([name], power)
-                percent.add_metric([name], battery_charge(power))
-            frame_age = robot.link.last_frame_age
-            if frame_age is not None:
-                age.add_metric([name], frame_age)
-        yield from (volts, percent, age)
+
+def _volts(followed: _Followed) -> float | None:
+    status = followed.robot.status
+    return None if status is None else status.power
+
+
+def _percent(followed: _Followed) -> float | None:
+    volts = _volts(followed)
+    return None if volts is None else battery_charge(volts)
+
+
+#: The counters read per robot: name (without _total), help, how to read it.
+_COUNTERS: tuple[tuple[str, str, Callable[[_Followed], float]], ...] = (
+    ("galileo_frames_received", "Valid status frames received.",
+     lambda f: f.robot.link.frames),
+    ("galileo_frames_lost", "Frames missing from the time_stamp sequence.",
+     lambda f: f.robot.link.lost_frames),
+    ("galileo_link_stale", "Times the link went stale (LinkStale events).", lambda f: f.stale),
+    ("galileo_link_lost", "Times the connection was lost (ConnectionLost events).",
+     lambda f: f.lost),
+    ("galileo_commands_sent", "Commands written to the robot.",
+     lambda f: f.robot.link.commands_sent),
+    ("galileo_commands_superseded",
+     "Queued commands dropped unwritten: replaced by a later one or withdrawn by a stop.",
+     lambda f: f.robot.link.commands_superseded),
+    ("galileo_odometer_meters", "Metres driven, summed from the status poses (jumps left out).",
+     lambda f: f.metres),
+    ("galileo_charge_cycles", "Charging starts (charge_status to charging).",
+     lambda f: f.charge_cycles),
+)  # fmt: skip
+#: The gauges read per robot (None: no sample for that robot yet).
+_GAUGES: tuple[tuple[str, str, Callable[[_Followed], float | None]], ...] = (
+    ("galileo_battery_volts", "Battery voltage (the status's power).", _volts),
+    ("galileo_battery_percent",
+     "Estimated battery charge, 0 to 100, from the voltage (galileo_async.battery).", _percent),
+    ("galileo_last_frame_age_seconds", "Seconds since the last valid frame.",
+     lambda f: f.robot.link.last_frame_age),
+)  # fmt: skip

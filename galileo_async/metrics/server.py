@@ -55,12 +55,10 @@ _EOF = b"# EOF\n"
 
 
 async def _encode(
-    encoder: Callable[[Collector], bytes], families: list[Metric], openmetrics: bool
+    encoder: Callable[[Collector], bytes], families: Iterable[Metric], openmetrics: bool
 ) -> bytes:
-    """``families`` encoded one at a time, the loop running between two (a 1000 robots'
-    family takes tens of ms; a worker thread would hold the GIL against the loop's reads)."""
-    if not families:
-        return encoder(_Snapshot([]))
+    """Each of ``families`` read and encoded in turn, the loop running between two (a family
+    of 1000 robots takes tens of ms; a worker thread would hold the GIL against the loop)."""
     parts = []
     for family in families:
         part = encoder(_Snapshot([family]))
@@ -75,9 +73,9 @@ def _handler(registry: CollectorRegistry) -> Callable[[web.Request], Awaitable[w
     async def metrics(request: web.Request) -> web.Response:
         # OpenMetrics text when the Accept header asks for it, else the Prometheus text.
         encoder, content_type = choose_encoder(request.headers.get("Accept", ""))
-        families = list(registry.collect())  # the robots, read on their loop
         openmetrics = content_type.startswith("application/openmetrics-text")
-        body = await _encode(encoder, families, openmetrics)
+        # The robots are read on their loop, family by family, as the encoding reaches them.
+        body = await _encode(encoder, registry.collect(), openmetrics)
         return web.Response(body=body, headers={"Content-Type": content_type})
 
     return metrics
@@ -91,8 +89,8 @@ async def serve_metrics(
 ) -> AsyncIterator[MetricsServer]:
     """Serve ``metrics`` (a Metrics, or any collector) at http://host:port/metrics while open.
 
-    Each scrape reads the robots on this event loop, then encodes what it read one metric
-    at a time, letting the loop run between two. Port 0 binds a free port (see ``.port``); an
+    Each scrape reads and encodes one metric of every robot at a time, on this event loop,
+    letting the loop run between two. Port 0 binds a free port (see ``.port``); an
     address that cannot be bound (in use, not local) raises OSError naming it, and leaving
     the block, however it is left, closes the endpoint within about a second.
     """
