@@ -173,6 +173,8 @@ def mission_schedule(
     from ..missions.schedule_model import zone_of
 
     serve = metrics_address(metrics)
+    if sim and serve is not None:
+        fail("--metrics is for a robot's schedule, not --sim", ExitCode.USAGE)
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
     schedule = _load(settings, file, points)

@@ -55,6 +55,14 @@ def test_a_bad_address_is_a_usage_error_before_anything_connects(command: str, b
     assert "connect" not in result.output.lower()
 
 
+def test_a_schedule_played_with_sim_serves_none(tmp_path: Path) -> None:
+    schedule = tmp_path / "schedule.yaml"
+    schedule.write_text("not: a schedule\n")
+    result = invoke("mission", "schedule", str(schedule), "--sim", "--metrics", "9464", port=None)
+    assert result.exit_code == ExitCode.USAGE, result.output
+    assert "--metrics is for a robot's schedule, not --sim" in result.output
+
+
 def test_fleet_monitor_takes_it_too(tmp_path: Path) -> None:
     fleet = tmp_path / "fleet.toml"
     fleet.write_text('[robots.a]\nport = "socket://127.0.0.1:1"\n')

@@ -9,10 +9,13 @@ import pytest
 
 import galileo_async as galileo
 from galileo_async.battery import battery_charge
+from galileo_async.fleet import Fleet
 from galileo_async.metrics import GOAL_ENDINGS, ODOMETER_JUMP, Metrics
 from galileo_async.models import ChargeStatus, LinkState
+from galileo_async.robot import Robot
+from galileo_async.sim import Simulator
 from galileo_async.testing import simulated_fleet, simulated_robot
-from tests.support.metrics_support import sample, samples
+from tests.support.metrics_support import free_port, sample, samples
 
 
 def state(metrics: Metrics, name: str, value: str) -> float | None:
@@ -246,22 +249,35 @@ async def test_a_fleet_by_its_names() -> None:
 
 
 async def test_a_fleet_robot_that_connects_later_is_followed_from_then() -> None:
-    async with simulated_fleet(2) as (fleet, _devices):
+    # Real clock: the late robot is a simulator served on a loopback port that opens later.
+    port = free_port()
+    ports = {"early": "sim://?speed=20", "late": f"socket://127.0.0.1:{port}"}
+    async with galileo.connect_fleet(ports, retry_initial=0.05, retry_max=0.2) as fleet:
         metrics = Metrics()
         joined: list[str] = []
         fleet.add_connect_listener(lambda name, _robot: joined.append(name))
         metrics.add_fleet(fleet)
         try:
-            # Both robots connected before add_fleet; the listener is called on later ones.
-            assert joined == []
-            robot = fleet["robot1"]
-            metrics.remove_robot("robot1")
-            assert "robot1" in metrics.names  # still the fleet's, with its link state only
-            assert sample(metrics, "galileo_frames_received_total", robot="robot1") is None
-            assert state(metrics, "robot1", "up")
-            metrics._joined("robot1", robot)  # what the fleet calls when a robot connects
-            assert sample(metrics, "galileo_frames_received_total", robot="robot1") == (
-                robot.link.frames
-            )
+            assert metrics.names == ("early", "late")
+            assert state(metrics, "late", "lost") == 1  # tried once, not connected
+            assert sample(metrics, "galileo_frames_received_total", robot="late") is None
+            async with Simulator(speed=20) as sim:
+                await sim.serve_tcp(port=port)
+                late = await until_connected(fleet, "late")
+                assert joined == ["late"]
+                await late.wait_until(lambda _s: late.link.frames >= 10, timeout=10)
+                frames = sample(metrics, "galileo_frames_received_total", robot="late")
+                assert frames is not None
+                assert frames >= 10
+                assert state(metrics, "late", "up") == 1
+                await fleet.close()
         finally:
             metrics.close()
+
+
+async def until_connected(fleet: Fleet, name: str) -> Robot:
+    """Robot ``name`` of ``fleet`` once it connected (bounded, real time)."""
+    async with asyncio.timeout(20):
+        while (robot := fleet.get(name)) is None:  # noqa: ASYNC110 - no event to wait on
+            await asyncio.sleep(0.05)
+    return robot
