@@ -27,7 +27,7 @@ from ..events import (
     LinkStaleEvent,
 )
 from ..fleet import Fleet
-from ..models import ChargeStatus, GalileoStatus, LinkState
+from ..models import ChargeStatus, GalileoStatus, LinkState, _wire_pose_x, _wire_pose_y
 from ..robot import Robot
 
 __all__ = ["GOAL_ENDINGS", "ODOMETER_JUMP", "ODOMETER_STEP", "Metrics"]
@@ -80,7 +80,7 @@ class _Followed:
 
     def update(self, status: GalileoStatus) -> None:
         """The odometer: the pose's moves of ODOMETER_STEP or more, jumps left out (per frame)."""
-        x, y = status.current_pose_x, status.current_pose_y
+        x, y = _wire_pose_x(status), _wire_pose_y(status)
         if x is None or y is None:
             return
         dx, dy = x - self.x, y - self.y
