@@ -7,6 +7,8 @@ one loop (Mosquitto); the robots in another process by default from 500 vehicles
 
 ``python -m benchmarks foxglove [--rate HZ]``: 1000 robots (another process, socket://) behind
 one Foxglove server, with no viewer and with one subscribed to everything (--quick: 50).
+``python -m benchmarks metrics [--robots N] [--[no-]robots-process]``: one Metrics following N
+robots (default 1000): its CPU and memory, scrape times.
 
 ``python -m benchmarks breakdown [--instructions]``: the fleet's per-frame cost, stage by stage.
 
@@ -28,7 +30,8 @@ from pathlib import Path
 from .common import Row, machine, render_table
 
 BENCHMARKS = (
-    "ingest", "latency", "fleet", "fleet_merged", "vda5050", "foxglove", "virtual", "imports",
+    "ingest", "latency", "fleet", "fleet_merged", "vda5050", "foxglove", "metrics", "virtual",
+    "imports",
 )  # fmt: skip
 #: Run only when named: analysis, not targets.
 EXTRA = ("breakdown", "mcap")
@@ -93,10 +96,16 @@ def main(argv: list[str] | None = None) -> int:
         "--vehicles", type=int, default=None, help="vda5050: vehicles (default 100; --quick 20)"
     )
     parser.add_argument(
+        "--robots",
+        type=int,
+        default=None,
+        help="metrics: robots followed (default 1000; --quick 50)",
+    )
+    parser.add_argument(
         "--robots-process",
         action=argparse.BooleanOptionalAction,
         default=None,
-        help="vda5050: the robots in a benchmarks.fleet_server process, connected over "
+        help="vda5050, metrics: the robots in a benchmarks.fleet_server process, connected over "
         "socket:// (spread traffic), so that the process measured runs the adapters and "
         "not the simulation (default: on from 500 vehicles, else in-process sim://)",
     )
@@ -128,6 +137,9 @@ def main(argv: list[str] | None = None) -> int:
             options["robots_process"] = args.robots_process
         if name == "foxglove" and args.rate is not None:
             options["rate"] = args.rate
+        if name == "metrics":
+            options["robots"] = args.robots
+            options["robots_process"] = args.robots_process
         if name == "breakdown":
             options["instructions"] = args.instructions
         if name in ("fleet", "fleet_merged"):

@@ -404,6 +404,10 @@ class _Filling(GalileoStatus):
 #: A status's power as the wire value it keeps (no float32_decimal): for code that only
 #: compares it with zero, on every frame (StatusStore.update).
 _wire_power: Callable[[GalileoStatus], float | None] = attrgetter("_power")
+#: A status's pose as the wire values it keeps, for code that reads it on every frame
+#: (galileo_async.metrics' odometer): a field's float32_decimal costs more than the read.
+_wire_pose_x: Callable[[GalileoStatus], float | None] = attrgetter("_current_pose_x")
+_wire_pose_y: Callable[[GalileoStatus], float | None] = attrgetter("_current_pose_y")
 #: Every slot's value of a status, in _FIELD_NAMES order (the wire values).
 _WIRE = attrgetter(*_SLOTS.values())
 #: Every field as it reads, in _FIELD_NAMES order.

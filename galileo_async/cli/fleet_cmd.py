@@ -18,6 +18,7 @@ from ..robot.stopping import DEFAULT_STOP_TIMEOUT
 from .fleet_view import SORT_KEYS, FleetRow, FleetView
 from .goals import aclose
 from .map_render import save_svg
+from .metrics_opt import MetricsOption, metrics_address, metrics_served
 from .monitor_screen import keys_pressed
 from .render import event_text, status_record
 from .runner import ExitCode, fail, out_console, run, settings_of, timestamp
@@ -140,14 +141,18 @@ def monitor(
     rows: RowsOption = 20,
     targets: TargetsOption = None,
     svg: SvgOption = None,
+    metrics: MetricsOption = None,
 ) -> None:
     """Live: a row per robot, a summary line and the map of every robot (key q quits)."""
+    serve = metrics_address(metrics)
     settings, spec = settings_of(ctx), _spec(ctx)
     states = _view_options(sort, state)
     model = map_model(list(spec.ports.values()), targets or spec.targets)
 
     async def main() -> int:
-        async with spec.connect(**_served(spec)) as fleet:
+        async with metrics_served(serve) as served, spec.connect(**_served(spec)) as fleet:
+            if served is not None:
+                served.add_fleet(fleet)
             view = FleetView(fleet, model, sort=sort, match=match, states=states, limit=rows)
             try:
                 await _watch(fleet, view, duration)

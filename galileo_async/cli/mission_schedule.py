@@ -26,6 +26,7 @@ from ..missions.schedule import (
     WindowOpened,
     WindowSkipped,
 )
+from .metrics_opt import MetricsOption, metrics_address
 from .mission import PointsOption, file_failure, plan_errors, point_source
 from .mission_run import event_line, print_rejected
 from .output import out_console, timestamp
@@ -162,6 +163,7 @@ def mission_schedule(
     json_output: Annotated[
         bool, typer.Option("--json", help="A JSON line per event (windows, charging, steps).")
     ] = False,
+    metrics: MetricsOption = None,
 ) -> None:
     """Run a schedule's windows until stopped, with a line per window, step and charging.
 
@@ -170,6 +172,9 @@ def mission_schedule(
     """
     from ..missions.schedule_model import zone_of
 
+    serve = metrics_address(metrics)
+    if sim and serve is not None:
+        fail("--metrics is for a robot's schedule, not --sim", ExitCode.USAGE)
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
     schedule = _load(settings, file, points)
@@ -194,7 +199,7 @@ def mission_schedule(
             return print_rejected(exc)
         return int(ExitCode.OK)  # run_schedule returns only by cancellation
 
-    run_robot(settings, body, navigation=None, moving=True)
+    run_robot(settings, body, navigation=None, moving=True, metrics=serve)
 
 
 async def _play(

@@ -342,8 +342,12 @@ def run_robot(
     interrupted: ExitCode = ExitCode.INTERRUPTED,
     long_running: bool = False,
     moving: bool = False,
+    metrics: tuple[str, int] | None = None,
 ) -> NoReturn:
     """Connect (connect waits for the first status), maybe open navigation, run ``body``, exit.
+
+    ``metrics``: (host, port) of a Prometheus endpoint served around it all, the robot
+    labelled by its URL (metrics_opt.py; bound before connecting).
 
     ``navigation``: False = leave it alone; True = start it when it is closed; None = start
     it only on sim:// (each invocation gets a fresh simulated robot with navigation closed).
@@ -355,9 +359,12 @@ def run_robot(
 
     async def main() -> int | None:
         from ..robot import connect
+        from .metrics_opt import metrics_served
 
         options = settings.connect_options(long_running=long_running)
-        async with connect(url, **options) as robot:
+        async with metrics_served(metrics) as served, connect(url, **options) as robot:
+            if served is not None:
+                served.add_robot(robot, name=url)
             start = is_sim(settings.port) if navigation is None else navigation
             if start:
                 await ensure_navigation(robot, settings)

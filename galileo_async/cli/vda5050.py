@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import anyio
 import typer
 
+from .metrics_opt import MetricsOption, metrics_address
 from .runner import ExitCode, err_console, fail, run_robot, settings_of
 from .signals import stop_requested, stop_signal
 
@@ -197,8 +198,10 @@ def vda5050(
     width: Annotated[float, typer.Option(help="Factsheet: the robot's width, m.")] = 0.0,
     length: Annotated[float, typer.Option(help="Factsheet: the robot's length, m.")] = 0.0,
     height: Annotated[float, typer.Option(help="Factsheet: the robot's height, m.")] = 0.0,
+    metrics: MetricsOption = None,
 ) -> None:
     """Be a VDA 5050 2.0 or 2.1 vehicle: orders and instant actions from a master over MQTT."""
+    serve = metrics_address(metrics)
     settings = settings_of(ctx)
     try:
         from ..vda5050 import Vehicle, VehicleConfig, parse_broker_url, redact_url
@@ -240,7 +243,7 @@ def vda5050(
         from .vda5050_fleet import run_fleet
 
         with _warnings_on_stderr(settings.verbose):
-            run_fleet(settings, fleet, shard, common)
+            run_fleet(settings, fleet, shard, common, metrics=serve)
 
     async def body(robot: Robot) -> int:
         vehicle = Vehicle(robot, config)
@@ -283,4 +286,4 @@ def vda5050(
         err_console().print(f"stopped by {name}: {shutdown}; {offline}", markup=False)
         return 0
 
-    run_robot(settings, body, long_running=True, interrupted=ExitCode.OK)
+    run_robot(settings, body, long_running=True, interrupted=ExitCode.OK, metrics=serve)

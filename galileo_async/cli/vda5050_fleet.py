@@ -16,11 +16,13 @@ from ..errors import InvalidArgument
 from ..fleet.file import FleetSpec, load_fleet_file
 from ..fleet.shards import parse_shard
 from ..links import link_kind
+from .metrics_opt import MetricsAddress, follow_robots, metrics_served
 from .runner import ExitCode, Settings, err_console, fail, run
 from .signals import stop_requested, stop_signal
 
 if TYPE_CHECKING:
-    from ..vda5050.fleet import FleetVehicle
+    from ..robot import Robot
+    from ..vda5050.fleet import FleetVehicle, VehicleFleet
 
 __all__ = ["fleet_vehicles", "run_fleet"]
 
@@ -63,9 +65,17 @@ def fleet_vehicles(spec: FleetSpec, common: dict[str, Any]) -> dict[str, FleetVe
 
 
 def run_fleet(
-    settings: Settings, path: Path, shard_text: str | None, common: dict[str, Any]
+    settings: Settings,
+    path: Path,
+    shard_text: str | None,
+    common: dict[str, Any],
+    *,
+    metrics: MetricsAddress | None = None,
 ) -> NoReturn:
-    """Run the robots of the fleet file ``path`` (of shard ``shard_text``) as vehicles; exit."""
+    """Run the robots of the fleet file ``path`` (of shard ``shard_text``) as vehicles; exit.
+
+    ``metrics``: serve Prometheus metrics of every connected robot there (metrics_opt.py).
+    """
     from ..vda5050 import redact_url
     from ..vda5050.fleet import VehicleFleet
 
@@ -95,8 +105,10 @@ def run_fleet(
             f"VDA 5050 fleet: {len(robots)} vehicles of {path}{part} on {shown} · Ctrl-C stops",
             markup=False,
         )
-        async with anyio.create_task_group() as group:
+        async with metrics_served(metrics) as served, anyio.create_task_group() as group:
             group.start_soon(fleet.run)
+            if served is not None:
+                group.start_soon(follow_robots, served, partial(_connected, fleet))
             with stop_requested() as stop:
                 await stop.wait()
             received = stop_signal()
@@ -117,3 +129,12 @@ def run_fleet(
         return 0
 
     run(settings, main, interrupted=ExitCode.OK)
+
+
+def _connected(fleet: VehicleFleet) -> dict[str, Robot]:
+    """The robots of ``fleet``'s vehicles that run now, by name."""
+    return {
+        name: vehicle.robot
+        for name, vehicle in fleet.vehicles.items()
+        if not fleet.ended(name) and not vehicle.robot.closed
+    }

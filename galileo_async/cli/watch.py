@@ -18,6 +18,7 @@ from ..models import GalileoStatus
 from .goals import aclose
 from .map_model import MapModel, known_targets
 from .map_render import save_svg
+from .metrics_opt import MetricsOption, metrics_address
 from .monitor_screen import FULL_ROWS, MonitorView, keys_pressed
 from .render import (
     event_dict,
@@ -194,8 +195,10 @@ def monitor(
     json_output: Annotated[
         bool, typer.Option("--json", help="JSON lines: a status a second, and every event.")
     ] = False,
+    metrics: MetricsOption = None,
 ) -> None:
     """Live dashboard and map (keys: q quit, m map on/off, ? help); --json: JSON lines."""
+    serve = metrics_address(metrics)
     settings = settings_of(ctx)
     settings.json = settings.json or json_output
     model = map_model([settings.url], targets)
@@ -255,7 +258,7 @@ def monitor(
                 save_svg(screen(), svg, title=f"galileo monitor {settings.url}")
         return 0
 
-    run_robot(settings, body, interrupted=ExitCode.OK, long_running=True)
+    run_robot(settings, body, interrupted=ExitCode.OK, long_running=True, metrics=serve)
 
 
 def event_line(event: Event, seconds: float) -> dict[str, Any]:

@@ -90,6 +90,7 @@ class Fleet:
         self._tasks: set[asyncio.Task[None]] = set()
         self._closed = False
         self._close_task: asyncio.Task[None] | None = None
+        self._connect_listeners: list[Callable[[str, Robot], None]] = []
 
     # --- the mapping -------------------------------------------------------------------
 
@@ -151,6 +152,15 @@ class Fleet:
     def closed(self) -> bool:
         """True once close() was called."""
         return self._closed
+
+    def add_connect_listener(self, listener: Callable[[str, Robot], None]) -> None:
+        """Call ``listener(name, robot)`` when a robot connects later (synchronous, cheap)."""
+        self._connect_listeners.append(listener)
+
+    def remove_connect_listener(self, listener: Callable[[str, Robot], None]) -> None:
+        """Stop calling ``listener`` (no-op if it is not one)."""
+        if listener in self._connect_listeners:
+            self._connect_listeners.remove(listener)
 
     # --- streams -----------------------------------------------------------------------
 
@@ -273,6 +283,11 @@ class Fleet:
             member.robot, member.error = robot, None
             member.attempts += 1
             self._hub.attach(member.name, robot)
+            for listener in list(self._connect_listeners):
+                try:
+                    listener(member.name, robot)
+                except Exception:  # a broken listener must not keep the robot out
+                    _log.exception("connect listener %r failed", listener)
             member.tried.set()
             return
 

@@ -8,7 +8,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ConnectionLost, GalileoConnectionError, GalileoError
+from ..errors import CommandSuperseded, ConnectionLost, GalileoConnectionError, GalileoError
 from ..protocol import Command
 from . import options as _options
 from .channel import Channel
@@ -35,12 +35,19 @@ class Pending:
 class CommandQueue:
     """Commands waiting for the writer, in order; the writer pops ``entries[0]``."""
 
-    __slots__ = ("_check", "_room_waiters", "_supersedable", "entries", "max_queued", "ready")
+    __slots__ = (
+        "_check", "_room_waiters", "_supersedable", "entries", "max_queued", "ready", "stats",
+    )  # fmt: skip
 
-    def __init__(self, max_queued: int, check: Callable[[], None]) -> None:
-        """``check``: raises (ConnectionLost) unless the link can take a command now."""
+    def __init__(self, max_queued: int, check: Callable[[], None], stats: LinkStats) -> None:
+        """``check``: raises (ConnectionLost) unless the link can take a command now.
+
+        ``stats.commands_superseded`` counts the commands dropped here unwritten because a
+        later command or a user stop superseded them.
+        """
         self.max_queued = max_queued
         self._check = check
+        self.stats = stats
         self.entries: deque[Pending] = deque()
         #: Set when there is something for the writer.
         self.ready = asyncio.Event()
@@ -77,6 +84,7 @@ class CommandQueue:
             await self._wait_for_room()
         if written is not None and written.done():
             self.make_room()  # withdrawn while waiting for room: hand the place on
+            self._count_if_superseded(written)
             await written  # raises its failure
         entry = self.enqueue(command, written=written)
         future = entry.future
@@ -85,7 +93,13 @@ class CommandQueue:
         finally:
             if future.done() and (future.cancelled() or future.exception() is not None):
                 self.unqueue(future)  # not written: free its place now
+                self._count_if_superseded(future)
         return entry.answer
+
+    def _count_if_superseded(self, future: asyncio.Future[bool]) -> None:
+        """Count ``future``'s command as superseded if a user stop withdrew it."""
+        if not future.cancelled() and isinstance(future.exception(), CommandSuperseded):
+            self.stats.commands_superseded += 1
 
     def _supersede(self, kind: type[Command]) -> None:
         """Drop the queued commands that a command of type ``kind`` supersedes."""
@@ -98,6 +112,7 @@ class CommandQueue:
                 _log.debug("%s dropped: superseded by a later %s", entry.command, kind.__name__)
                 future.set_result(False)
                 self.unqueue(future)
+                self.stats.commands_superseded += 1
             else:
                 keep.append((entry, superseded_by))
         self._supersedable[:] = keep

@@ -70,7 +70,7 @@ class Link:
         self.reconnect = reconnect
         self.reconnect_initial = reconnect_initial
         self.reconnect_max = reconnect_max
-        self.queue = CommandQueue(max_queued_commands, self._check_can_send)
+        self.queue = CommandQueue(max_queued_commands, self._check_can_send, self.stats)
         self._writer_task: asyncio.Task[None] | None = None
         self._reconnect_task: asyncio.Task[None] | None = None
         self.watchdog = Watchdog(

@@ -61,6 +61,9 @@ class LinkStats:
     bytes_received: int
     reconnects: int
     commands_sent: int
+    #: Queued commands dropped unwritten: a later command replaced them (a drive session's
+    #: newer speed, an exit cancel before a newer goal) or a user stop withdrew them.
+    commands_superseded: int
     #: The transport is open (a reopened port with no status yet included); read
     #: ``connected`` (it is shown as that).
     transport_open: bool = field(repr=False)
@@ -76,6 +79,7 @@ class LinkStats:
         bytes_received: int = 0,
         reconnects: int = 0,
         commands_sent: int = 0,
+        commands_superseded: int = 0,
         connected: bool = False,
         state: LinkState = LinkState.CONNECTING,
         last_frame_at: float | None = None,
@@ -90,6 +94,7 @@ class LinkStats:
         self.bytes_received = bytes_received
         self.reconnects = reconnects
         self.commands_sent = commands_sent
+        self.commands_superseded = commands_superseded
         self.transport_open = connected
         self.state = state
         self.last_frame_at = last_frame_at

@@ -33,7 +33,7 @@ def test_every_example_is_tested() -> None:
     tested = {
         "goto.py", "patrol.py", "monitor.py", "teleop.py", "fleet.py", "fleet_dashboard.py",
         "vda5050_vehicle.py", "http_maps.py", "patrol_app.py", "test_patrol_app.py",
-        "mission.py", "foxglove_view.py", "record_mcap.py",
+        "mission.py", "foxglove_view.py", "record_mcap.py", "metrics.py",
     }  # fmt: skip
     assert {path.name for path in EXAMPLES.glob("*.py")} == tested
 
@@ -70,6 +70,15 @@ def test_mission_example_checks_then_runs_two_laps() -> None:
     assert out.count("dwell: done") == 2
     assert "steps[1] goto: reached" in out
     assert "mission 'two-lap patrol': completed, 2 laps" in out
+
+
+def test_metrics_example_serves_what_the_robot_did() -> None:
+    out = run_example("metrics.py", FAST_SIM, "0")  # port 0: a free one
+    assert "serving http://127.0.0.1:" in out
+    assert 'galileo_goals_ended_total{ending="reached",robot="robot1"} 2.0' in out
+    driven = [line for line in out.splitlines() if line.startswith("galileo_odometer")]
+    assert float(driven[0].split()[-1]) > 1.0
+    assert 'galileo_battery_volts{robot="robot1"}' in out
 
 
 def test_goto_example_handles_arrival_and_rejection() -> None:

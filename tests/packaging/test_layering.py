@@ -129,6 +129,7 @@ PARTS = {
     "galileo_async.vda5050": "vda5050",
     "galileo_async.foxglove": "foxglove",
     "galileo_async.missions": "missions",
+    "galileo_async.metrics": "metrics",
     "galileo_async.cli": "cli",
     "galileo_async.testing": "testing",
     "galileo_async.recording": "recording",
@@ -159,6 +160,8 @@ MAY_IMPORT = {
     "missions": {"base", "transitions", "state", "robot", "fleet", "links", "options"},
     # MCAP recordings of a Robot or a Fleet; the file's reading is the simulator's (replay).
     "recording": {"base", "transitions", "robot", "fleet", "sim", "schemas"},
+    # Prometheus metrics on the public Robot and Fleet API (docs/observability.md).
+    "metrics": {"base", "transitions", "robot", "fleet"},
     # Tests of applications: a Robot on the simulator, from both sides.
     "testing": {"base", "protocol", "options", "sim", "robot", "fleet", "missions"},
 }
