@@ -14,10 +14,12 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
+import anyio
 import typer
 
 from ..errors import GalileoError, InvalidArgument
 from ..fleet.file import FleetSpec, load_fleet_file
+from .metrics_opt import MetricsAddress, MetricsOption, metrics_address, metrics_served
 from .runner import ExitCode, checked_port, err_console, fail, run, run_robot, settings_of
 from .signals import stop_requested
 from .watch import TargetsOption, map_model
@@ -27,10 +29,8 @@ if TYPE_CHECKING:
     from ..foxglove import FoxgloveServer
     from ..robot import Robot
 
-__all__ = ["ATTACH_POLL", "HTTP_TARGETS_TIMEOUT", "foxglove"]
+__all__ = ["HTTP_TARGETS_TIMEOUT", "foxglove"]
 
-#: Seconds between looks for fleet robots that connected since (each is added once).
-ATTACH_POLL = 1.0
 #: Seconds an http:// robot has to list its map's targets (the scene shows none without).
 HTTP_TARGETS_TIMEOUT = 10.0
 
@@ -62,9 +62,11 @@ def foxglove(
         str, typer.Option("--name", help="The one robot's topic prefix (without --fleet).")
     ] = "robot",
     targets: TargetsOption = None,
+    metrics: MetricsOption = None,
 ) -> None:
     """Serve a Foxglove live view (ws://HOST:PORT) of the robot, or every robot of --fleet."""
     settings = settings_of(ctx)
+    address = metrics_address(metrics)
     try:
         import foxglove as _sdk  # noqa: F401
     except ImportError:
@@ -98,12 +100,15 @@ def foxglove(
                     await stop.wait()
             return 0
 
-        run_robot(settings, body, navigation=None, interrupted=ExitCode.OK, long_running=True)
+        run_robot(
+            settings, body, navigation=None, interrupted=ExitCode.OK, long_running=True,
+            metrics=address,
+        )  # fmt: skip
     fleet_spec = spec
 
     async def main() -> int:
         async with _server(host, port, rate) as server:
-            await _serve_fleet(server, fleet_spec, known)
+            await _serve_fleet(server, fleet_spec, known, address)
         return 0
 
     run(settings, main, interrupted=ExitCode.OK)
@@ -142,18 +147,42 @@ async def _http_targets(robot: Robot, known: Targets) -> Targets:
     return [(index, point.x, point.y) for index, point in enumerate(points)]
 
 
-async def _serve_fleet(server: FoxgloveServer, spec: FleetSpec, known: dict[str, Targets]) -> None:
+async def _serve_fleet(
+    server: FoxgloveServer,
+    spec: FleetSpec,
+    known: dict[str, Targets],
+    metrics: MetricsAddress | None,
+) -> None:
+    """Serve every robot of ``spec`` as it connects (now or later) until a stop signal."""
     served = {} if "control_socket" in spec.defaults else {"control_socket": True}
+    connected: asyncio.Queue[tuple[str, Robot]] = asyncio.Queue()
+
+    def on_connect(name: str, robot: Robot) -> None:
+        connected.put_nowait((name, robot))
+
+    async def attach() -> None:
+        attached: set[str] = set()
+        while True:
+            name, robot = await connected.get()
+            if name not in attached:  # each robot once, under its fleet name
+                attached.add(name)
+                server.add_robot(name, robot, targets=await _http_targets(robot, known[name]))
+
     fleet: Fleet
-    async with spec.connect(**served) as fleet:
-        waiting = list(fleet.names)
-        with stop_requested() as stop:
-            while not stop.is_set():  # robots that connect later are added when they do
-                for name in list(waiting):
-                    robot = fleet.get(name)
-                    if robot is not None:
-                        found = await _http_targets(robot, known[name])
-                        server.add_robot(name, robot, targets=found)
-                        waiting.remove(name)
-                with contextlib.suppress(asyncio.TimeoutError):
-                    await asyncio.wait_for(stop.wait(), ATTACH_POLL)
+    # The metrics' address is bound before anything connects (metrics_served).
+    async with metrics_served(metrics) as collector, spec.connect(**served) as fleet:
+        if collector is not None:
+            collector.add_fleet(fleet)
+        fleet.add_connect_listener(on_connect)
+        for name in fleet.names:
+            robot = fleet.get(name)
+            if robot is not None:
+                connected.put_nowait((name, robot))
+        try:
+            with stop_requested() as stop:
+                async with anyio.create_task_group() as group:
+                    group.start_soon(attach)
+                    await stop.wait()
+                    group.cancel_scope.cancel()
+        finally:
+            fleet.remove_connect_listener(on_connect)

@@ -36,6 +36,7 @@ COMMANDS = {
         "s",
     ],
     "mission schedule": ["mission", "schedule", "no-such-schedule.yaml"],
+    "foxglove": ["foxglove", "--port", "0"],
 }
 
 
@@ -126,6 +127,21 @@ def test_monitor_serves_its_robot_and_closes_the_port_on_exit() -> None:
             url, 'galileo_link_state{galileo_link_state="up",robot="sim://', process
         )
         assert f'galileo_frames_received_total{{robot="{FAST}"}}' in text
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=WAIT) == ExitCode.OK
+    with socket.socket() as probe:
+        assert probe.connect_ex(("127.0.0.1", port)) != 0
+
+
+def test_foxglove_serves_the_metrics_of_every_robot_of_its_fleet(tmp_path: Path) -> None:
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(f'[robots.alpha]\nport = "{FAST}"\n[robots.beta]\nport = "{FAST}"\n')
+    port = free_port()
+    url = f"http://127.0.0.1:{port}/metrics"
+    args = ("--fleet", str(fleet), "foxglove", "--port", "0", "--metrics", str(port))
+    with galileo(*args) as process:
+        text = scrape_until(url, 'galileo_frames_received_total{robot="beta"}', process)
+        assert 'galileo_frames_received_total{robot="alpha"}' in text
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=WAIT) == ExitCode.OK
     with socket.socket() as probe:
