@@ -25,8 +25,6 @@ _log = logging.getLogger(__name__)
 
 #: The name of a single Robot's channels (``/robot/raw`` …) unless told otherwise.
 DEFAULT_ROBOT_NAME = "robot"
-#: Seconds between two looks for fleet robots that connected since.
-_JOIN_POLL = 0.5
 
 
 class _Attached:
@@ -97,7 +95,7 @@ class McapRecorder:
         self._max_queued = max_queued
         self._writer: McapFileWriter
         self._attached: dict[str, _Attached] = {}
-        self._joiner: asyncio.Task[None] | None = None
+        self._fleet: Fleet | None = None
         self._stamp: Callable[[], int] = time.time_ns
         self._finishing: asyncio.Task[None] | None = None
         self._started = False
@@ -147,8 +145,8 @@ class McapRecorder:
             self._attach(self._name, source)
         else:
             self._attach_connected(source)
-            if len(self._attached) < len(source):
-                self._joiner = loop.create_task(self._join(source), name="mcap fleet joiner")
+            self._fleet = source
+            source.add_connect_listener(self._on_connect)
 
     def _attach(self, name: str, robot: Robot) -> None:
         self._attached[name] = _Attached(robot, name, self)
@@ -158,11 +156,10 @@ class McapRecorder:
             if name not in self._attached and (robot := fleet.get(name)) is not None:
                 self._attach(name, robot)
 
-    async def _join(self, fleet: Fleet) -> None:
-        """Attach fleet robots as they connect (polled: no task per robot)."""
-        while len(self._attached) < len(fleet) and not fleet.closed:
-            await asyncio.sleep(_JOIN_POLL)
-            self._attach_connected(fleet)
+    def _on_connect(self, name: str, robot: Robot) -> None:
+        """A fleet robot that connected later: recorded from now on."""
+        if self._finishing is None and name not in self._attached:
+            self._attach(name, robot)
 
     async def aclose(self) -> None:
         """Stop recording and finish the file: idempotent, shielded from cancellation and
@@ -170,21 +167,18 @@ class McapRecorder:
         if not self._started:
             return
         if self._finishing is None:
-            joiner, self._joiner = self._joiner, None
-            if joiner is not None:
-                joiner.cancel()
+            if self._fleet is not None:
+                self._fleet.remove_connect_listener(self._on_connect)
             for attached in self._attached.values():
                 attached.detach()
             self._finishing = asyncio.get_running_loop().create_task(
-                self._finish(joiner), name="mcap finish"
+                self._finish(), name="mcap finish"
             )
         await finish_shielded(self._finishing, f"finishing the recording {self.path}")
         if self._writer.error is not None:
             raise OSError(f"recording to {self.path} failed: {self._writer.error}")
 
-    async def _finish(self, joiner: asyncio.Task[None] | None) -> None:
-        if joiner is not None:
-            await asyncio.wait([joiner])
+    async def _finish(self) -> None:
         await self._writer.finish()
         if self.dropped:
             _log.warning(

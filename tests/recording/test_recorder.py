@@ -12,6 +12,7 @@ import anyio
 import pytest
 from mcap.reader import make_reader
 
+import galileo_async as galileo
 from galileo_async import GalileoStatus, InvalidArgument
 from galileo_async.recording import (
     LOG_SCHEMA_NAME,
@@ -22,8 +23,10 @@ from galileo_async.recording import (
 )
 from galileo_async.recording.writer import McapFileWriter
 from galileo_async.robot import Robot
+from galileo_async.sim import Simulator
 from galileo_async.testing import recorded_statuses, simulated_fleet, simulated_robot
 from tests.support.cancel_ways import WAYS, stop_waiting
+from tests.support.metrics_support import free_port
 
 
 async def record_goto(path: Path, **recorder: object) -> dict[str, int]:
@@ -278,3 +281,29 @@ def test_a_program_that_never_closes_its_recorder_still_gets_a_whole_file(
     )  # fmt: skip
     assert ran.returncode == 0, ran.stderr
     assert finished(path) > 10
+
+
+async def test_a_fleet_robot_that_connects_later_is_recorded_from_then_on(tmp_path: Path) -> None:
+    port = free_port()
+    ports = {"early": "sim://?speed=20", "late": f"socket://127.0.0.1:{port}"}
+    path = tmp_path / "fleet.mcap"
+    async with (
+        galileo.connect_fleet(ports, retry_initial=0.05, retry_max=0.2) as fleet,
+        McapRecorder(path, fleet) as recorder,
+    ):
+        assert recorder.robots == ("early",)
+        async with Simulator(speed=20) as sim:
+            await sim.serve_tcp(port=port)
+            async with asyncio.timeout(20):
+                while "late" not in recorder.robots:  # noqa: ASYNC110 - no event to wait on
+                    await asyncio.sleep(0.05)
+            seen = 0
+            async with asyncio.timeout(20):
+                async for _ in fleet["late"].statuses():  # recorded: attached before
+                    seen += 1
+                    if seen == 3:
+                        break
+            await fleet.close()
+    recording = read_recording(path)
+    assert set(recording.robots) == {"early", "late"}
+    assert recording.robot("late").statuses
