@@ -36,7 +36,7 @@ class MapImage:
     """A map as a PNG: ``width`` x ``height`` pixels of ``resolution`` m each.
 
     ``origin`` is (x m, y m, yaw rad) of the lower left pixel on the map, as the robot gives
-    it; the PNG's first row is the top of the map (docs/protocol.md §5.6).
+    it; the PNG's first row is the top of the map (docs/protocol.md §5.3).
     """
 
     origin: tuple[float, float, float]

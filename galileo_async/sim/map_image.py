@@ -2,7 +2,7 @@
 
 The map covers the map's targets, the dock and the start pose (0, 0) with a margin: free
 space inside a wall one pixel wide, each target a dark dot. Pixels are in the robot's map
-convention (docs/protocol.md §5.6): ``origin`` is the map pose of the lower left pixel, the
+convention (docs/protocol.md §5.3): ``origin`` is the map pose of the lower left pixel, the
 PNG's first row is the top (largest y).
 """
 
