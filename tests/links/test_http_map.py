@@ -73,3 +73,15 @@ async def test_an_answer_that_is_no_png_or_no_map_is_operation_failed() -> None:
         face._map_image = lambda: {"status": "OK"}  # type: ignore[method-assign]
         with pytest.raises(OperationFailed, match="no map loaded"):
             await http_of(robot).map_image()
+
+
+async def test_a_png_sent_as_octet_stream_is_bytes_too() -> None:
+    async with robot_on_http() as (_, robot, face):
+        png = (await http_of(robot).map_image()).png
+
+        def stream(found: bool) -> web.Response:
+            return web.Response(body=png, content_type="application/octet-stream")
+
+        face._map_png = stream  # type: ignore[method-assign]
+        assert await http_of(robot).map_png("sim") == png
+        assert (await http_of(robot).map_image()).png == png
