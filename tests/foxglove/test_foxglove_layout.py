@@ -3,7 +3,8 @@
 Its shape is the one both apps export and import: ``configById`` (panel id
 ``Type!name`` → config), a ``layout`` tree of splits whose leaves are those ids, and
 ``globalVariables``, ``userNodes``, ``playbackConfig``. Every topic and service it names is
-one the server gives a robot named ``robot`` (``galileo foxglove``'s default name).
+one the server gives a robot named ``robot`` (``galileo foxglove``'s default name;
+``/robot/map`` one on http://).
 """
 
 from __future__ import annotations
