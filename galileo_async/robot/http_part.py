@@ -143,8 +143,9 @@ class HttpPart:
             raise OperationFailed(
                 f"map_image(): map_params not understood: {params!r}", None
             ) from None
-        where = str(answer.get("map_image") or "/api/v1/map/current_map_png")
-        endpoint = where.removeprefix("/api/v1")
+        where = str(answer.get("map_image") or "")
+        # A path below the API's (the vendor's answer); anything else: the documented one.
+        endpoint = where[7:] if where.startswith("/api/v1/") else "/map/current_map_png"
         png = _png("map_image()", await self._call("map_image()", "GET", endpoint))
         return MapImage((x, y, yaw), width, height, resolution, png)
 

@@ -85,3 +85,11 @@ async def test_a_png_sent_as_octet_stream_is_bytes_too() -> None:
         face._map_png = stream  # type: ignore[method-assign]
         assert await http_of(robot).map_png("sim") == png
         assert (await http_of(robot).map_image()).png == png
+
+
+async def test_an_image_path_outside_the_api_falls_back_to_the_documented_one() -> None:
+    async with robot_on_http() as (_, robot, face):
+        image = await http_of(robot).map_image()
+        answer = {"status": "OK", "map_params": face._sim_map().params(), "map_image": "http://x/"}
+        face._map_image = lambda: answer  # type: ignore[method-assign]
+        assert await http_of(robot).map_image() == image
