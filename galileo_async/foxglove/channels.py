@@ -2,11 +2,12 @@
 
 Nothing is encoded for a channel nobody subscribed to; the per-status channels (pose,
 transform, status) are published at most ``rate`` times a second, the link and the scene
-once a second and when the goal changes.
+once a second and when the goal changes; the map (map.py) when a viewer subscribes to it.
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
 from collections.abc import Sequence
@@ -38,6 +39,7 @@ from foxglove.messages import (
 )
 
 from ..schemas import LOG_LEVELS, STATUS_SCHEMA_NAME, event_message, log_level, status_json
+from .map import MapChannels
 from .schemas import LINK_SCHEMA_NAME, link_json, link_schema, status_schema_bytes, yaw_quaternion
 
 if TYPE_CHECKING:
@@ -107,15 +109,22 @@ class RobotChannels:
         self._next = 0.0
         self._goal: int | None = None
         self._frame = robot_frame(name)
+        #: The map's channels: only on a link with the HTTP API.
+        self.map = (
+            None
+            if robot.http is None
+            else MapChannels(name, robot.http, context, frame_id=MAP_FRAME)
+        )
         robot.add_update_listener(self.on_status)
         robot.add_event_listener(self.on_event)
 
-    def close(self) -> None:
-        """Stop listening to the robot and take the channels off the server."""
+    def close(self) -> asyncio.Task[None] | None:
+        """Stop listening and take the channels off the server; a map read cancelled (await it)."""
         self.robot.remove_update_listener(self.on_status)
         self.robot.remove_event_listener(self.on_event)
         for channel in (self.pose, self.tf, self.status, self.link, self.scene, self.events):
             channel.close()
+        return None if self.map is None else self.map.close()
 
     # --- the robot's listeners (on the loop, per status: keep them cheap) ---------------
 
@@ -166,6 +175,8 @@ class RobotChannels:
         if self.link.has_sinks():
             self.link.log(link_json(self.robot))
         self.publish_scene()
+        if self.map is not None:
+            self.map.tick()
 
     def publish_scene(self) -> None:
         """The known targets (grey spheres, labelled) and the current goal (green)."""

@@ -11,13 +11,16 @@ from typing import TYPE_CHECKING, Any
 from ..schemas import status_schema
 
 if TYPE_CHECKING:
-    from ..robot import Robot
+    from ..robot import MapImage, Robot
 
 __all__ = [
     "LINK_SCHEMA_NAME",
+    "MAP_INFO_SCHEMA_NAME",
     "SERVICE_REQUESTS",
     "link_json",
     "link_schema",
+    "map_info_json",
+    "map_info_schema",
     "service_schema",
     "status_schema_bytes",
     "yaw_quaternion",
@@ -25,6 +28,8 @@ __all__ = [
 
 #: The schema name of the link channels.
 LINK_SCHEMA_NAME = "galileo_async.LinkStats"
+#: The schema name of the map_info channels.
+MAP_INFO_SCHEMA_NAME = "galileo_async.MapInfo"
 
 _NUMBER = {"type": "number"}
 _INTEGER = {"type": "integer"}
@@ -91,6 +96,44 @@ def link_json(robot: Robot) -> bytes:
         "reconnects": link.reconnects,
         "commands_sent": link.commands_sent,
         "last_frame_age": None if age is None else round(age, 3),
+    }
+    return json.dumps(message).encode()
+
+
+@cache
+def map_info_schema() -> bytes:
+    """The JSON Schema of map_info_json's messages."""
+    pixels = {"type": "integer", "minimum": 1}
+    schema = {
+        "title": MAP_INFO_SCHEMA_NAME,
+        "type": "object",
+        "properties": {
+            "map": {"type": "string"},
+            "frame_id": {"type": "string"},
+            "origin": {
+                "type": "object",
+                "properties": {"x": _NUMBER, "y": _NUMBER, "yaw": _NUMBER},
+                "required": ["x", "y", "yaw"],
+            },
+            "width": pixels,
+            "height": pixels,
+            "resolution": {**_NUMBER, "exclusiveMinimum": 0},
+        },
+        "required": ["map", "frame_id", "origin", "width", "height", "resolution"],
+    }
+    return json.dumps(schema).encode()
+
+
+def map_info_json(name: str, image: MapImage, frame_id: str) -> bytes:
+    """Where map ``name``'s image lies: its lower left pixel's pose, size, metres a pixel."""
+    x, y, yaw = image.origin
+    message = {
+        "map": name,
+        "frame_id": frame_id,
+        "origin": {"x": x, "y": y, "yaw": yaw},
+        "width": image.width,
+        "height": image.height,
+        "resolution": image.resolution,
     }
     return json.dumps(message).encode()
 

@@ -9,13 +9,14 @@ the relay and the SDK's server.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from types import TracebackType
 from typing import TYPE_CHECKING
 
 import foxglove
-from foxglove.websocket import Capability, WebSocketServer
+from foxglove.websocket import Capability, ChannelView, Client, ServerListener, WebSocketServer
 
 from ..errors import InvalidArgument
 from .channels import RobotChannels
@@ -75,6 +76,8 @@ class FoxgloveServer:
         self._relay: Relay | None = None
         self._calls: Calls | None = None
         self._ticker: asyncio.Task[None] | None = None
+        #: Map reads of removed robots, cancelled: close() waits for them.
+        self._closing: set[asyncio.Task[None]] = set()
 
     @property
     def port(self) -> int:
@@ -95,11 +98,12 @@ class FoxgloveServer:
 
     async def start(self) -> None:
         """Listen on (host, port); OSError when the port is taken (nothing is left running)."""
-        self._calls = Calls(asyncio.get_running_loop())
+        loop = asyncio.get_running_loop()
+        self._calls = Calls(loop)
         self._sdk = foxglove.start_server(
             name=self.name, host="127.0.0.1", port=0, context=self._context,
             capabilities=[Capability.Services], supported_encodings=["json"],
-            message_backlog_size=BACKLOG,
+            message_backlog_size=BACKLOG, server_listener=_Subscriptions(loop, self._subscribed),
         )  # fmt: skip
         try:
             self._relay = Relay(self.host, self._port, self._sdk.port)
@@ -122,6 +126,9 @@ class FoxgloveServer:
                 await asyncio.wait({ticker})
             for name in list(self._robots):
                 self.remove_robot(name)
+            closing, self._closing = self._closing, set()
+            if closing:
+                await asyncio.wait(closing)
             relay, self._relay = self._relay, None
             if relay is not None:
                 await relay.close()
@@ -161,9 +168,18 @@ class FoxgloveServer:
     def remove_robot(self, name: str) -> None:
         """Stop publishing robot ``name`` and withdraw its services (KeyError if unknown)."""
         channels = self._robots.pop(name)
-        channels.close()
+        reading = channels.close()
+        if reading is not None and not reading.done():
+            self._closing.add(reading)
+            reading.add_done_callback(self._closing.discard)
         if self._sdk is not None:
             self._sdk.remove_services([f"/{name}/{service}" for service in SERVICES])
+
+    def _subscribed(self, topic: str) -> None:
+        """A viewer subscribed to ``topic`` (on the loop): a map topic has its map read."""
+        channels = self._robots.get(topic.split("/")[1] if topic.count("/") == 2 else "")
+        if channels is not None and channels.map is not None and topic in channels.map.topics:
+            channels.map.wanted()
 
     async def _tick(self) -> None:
         while True:
@@ -173,6 +189,18 @@ class FoxgloveServer:
                 except Exception:  # one robot's failure does not stop the others'
                     _log.exception("foxglove: publishing robot %s failed", channels.name)
             await asyncio.sleep(TICK)
+
+
+class _Subscriptions(ServerListener):
+    """The SDK's server listener: each subscription's topic handed to the loop."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, subscribed: Callable[[str], None]) -> None:
+        self._loop, self._subscribed = loop, subscribed
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        """Called on a thread of the SDK's."""
+        with contextlib.suppress(RuntimeError):  # the loop closed: nobody to publish for
+            self._loop.call_soon_threadsafe(self._subscribed, channel.topic)
 
 
 async def serve_foxglove(

@@ -142,7 +142,7 @@ class HttpApi:
         *,
         authenticate: bool = True,
     ) -> Any:
-        """The decoded JSON answer (or text) of ``method`` ``API_PATH + endpoint``.
+        """The answer to ``method`` ``API_PATH + endpoint``: JSON, else text; an image as bytes.
 
         HttpError naming the endpoint: an HTTP status of 400 or more (``status``; 401:
         AuthenticationError), a failed connection (``status`` None, the OS's cause), or no
@@ -157,7 +157,10 @@ class HttpApi:
             async with self.session.request(
                 method, f"{self.base_url}{API_PATH}{endpoint}", params=query, json=body
             ) as response:
-                text = await response.text()
+                binary = response.content_type.startswith("image/") or (
+                    response.content_type == "application/octet-stream"
+                )
+                data: str | bytes = await (response.read() if binary else response.text())
                 if response.status >= 400:
                     message = f"{where}: HTTP {response.status} {response.reason or ''}".rstrip()
                     if response.status == 401:
@@ -175,10 +178,12 @@ class HttpApi:
             raise HttpError(
                 f"{where}: {failure_text(exc)}", endpoint=endpoint, status=None
             ) from None
+        if isinstance(data, bytes):
+            return data
         try:
-            return json.loads(text)
+            return json.loads(data)
         except ValueError:
-            return text
+            return data
 
     async def close(self) -> None:
         """Close the session (idempotent)."""

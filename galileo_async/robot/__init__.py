@@ -15,7 +15,7 @@ from .drive import (
     SpeedLimits,
 )
 from .goal import GoalResult
-from .http_part import HttpPart, MapPath, NavPoint, RobotInfo
+from .http_part import HttpPart, MapImage, MapPath, NavPoint, RobotInfo
 from .robot import (
     DEFAULT_ACCEPT_TIMEOUT,
     DEFAULT_ARRIVE_TOLERANCE,
@@ -71,6 +71,7 @@ __all__ = [
     "LinkState",
     "LinkStateStream",
     "LocalMoveAction",
+    "MapImage",
     "MapPath",
     "NavAction",
     "NavPoint",

@@ -7,18 +7,20 @@ every other link). Each call goes through Operations (its checks and the link's 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from .._checks import check_number
-from ..errors import InvalidArgument
+from ..errors import InvalidArgument, OperationFailed
 from ..protocol import ApiCall, Goto, PoseGoal
 from .goal import GoalResult
 from .operations import Operations
 from .runtime import ROBOT_DEFAULT, RobotDefault
 from .task_chain import Action, Task, action_json
 
-__all__ = ["HttpPart", "MapPath", "NavPoint", "RobotInfo"]
+__all__ = ["HttpPart", "MapImage", "MapPath", "NavPoint", "RobotInfo"]
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,21 @@ class MapPath:
 
     map: str
     path: str
+
+
+@dataclass(frozen=True)
+class MapImage:
+    """A map as a PNG: ``width`` x ``height`` pixels of ``resolution`` m each.
+
+    ``origin`` is (x m, y m, yaw rad) of the lower left pixel on the map, as the robot gives
+    it; the PNG's first row is the top of the map (docs/protocol.md §5.3).
+    """
+
+    origin: tuple[float, float, float]
+    width: int
+    height: int
+    resolution: float
+    png: bytes = field(repr=False)
 
 
 @dataclass(frozen=True)
@@ -106,6 +123,38 @@ class HttpPart:
         params = {"map": name} if path is None else {"map": name, "path": path}
         answer = await self._call("switch_map()", "GET", "/navigation/reload", params)
         return MapPath(str(answer.get("map", name)), str(answer.get("path", path or "")))
+
+    async def map_image(self) -> MapImage:
+        """The current map and its PNG (GET /map/current_map_image, then its map_image).
+
+        OperationFailed when the robot has no map loaded or answers other than a PNG; each
+        request within the link's ``request_timeout`` (HttpTimeout).
+        """
+        answer = await self._call("map_image()", "GET", "/map/current_map_image")
+        params = answer.get("map_params") if isinstance(answer, dict) else None
+        if not isinstance(params, dict) or str(answer.get("status", "OK")).upper() != "OK":
+            status = answer.get("status") if isinstance(answer, dict) else answer
+            raise OperationFailed(f"map_image(): the robot has no map loaded ({status!r})", None)
+        try:
+            x, y, yaw = (float(v) for v in params["origin"])
+            width, height = int(params["width"]), int(params["height"])
+            resolution = float(params["resolution"])
+        except (KeyError, TypeError, ValueError):
+            raise OperationFailed(
+                f"map_image(): map_params not understood: {params!r}", None
+            ) from None
+        where = str(answer.get("map_image") or "")
+        # A path below the API's (the vendor's answer); anything else: the documented one.
+        endpoint = where[7:] if where.startswith("/api/v1/") else "/map/current_map_png"
+        png = _png("map_image()", await self._call("map_image()", "GET", endpoint))
+        return MapImage((x, y, yaw), width, height, resolution, png)
+
+    async def map_png(self, name: str) -> bytes:
+        """The PNG of saved map ``name`` (GET /navigation/map_png); OperationFailed if no PNG."""
+        if not isinstance(name, str) or not name:
+            raise InvalidArgument("map_png: name must be a non-empty string")
+        answer = await self._call("map_png()", "GET", "/navigation/map_png", {"name": name})
+        return _png("map_png()", answer)
 
     async def targets(self, map: str | None = None, path: str | None = None) -> list[NavPoint]:
         """The saved targets of a map's path (None: the current map, path), in index order."""
@@ -262,3 +311,10 @@ def _task_id(task_id: str) -> str:
     if not isinstance(task_id, str) or not task_id:
         raise InvalidArgument(f"task id must be a non-empty string, got {task_id!r}")
     return task_id
+
+
+def _png(what: str, answer: Any) -> bytes:
+    if not isinstance(answer, bytes) or not answer.startswith(_PNG_SIGNATURE):
+        shown = answer[:40] if isinstance(answer, (bytes, str)) else answer
+        raise OperationFailed(f"{what}: the robot answered no PNG: {shown!r}", None)
+    return answer

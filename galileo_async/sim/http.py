@@ -20,6 +20,7 @@ from ..protocol import commands as cmd
 from ..protocol.names import ROS_FIELD_NAMES
 from .config import FRAME_RATE
 from .device import SimDevice
+from .map_image import sim_map
 from .robot_model import WIRE_FIELDS, WireValues
 from .tasks import TaskEngine, TaskError
 
@@ -99,6 +100,8 @@ class HttpFace:
         #: Texts /system/tts was asked to say, and the map and path in use.
         self.spoken: list[str] = []
         self.current = ("sim", "path1")
+        #: Whether a map is loaded: when not, /map/current_map_image says so (no map_params).
+        self.map_loaded = True
         #: Each open status WebSocket: its request and the statuses it has still to send.
         self.sockets: dict[web.WebSocketResponse, tuple[web.Request, asyncio.Queue[str]]] = {}
         self.requests = 0
@@ -163,6 +166,8 @@ class HttpFace:
             raise _refused(exc) from None
         except (KeyError, ValueError, TypeError):
             raise web.HTTPBadRequest() from None
+        if isinstance(answer, web.StreamResponse):
+            return answer
         return web.json_response(answer)
 
     def _routes(self) -> dict[tuple[str, str], Callable[[dict[str, Any]], Any]]:
@@ -180,6 +185,9 @@ class HttpFace:
             ("GET", "/map/start"): lambda q: run(cmd.StartMapping(), {"result": True}),
             ("GET", "/map/stop"): lambda q: run(cmd.StopMapping(), {"result": True}),
             ("GET", "/map/image"): lambda q: list(MAPS),
+            ("GET", "/map/current_map_image"): lambda q: self._map_image(),
+            ("GET", "/map/current_map_png"): lambda q: self._map_png(self.map_loaded),
+            ("GET", "/navigation/map_png"): lambda q: self._map_png(str(q["name"]) in MAPS),
             ("GET", "/navigation/start"): self._start,
             ("GET", "/navigation/stop"):
                 lambda q: run(cmd.StopNavigation(), {"result": True, "description": ""}),
@@ -262,6 +270,21 @@ class HttpFace:
         if "navigation_speed" in body:
             self.device.model.navigation_speed = float(body["navigation_speed"])
         return self._config()
+
+    def _sim_map(self) -> Any:
+        model = self.device.model
+        return sim_map([*model.targets, model.dock])
+
+    def _map_image(self) -> Any:
+        if not self.map_loaded:
+            return {"status": "no map"}
+        params = self._sim_map().params()
+        return {"status": "OK", "map_params": params, "map_image": "/api/v1/map/current_map_png"}
+
+    def _map_png(self, found: bool) -> web.Response:
+        if not found:
+            raise web.HTTPNotFound()
+        return web.Response(body=self._sim_map().png, content_type="image/png")
 
     def _start(self, query: dict[str, Any]) -> Any:
         name, path = str(query["map"]), str(query["path"])

@@ -3,7 +3,8 @@
 Its shape is the one both apps export and import: ``configById`` (panel id
 ``Type!name`` → config), a ``layout`` tree of splits whose leaves are those ids, and
 ``globalVariables``, ``userNodes``, ``playbackConfig``. Every topic and service it names is
-one the server gives a robot named ``robot`` (``galileo foxglove``'s default name).
+one the server gives a robot named ``robot`` (``galileo foxglove``'s default name;
+``/robot/map`` one on http://).
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ import jsonschema
 from galileo_async.foxglove.schemas import SERVICE_REQUESTS
 
 LAYOUT = Path(__file__).resolve().parents[2] / "docs" / "foxglove-layout.json"
-TOPICS = ("pose", "tf", "status", "link", "scene", "events")
-#: The panel types of the 3D, Log, Raw Messages and Service Call panels in both apps.
-PANEL_TYPES = {"3D", "RosOut", "RawMessages", "CallService"}
+TOPICS = ("pose", "tf", "status", "link", "scene", "events", "map", "map_info")
+#: The panel types of the 3D, Image, Log, Raw Messages and Service Call panels in both apps.
+PANEL_TYPES = {"3D", "Image", "RosOut", "RawMessages", "CallService"}
 
 
 def leaves(node: Any) -> list[str]:
@@ -47,6 +48,8 @@ def test_every_topic_and_service_of_the_layout_is_served() -> None:
         if kind == "3D":
             assert config["followTf"] == "map"
             assert set(config["topics"]) <= topics
+        elif kind == "Image":
+            assert config["imageMode"]["imageTopic"] == "/robot/map"
         elif kind == "RosOut":
             assert config["topicToRender"] == "/robot/events"
         elif kind == "RawMessages":
