@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from ..fleet.fleet import Fleet
     from ..models import GalileoStatus
 
-__all__ = ["FLEET_REFRESH", "fleet_app"]
+__all__ = ["FLEET_REFRESH", "fleet_app", "fleet_spec", "served_options"]
 
 fleet_app = typer.Typer(help="Many robots at once, from the fleet file given with --fleet.")
 
@@ -48,7 +48,8 @@ StateOption = Annotated[
 RowsOption = Annotated[int, typer.Option("--rows", min=1, help="Table rows shown at most.")]
 
 
-def _spec(ctx: typer.Context) -> FleetSpec:
+def fleet_spec(ctx: typer.Context) -> FleetSpec:
+    """The fleet file given with --fleet, loaded; a missing or bad one exits 2."""
     path = settings_of(ctx).fleet
     if path is None:
         fail("fleet commands need a fleet file: galileo --fleet fleet.toml fleet …", ExitCode.USAGE)
@@ -58,7 +59,7 @@ def _spec(ctx: typer.Context) -> FleetSpec:
         fail(str(exc), ExitCode.USAGE)
 
 
-def _served(spec: FleetSpec) -> dict[str, Any]:
+def served_options(spec: FleetSpec) -> dict[str, Any]:
     """Serve each robot's control socket (serial and udp:// ports), unless the file says."""
     return {} if "control_socket" in spec.defaults else {"control_socket": True}
 
@@ -85,12 +86,12 @@ def status(
 
     Exits 7 (connection) unless every robot is up.
     """
-    settings, spec = settings_of(ctx), _spec(ctx)
+    settings, spec = settings_of(ctx), fleet_spec(ctx)
     settings.json = settings.json or json_output
     states = _view_options(sort, state)
 
     async def main() -> int:
-        async with spec.connect(**_served(spec)) as fleet:
+        async with spec.connect(**served_options(spec)) as fleet:
             view = FleetView(fleet, map_model([], None), sort=sort, match=match, states=states,
                              limit=rows)  # fmt: skip
             view.latest = {name: fleet[name].status for name in fleet if _has_status(fleet, name)}
@@ -145,12 +146,12 @@ def monitor(
 ) -> None:
     """Live: a row per robot, a summary line and the map of every robot (key q quits)."""
     serve = metrics_address(metrics)
-    settings, spec = settings_of(ctx), _spec(ctx)
+    settings, spec = settings_of(ctx), fleet_spec(ctx)
     states = _view_options(sort, state)
     model = map_model(list(spec.ports.values()), targets or spec.targets)
 
     async def main() -> int:
-        async with metrics_served(serve) as served, spec.connect(**_served(spec)) as fleet:
+        async with metrics_served(serve) as served, spec.connect(**served_options(spec)) as fleet:
             if served is not None:
                 served.add_fleet(fleet)
             view = FleetView(fleet, model, sort=sort, match=match, states=states, limit=rows)
@@ -217,7 +218,7 @@ def stop(
     Exits 0 once every robot confirmed, 7 when one could not be reached, else 6 when one
     did not confirm in time.
     """
-    settings, spec = settings_of(ctx), _spec(ctx)
+    settings, spec = settings_of(ctx), fleet_spec(ctx)
     settings.json = settings.json or json_output
     request: dict[str, Any] = {"brake": brake, "timeout": timeout}
 
@@ -246,7 +247,7 @@ async def _stop_fleet(spec: FleetSpec, request: dict[str, Any]) -> dict[str, Out
             ports={name: spec.ports[name] for name in rest},
             robot_options={n: o for n, o in spec.robot_options.items() if n in rest},
         )
-        async with subset.connect(**_served(subset)) as fleet:
+        async with subset.connect(**served_options(subset)) as fleet:
             results = await fleet.stop(request["brake"], timeout=request["timeout"])
             busy = [name for name in rest if isinstance(fleet.error(name), PortBusy)]
             again = await gather_owners({name: spec.ports[name] for name in busy}, "stop", request)

@@ -19,6 +19,7 @@ import typer
 
 from ..errors import GalileoError, InvalidArgument
 from ..fleet.file import FleetSpec, load_fleet_file
+from .fleet_cmd import served_options
 from .metrics_opt import MetricsAddress, MetricsOption, metrics_address, metrics_served
 from .runner import ExitCode, checked_port, err_console, fail, run, run_robot, settings_of
 from .signals import stop_requested
@@ -154,7 +155,6 @@ async def _serve_fleet(
     metrics: MetricsAddress | None,
 ) -> None:
     """Serve every robot of ``spec`` as it connects (now or later) until a stop signal."""
-    served = {} if "control_socket" in spec.defaults else {"control_socket": True}
     connected: asyncio.Queue[tuple[str, Robot]] = asyncio.Queue()
 
     def on_connect(name: str, robot: Robot) -> None:
@@ -170,7 +170,7 @@ async def _serve_fleet(
 
     fleet: Fleet
     # The metrics' address is bound before anything connects (metrics_served).
-    async with metrics_served(metrics) as collector, spec.connect(**served) as fleet:
+    async with metrics_served(metrics) as collector, spec.connect(**served_options(spec)) as fleet:
         if collector is not None:
             collector.add_fleet(fleet)
         fleet.add_connect_listener(on_connect)

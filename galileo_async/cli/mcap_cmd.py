@@ -85,12 +85,12 @@ def fleet_record(
     ] = None,
 ) -> None:
     """Record every robot of the fleet into one MCAP file (a channel set per robot)."""
-    from .fleet_cmd import _served, _spec
+    from .fleet_cmd import fleet_spec, served_options
 
-    settings, spec = settings_of(ctx), _spec(ctx)
+    settings, spec = settings_of(ctx), fleet_spec(ctx)
 
     async def main() -> int:
-        async with spec.connect(**_served(spec)) as fleet:
+        async with spec.connect(**served_options(spec)) as fleet:
             return await _record_until_stopped(_recorder(path, fleet), duration)
 
     run(settings, main, interrupted=ExitCode.OK)
