@@ -415,12 +415,12 @@ class _Run:
 
     async def _attempt(self, step: Any, action: str) -> None:
         """Run ``step`` once; _Failure, _Again, _Stopped or _Ended when it did not do it."""
-        if self.stopped_by is not None:
-            raise _Stopped(self.stopped_by)
+        self._go_on()
         if action in _SELF_STOPPING:
             await self._pause_while_charging()
         try:
             if action in _SELF_STOPPING:
+                self._go_on()  # a stop during the pause: no motion after it
                 await self._motion(step, action)
             else:
                 await self._stoppable(self._do(step, action), step.timeout)
@@ -443,6 +443,10 @@ class _Run:
             raise _Failure("timeout", str(exc) or f"timed out after {step.timeout} s") from None
         except (GalileoError, CallFailed) as exc:
             raise _Failure("failed", str(exc)) from None
+        self._go_on()
+
+    def _go_on(self) -> None:
+        """Raise _Stopped once a user stop has ended the mission: nothing moves after it."""
         if self.stopped_by is not None:
             raise _Stopped(self.stopped_by)
 
@@ -457,6 +461,7 @@ class _Run:
                 self.scope = None
         if scope.cancelled_caught:
             raise _Stopped(self.stopped_by or "a user stop")
+        self._go_on()  # a stop as the work ended delivers no cancellation
 
     async def _link_lost(self, exc: GalileoError) -> NoReturn:
         policy = self.mission.on_link_loss
@@ -558,6 +563,7 @@ class _Run:
             await robot.turn_to(heading)
         if not move.distance:
             return
+        self._go_on()  # a stop as the turn ended: no drive after it
         x0, y0, _ = _pose(robot)
         speed = math.copysign(min(LOCAL_MOVE_SPEED, robot.speed_limits.linear), move.distance)
         goal = abs(move.distance) - LOCAL_MOVE_TOLERANCE

@@ -14,7 +14,7 @@ from galileo_async import Robot
 from galileo_async.missions import Mission, MissionEnded, MissionEvent, MissionReport, run_mission
 from galileo_async.protocol import Goto, StartCharging
 from galileo_async.robot.stopping import in_motion
-from galileo_async.testing import simulated_robot
+from galileo_async.testing import play_mission, simulated_robot
 from tests.support.cancel_ways import WAYS, stop_waiting
 
 pytestmark = pytest.mark.timeout(60)
@@ -127,3 +127,24 @@ async def test_every_cancellation_way_leaves_the_robot_stopped(how: str, kind: s
     assert isinstance(ended, MissionEnded)
     assert ended.report.ending == "cancelled"
     assert ended.report.steps[-1].ending == "cancelled"
+
+
+async def test_a_stop_as_the_charging_pause_ends_sends_no_goal(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The stop lands as the wait ends, with no checkpoint left to deliver its cancellation."""
+    from galileo_async.missions import runner as runner_module
+
+    until_charged = runner_module._Run._until_charged
+
+    async def charged_then_stopped(run: Any) -> None:
+        await until_charged(run)
+        run._user_stop("stop()")  # what robot.stop()'s listener does, at the last moment
+
+    monkeypatch.setattr(runner_module._Run, "_until_charged", charged_then_stopped)
+    plan = mission({"dwell": 5}, {"goto": 1})
+    async with simulated_robot(sim_options={"power": 27.8}) as (robot, device):
+        report = (await play_mission(robot, plan, faults={1.0: device.go_charge})).report
+        assert device.received(Goto) == []
+    assert report.ending == "stopped"
+    assert report.stopped_by == "stop()"
