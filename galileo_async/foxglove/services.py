@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
-import contextlib
 import json
 import math
 from collections.abc import Callable, Coroutine
@@ -21,7 +20,6 @@ from typing import TYPE_CHECKING, Any
 
 import foxglove
 
-from ..errors import AcceptTimeout, GalileoError
 from ..events import Event, GoalAccepted
 from .schemas import SERVICE_REQUESTS, service_schema
 
@@ -145,14 +143,9 @@ async def _until_accepted(
         await asyncio.wait(either, return_when=asyncio.FIRST_COMPLETED)
         if accepted.done():
             return {"accepted": True, "target": accepted.result(), "arrived": False}
-        try:
-            result = task.result()  # ended before its acceptance showed: raises or arrived
-        except AcceptTimeout:
-            # What goto's own exit cancel would have sent: the goal written and never
-            # shown accepted must not start later.
-            with contextlib.suppress(GalileoError):
-                await robot.cancel()
-            raise
+        # Ended before its acceptance showed: it raises (a goal written and never accepted
+        # was cancelled by goto's own exit), or it arrived.
+        result = task.result()
         return {"accepted": True, "target": getattr(result, "target_id", None), "arrived": True}
     finally:
         robot.remove_event_listener(listen)

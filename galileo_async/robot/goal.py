@@ -152,7 +152,14 @@ class GoalRunner:
             # Leaving while the robot may still drive (also a queued goal a user stop withdrew:
             # it preempted the goal before it): stop it, unless a newer goal replaced this one
             # (a cancel would stop it). Before goal.tracker exists nothing was queued.
-            if goal.tracker is not None and cancel_on_exit and not goal.preempted:
+            # cancel_on_exit False leaves only a goal the robot has shown accepted: one written
+            # and not accepted yet must not start later, unseen.
+            tracker = goal.tracker
+            unaccepted = (
+                tracker is not None and goal.written and not tracker.accepted
+                and not _runs(ops.store.status, goal.target_id)  # shown, not yet followed
+            )  # fmt: skip
+            if tracker is not None and (cancel_on_exit or unaccepted) and not goal.preempted:
                 if goal.written and (
                     isinstance(exc, (LinkStale, ConnectionLost)) or ops.store.link_error is not None
                 ):
@@ -160,7 +167,7 @@ class GoalRunner:
                 # A stale link may still transmit; a lost one cannot.
                 if not isinstance(exc, ConnectionLost):
                     _log.info("goal %d left before its end: sending cancel", goal.target_id)
-                    if goal.tracker.accepted:  # its end after our cancel is that cancel
+                    if tracker.accepted:  # its end after our cancel is that cancel
                         left = cancelling
                         goal.revise(cancelling)
                     await ops.send_cancel_shielded()
@@ -184,6 +191,14 @@ class GoalRunner:
             self._running.preempted = True
         self._running = goal
         self._ops.goal_started()
+
+
+def _runs(status: GalileoStatus | None, target_id: int) -> bool:
+    """``status`` shows goal ``target_id`` running (working or paused)."""
+    return (
+        status is not None and status.target_num_id == target_id
+        and status.target_status in (TargetStatus.WORKING, TargetStatus.PAUSED)
+    )  # fmt: skip
 
 
 def _forget(sent: SentGoal) -> SentGoal | None:

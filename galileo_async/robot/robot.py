@@ -449,9 +449,11 @@ class Robot:
         None: never), ConnectionLost or LinkStale (on a lost or stale link before the send:
         nothing is sent). A stale link mid-goal is no end (its silence stops the accept and
         progress clocks); a lost one raises ConnectionLost. Cancelled, timed out or stalled,
-        it sends ``i 2`` first unless ``cancel_on_exit`` is False (a stall: GoalStalledEvent
-        too); a goal left on a lost or stale link that still runs once back is cancelled then
-        (AbandonedGoalCancelled). At the target already: GoalResult ``already_there`` True.
+        it sends ``i 2`` first (a stall: GoalStalledEvent too); ``cancel_on_exit`` False
+        leaves a goal the robot showed accepted running, and still cancels one written and
+        not yet accepted, so that it cannot start later unseen; a goal left on a lost or
+        stale link that still runs once back is cancelled then (AbandonedGoalCancelled). At
+        the target already: GoalResult ``already_there`` True.
         """
         return await self._goto(Goto(target_id), timeout, accept_timeout, progress_timeout,
                                 cancel_on_exit)  # fmt: skip

@@ -1,5 +1,5 @@
-"""A goto service's wait for acceptance, on a stand-in robot: which acceptance counts, and
-the cancel after a goal never shown accepted."""
+"""A goto service's wait for acceptance: which acceptance counts (a stand-in robot), and a
+goal never shown accepted cancelled by goto's own exit (a scripted robot)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,8 @@ import pytest
 from galileo_async.errors import AcceptTimeout, GoalRejected
 from galileo_async.events import Event, GoalAccepted
 from galileo_async.foxglove.services import _until_accepted
+from galileo_async.protocol import Cancel, Goto
+from tests.support.scripted_robot import ScriptedRobot, connected, ignore
 
 
 class StandIn:
@@ -57,16 +59,28 @@ async def test_only_the_goals_own_acceptance_answers_and_the_goto_is_left() -> N
     assert robot.cancels == 0  # nothing sent once accepted
 
 
-async def test_a_goal_never_shown_accepted_is_cancelled() -> None:
-    robot = StandIn()
+async def test_a_goal_never_shown_accepted_is_cancelled_by_gotos_own_exit() -> None:
+    fake = ScriptedRobot()
+    fake.scripts[Goto] = ignore  # written, never shown accepted
+    async with connected(fake, accept_timeout=0.2) as (robot, _):
+        with pytest.raises(AcceptTimeout):
+            await _until_accepted(robot, robot.goto(3, cancel_on_exit=False), 3)
+        await fake.command(Cancel)
+    assert fake.received[:2] == [Goto(3), Cancel()]
 
-    async def goto() -> Any:
-        raise AcceptTimeout("goal 3 not accepted within 5 s", target_id=3)
 
-    with pytest.raises(AcceptTimeout):
-        await _until_accepted(robot, goto(), 3)  # type: ignore[arg-type]
-    assert robot.cancels == 1
-    assert robot.listeners == []
+async def test_a_call_ended_before_the_acceptance_leaves_no_goal_to_start_later() -> None:
+    """The service's time limit or the server closing cancels the call mid-wait."""
+    fake = ScriptedRobot()
+    fake.scripts[Goto] = ignore
+    async with connected(fake) as (robot, _):
+        call = asyncio.ensure_future(_until_accepted(robot, robot.goto(3, cancel_on_exit=False), 3))
+        await fake.command(Goto)
+        call.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await call
+        await fake.command(Cancel)
+    assert fake.received[:2] == [Goto(3), Cancel()]
 
 
 async def test_a_rejected_goal_sends_nothing_more() -> None:

@@ -326,6 +326,29 @@ async def test_cancel_on_exit_false_sends_no_cancel() -> None:
     assert fake.received == [Goto(3), Stop(100)]
 
 
+async def test_cancel_on_exit_false_still_cancels_a_goal_never_accepted() -> None:
+    fake = ScriptedRobot()
+    fake.scripts[Goto] = ignore  # written, never shown accepted: it might start later
+    async with connected(fake, accept_timeout=0.2) as (robot, _):
+        with pytest.raises(AcceptTimeout):
+            await robot.goto(3, timeout=5, cancel_on_exit=False)
+        await fake.command(Cancel)
+    assert fake.received[:2] == [Goto(3), Cancel()]
+
+
+async def test_cancel_on_exit_false_cancels_a_goal_left_before_its_acceptance() -> None:
+    fake = ScriptedRobot()
+    fake.scripts[Goto] = ignore
+    async with connected(fake) as (robot, _):
+        task = asyncio.create_task(robot.goto(3, cancel_on_exit=False))
+        await fake.command(Goto)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+        await fake.command(Cancel)
+    assert fake.received[:2] == [Goto(3), Cancel()]
+
+
 # --- busy, preconditions, arguments ------------------------------------------------------
 
 
