@@ -19,6 +19,7 @@ import foxglove
 from foxglove.websocket import Capability, ChannelView, Client, ServerListener, WebSocketServer
 
 from ..errors import InvalidArgument
+from ..robot.runtime import finish_shielded
 from .channels import RobotChannels
 from .relay import Relay
 from .services import SERVICE_TIMEOUT, SERVICES, Calls, robot_services
@@ -78,6 +79,7 @@ class FoxgloveServer:
         self._ticker: asyncio.Task[None] | None = None
         #: Map reads of removed robots, cancelled: close() waits for them.
         self._closing: set[asyncio.Task[None]] = set()
+        self._close_task: asyncio.Task[None] | None = None
 
     @property
     def port(self) -> int:
@@ -99,6 +101,7 @@ class FoxgloveServer:
     async def start(self) -> None:
         """Listen on (host, port); OSError when the port is taken (nothing is left running)."""
         loop = asyncio.get_running_loop()
+        self._close_task = None
         self._calls = Calls(loop)
         self._sdk = foxglove.start_server(
             name=self.name, host="127.0.0.1", port=0, context=self._context,
@@ -116,7 +119,18 @@ class FoxgloveServer:
         self._ticker = asyncio.get_running_loop().create_task(self._tick(), name="foxglove tick")
 
     async def close(self) -> None:
-        """Stop publishing and serving; no command is sent to any robot (idempotent)."""
+        """Stop publishing and serving; no command is sent to any robot (idempotent).
+
+        It completes whatever cancels the caller meanwhile (finish_shielded, bounded), and
+        the caller's cancellation is raised once the port is free.
+        """
+        if self._close_task is None:
+            self._close_task = asyncio.get_running_loop().create_task(
+                self._close(), name="foxglove close"
+            )
+        await finish_shielded(self._close_task, "closing the Foxglove server")
+
+    async def _close(self) -> None:
         try:
             if self._calls is not None:
                 await self._calls.close()
@@ -147,7 +161,7 @@ class FoxgloveServer:
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> None:
-        await asyncio.shield(self.close())
+        await self.close()
 
     def add_robot(self, name: str, robot: Robot, *, targets: Targets = ()) -> None:
         """Publish ``robot`` as ``/name/...`` and serve its services; ``targets``: (id, x, y)."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import socket
 import time
 from collections.abc import AsyncIterator
 from typing import Any
@@ -255,3 +256,31 @@ async def test_every_way_of_stopping_serve_foxglove_closes_it(
     async with aiohttp.ClientSession() as session:
         with pytest.raises(aiohttp.ClientConnectionError):
             await session.ws_connect(urls[0], protocols=[SDK_SUBPROTOCOL])
+
+
+async def test_a_cancelled_close_still_frees_the_port_and_stops_publishing() -> None:
+    async with simulated_robot() as (bot, _):
+        server = FoxgloveServer(port=0)
+        await server.start()
+        server.add_robot("alpha", bot)
+        port = server.port
+        calls = server._calls
+        assert calls is not None
+        answer_calls = calls.close
+
+        async def slow_calls_close() -> None:  # close() is cancelled while it waits here
+            await asyncio.sleep(1.0)
+            await answer_calls()
+
+        calls.close = slow_calls_close  # type: ignore[method-assign]
+        closing = asyncio.ensure_future(server.close())
+        await asyncio.sleep(0)
+        closing.cancel()  # close() itself cancelled mid-way, then again
+        await asyncio.sleep(0)
+        closing.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await closing
+        assert server.robots == ()
+        with socket.socket() as probe:  # the public port itself, not only the SDK behind it
+            assert probe.connect_ex(("127.0.0.1", port)) != 0
+        await server.close()  # idempotent
