@@ -8,6 +8,7 @@ remembered once.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable
@@ -18,6 +19,8 @@ from urllib.parse import urlsplit
 import anyio
 import anyio.abc
 import anyio.to_thread
+
+from ..robot.runtime import finish_shielded
 
 if sys.version_info < (3, 11):
     from exceptiongroup import BaseExceptionGroup  # type: ignore[import-not-found]
@@ -206,7 +209,8 @@ async def _served(host: str, port: int, latches: dict[str, _Latch]) -> AsyncIter
                                 markup=False, highlight=False)  # fmt: skip
         yield
     finally:
-        await runner.cleanup()
+        # Shielded: a cancelled block (Ctrl-C, a failing sibling) must not leave it listening.
+        await finish_shielded(asyncio.ensure_future(runner.cleanup()), "the release server")
 
 
 async def _subscribed(

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections.abc import Callable, Mapping
 
 import anyio
 
+from ..robot.runtime import finish_shielded
 from .events import MissionEvent
 from .model import Mission
 from .report import MissionRejected, MissionReport
@@ -14,6 +16,8 @@ from .robot_api import MissionRobot, StopAll
 from .runner import Releases, _Run
 
 __all__ = ["run_missions"]
+
+_log = logging.getLogger(__name__)
 
 #: Mission endings that stop every other robot of the fleet.
 _STOPS_ALL = frozenset({"stopped", "cancelled"})
@@ -48,20 +52,26 @@ async def run_missions(
         names = ", ".join(sorted({mission.mission for mission in missions.values()}))
         raise MissionRejected(names, problems)
     reports: dict[str, MissionReport] = {}
-    stopping: list[asyncio.Task[object]] = []
+    stopping: list[asyncio.Task[None]] = []
+
+    async def stop_every_robot() -> None:
+        try:
+            await stop_all()
+        except Exception:  # each robot's own exit stop still runs; say what failed
+            _log.exception("stopping the fleet after a user stop failed")
 
     async def one(name: str) -> None:
         report = reports[name] = await runs[name].run(None)
         if report.ending in _STOPS_ALL and not stopping:
-            stopping.append(asyncio.ensure_future(stop_all()))
+            stopping.append(asyncio.ensure_future(stop_every_robot()))
 
     try:
         async with anyio.create_task_group() as group:
             for name in runs:
                 group.start_soon(one, name)
     finally:
-        if stopping:
-            await asyncio.gather(*stopping, return_exceptions=True)
+        for stop in stopping:  # the other robots' stops complete, whatever cancels this
+            await finish_shielded(stop, "stopping the fleet")
     return {name: reports[name] for name in runs}
 
 

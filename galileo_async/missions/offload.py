@@ -419,10 +419,15 @@ class _Follower:
             self.emit(run, now)
 
     def emit(self, run: ActionRun, now: float) -> None:
-        if self.on_progress is not None:
-            self.on_progress(
-                ChainProgress(self.plan.name, now, self.task_id, self.state, self.loops_done, run)
-            )
+        if self.on_progress is None:
+            return
+        progress = ChainProgress(
+            self.plan.name, now, self.task_id, self.state, self.loops_done, run
+        )
+        try:
+            self.on_progress(progress)
+        except Exception:  # as run_mission's: logged, the chain is followed on
+            _log.exception("on_progress failed on %r", progress)
 
     async def count(self, task: Task) -> None:
         """Counted passes: no loop after the last pass begins; stopped if one more began."""

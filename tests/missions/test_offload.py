@@ -436,3 +436,16 @@ async def test_a_task_the_robot_no_longer_holds_ends_failed() -> None:
         assert report.ending == "failed"
         assert report.error == f"the robot no longer holds task {task_id}"
         assert [(r.index, r.ended) for r in report.actions] == [(0, None)]
+
+
+async def test_a_failing_progress_callback_is_logged_and_the_chain_followed_on(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    def broken(_progress: object) -> None:
+        raise RuntimeError("callback bug")
+
+    async with http_robot() as (_, robot, _face):
+        with anyio.fail_after(WAIT):
+            report = await offload_mission(robot, mission({"dwell": 3}), on_progress=broken)
+    assert report.ending == "completed", report.error
+    assert "on_progress failed" in caplog.text
