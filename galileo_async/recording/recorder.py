@@ -57,6 +57,12 @@ class _Attached:
         self.robot.remove_event_listener(self.on_event)
 
 
+def _close_opened(opening: asyncio.Future[IO[bytes]]) -> None:
+    """Close the file a cancelled start opened."""
+    if not opening.cancelled() and opening.exception() is None:
+        opening.result().close()
+
+
 class McapRecorder:
     """``async with McapRecorder("run.mcap", robot_or_fleet):`` records until the block ends.
 
@@ -126,7 +132,15 @@ class McapRecorder:
             raise InvalidArgument("this McapRecorder was started already")
         loop = asyncio.get_running_loop()
         try:
-            stream: IO[bytes] = await asyncio.to_thread(self.path.open, "wb")
+            # Shielded: a start cancelled while the thread opens the file closes it after.
+            opening: asyncio.Future[IO[bytes]] = asyncio.ensure_future(
+                asyncio.to_thread(self.path.open, "wb")
+            )
+            try:
+                stream: IO[bytes] = await asyncio.shield(opening)
+            except asyncio.CancelledError:
+                opening.add_done_callback(_close_opened)
+                raise
         except OSError as exc:
             raise InvalidArgument(f"cannot write {self.path}: {exc.strerror or exc}") from None
         try:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import concurrent.futures
+import contextlib
 import json
 import logging
 import time
@@ -203,7 +204,8 @@ class McapFileWriter:
         except Exception as exc:
             self.error = exc
             _log.error("the MCAP recording failed: %s", exc)
-            self._disk.submit(self._stream.close).result()
+            with contextlib.suppress(OSError):
+                await self._on_disk(self._stream.close)  # off the loop: a disk may hang
         finally:
             self._disk.shutdown(wait=False)
 

@@ -71,9 +71,10 @@ def iter_mcap(stream: IO[bytes], name: str = "the recording") -> Iterator[McapMe
         for record in reader.records:
             produced = True
             if isinstance(record, records.Channel):
-                parts = record.topic.split("/")
-                ours = len(parts) == 3 and not parts[0] and parts[1] and parts[2] in KINDS
-                channels[record.id] = (parts[1], parts[2]) if ours else None
+                # /<robot>/<kind>: the kind is the last part; a fleet name may hold a '/'.
+                head, _, kind = record.topic.rpartition("/")
+                ours = head.startswith("/") and len(head) > 1 and kind in KINDS
+                channels[record.id] = (head[1:], kind) if ours else None
             elif isinstance(record, records.Message):
                 where = channels.get(record.channel_id)
                 if where is not None:

@@ -6,6 +6,7 @@ import asyncio
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import anyio
@@ -135,6 +136,16 @@ async def test_a_fleet_records_a_channel_set_per_robot(tmp_path: Path) -> None:
         recorded_statuses(path)
     with pytest.raises(InvalidArgument, match=r"no robot 'gamma' \(robots: alpha, beta\)"):
         recorded_statuses(path, "gamma")
+
+
+async def test_a_fleet_name_with_a_slash_is_read_back(tmp_path: Path) -> None:
+    path = tmp_path / "site.mcap"
+    async with simulated_fleet(["site/a", "b"]) as (fleet, _devices), McapRecorder(path, fleet):
+        await fleet["site/a"].goto(1)
+    recording = read_recording(path)
+    assert sorted(recording.robots) == ["b", "site/a"]
+    assert recording.robot("site/a").statuses
+    assert recorded_statuses(path, "site/a")
 
 
 async def test_a_file_cut_short_reads_up_to_its_last_chunk(tmp_path: Path) -> None:
@@ -307,3 +318,32 @@ async def test_a_fleet_robot_that_connects_later_is_recorded_from_then_on(tmp_pa
     recording = read_recording(path)
     assert set(recording.robots) == {"early", "late"}
     assert recording.robot("late").statuses
+
+
+def _open_fds(path: Path) -> int:
+    """How many of this process's file descriptors point at ``path`` (Linux /proc)."""
+    fds = Path("/proc/self/fd")
+    return sum(1 for fd in fds.iterdir() if _target(fd) == str(path))
+
+
+def _target(fd: Path) -> str | None:
+    try:
+        return str(fd.readlink())
+    except OSError:
+        return None
+
+
+@pytest.mark.filterwarnings("error::ResourceWarning")  # a file left for the GC to close
+async def test_a_start_cancelled_while_the_file_opens_leaves_it_closed(tmp_path: Path) -> None:
+    path = tmp_path / "cancelled.mcap"
+    async with simulated_robot() as (robot, _):
+        recorder = McapRecorder(path, robot)
+        starting = asyncio.ensure_future(recorder.start())
+        await asyncio.sleep(0)  # the open is under way on its thread
+        starting.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await starting
+        deadline = time.monotonic() + 10  # the thread's open ends, then its file is closed
+        while not path.exists() or _open_fds(path):
+            assert time.monotonic() < deadline, "the file opened by the cancelled start is open"
+            await asyncio.to_thread(time.sleep, 0.01)
