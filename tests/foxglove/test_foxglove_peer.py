@@ -23,7 +23,7 @@ MAP = [(0.0, 0.0), (3.0, 0.0), (6.0, 6.0)]
 @pytest.fixture
 async def served() -> AsyncIterator[tuple[FoxgloveServer, SimulatedDevice]]:
     async with (
-        simulated_robot(clock="real", targets=MAP, sim_options={"speed": 2.0}) as (
+        simulated_robot(clock="real", targets=MAP, sim_options={"speed": 1.0}) as (
             robot,
             device,
         ),

@@ -35,7 +35,7 @@ from tests.support.foxglove_support import WAIT, ServiceFailed, connected
 
 MAP = [(0.0, 0.0), (2.0, 0.0), (8.0, 8.0)]  # target 2 is seconds away
 TARGETS = [(i, x, y) for i, (x, y) in enumerate(MAP)]
-SIM = {"speed": 5.0}
+SIM = {"speed": 2.0}  # a drive to (8, 8) takes about 6 s: a stop lands on the way
 
 
 @pytest.fixture

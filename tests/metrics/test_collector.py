@@ -70,7 +70,7 @@ async def test_superseded_commands_are_counted() -> None:
             metrics.close()
 
 
-async def test_a_user_stop_withdrawing_a_waiting_goal_is_counted() -> None:
+async def test_a_goal_a_stop_withdraws_before_it_reaches_the_link_is_not_counted() -> None:
     async with simulated_robot() as (robot, device):
         device.busy(2.0)  # the goal waits for busy_status 0: a stop withdraws it unwritten
         await device.advance(0.1)
