@@ -160,24 +160,22 @@ async def _serve_fleet(
     def on_connect(name: str, robot: Robot) -> None:
         connected.put_nowait((name, robot))
 
+    async def add(name: str, robot: Robot) -> None:
+        targets = await _http_targets(robot, known[name])
+        if name not in server.robots:  # each robot once, under its fleet name
+            server.add_robot(name, robot, targets=targets)
+
     async def attach() -> None:
-        attached: set[str] = set()
-        while True:
-            name, robot = await connected.get()
-            if name not in attached:  # each robot once, under its fleet name
-                attached.add(name)
-                server.add_robot(name, robot, targets=await _http_targets(robot, known[name]))
+        async with anyio.create_task_group() as adding:  # a slow robot delays no other
+            while True:
+                adding.start_soon(add, *await connected.get())
 
     fleet: Fleet
     # The metrics' address is bound before anything connects (metrics_served).
     async with metrics_served(metrics) as collector, spec.connect(**served_options(spec)) as fleet:
         if collector is not None:
             collector.add_fleet(fleet)
-        fleet.add_connect_listener(on_connect)
-        for name in fleet.names:
-            robot = fleet.get(name)
-            if robot is not None:
-                connected.put_nowait((name, robot))
+        fleet.add_connect_listener(on_connect, connected=True)
         try:
             with stop_requested() as stop:
                 async with anyio.create_task_group() as group:

@@ -153,9 +153,20 @@ class Fleet:
         """True once close() was called."""
         return self._closed
 
-    def add_connect_listener(self, listener: Callable[[str, Robot], None]) -> None:
-        """Call ``listener(name, robot)`` when a robot connects later (synchronous, cheap)."""
+    def add_connect_listener(
+        self, listener: Callable[[str, Robot], None], *, connected: bool = False
+    ) -> None:
+        """Call ``listener(name, robot)`` when a robot connects later (synchronous, cheap).
+
+        ``connected``: also call it now, for each robot connected already (in fleet order),
+        so that it hears of every robot once.
+        """
         self._connect_listeners.append(listener)
+        if connected:
+            for name in self.names:
+                robot = self.get(name)
+                if robot is not None:
+                    listener(name, robot)
 
     def remove_connect_listener(self, listener: Callable[[str, Robot], None]) -> None:
         """Stop calling ``listener`` (no-op if it is not one)."""

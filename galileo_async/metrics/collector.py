@@ -141,11 +141,7 @@ class Metrics(Collector):
         if taken or any(fleet is known for known in self._fleets):
             raise InvalidArgument(f"metrics already follow {', '.join(map(repr, taken)) or fleet}")
         self._fleets.append(fleet)
-        fleet.add_connect_listener(self._joined)
-        for name in fleet.names:
-            robot = fleet.get(name)
-            if robot is not None:
-                self._joined(name, robot)
+        fleet.add_connect_listener(self._joined, connected=True)
 
     def remove_fleet(self, fleet: Fleet) -> None:
         """Stop following ``fleet`` and its robots."""

@@ -158,20 +158,14 @@ class McapRecorder:
         if isinstance(source, Robot):
             self._attach(self._name, source)
         else:
-            self._attach_connected(source)
             self._fleet = source
-            source.add_connect_listener(self._on_connect)
+            source.add_connect_listener(self._on_connect, connected=True)
 
     def _attach(self, name: str, robot: Robot) -> None:
         self._attached[name] = _Attached(robot, name, self)
 
-    def _attach_connected(self, fleet: Fleet) -> None:
-        for name in fleet.names:
-            if name not in self._attached and (robot := fleet.get(name)) is not None:
-                self._attach(name, robot)
-
     def _on_connect(self, name: str, robot: Robot) -> None:
-        """A fleet robot that connected later: recorded from now on."""
+        """A fleet robot (connected now, or later): recorded from then on."""
         if self._finishing is None and name not in self._attached:
             self._attach(name, robot)
 

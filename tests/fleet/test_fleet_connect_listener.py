@@ -41,3 +41,19 @@ async def test_listeners_hear_of_a_late_robot_and_a_broken_one_is_logged(
             assert removed == []
             assert "connect listener" in caplog.text
             await fleet.close()
+
+
+async def test_connected_true_also_tells_of_the_robots_connected_now() -> None:
+    port = free_port()
+    ports = {"early": "sim://?speed=20", "late": f"socket://127.0.0.1:{port}"}
+    heard: list[str] = []
+    async with galileo.connect_fleet(ports, retry_initial=0.05, retry_max=0.2) as fleet:
+        fleet.add_connect_listener(lambda name, _robot: heard.append(name), connected=True)
+        assert heard == ["early"]
+        async with Simulator(speed=20) as sim:
+            await sim.serve_tcp(port=port)
+            async with asyncio.timeout(20):
+                while fleet.get("late") is None:  # noqa: ASYNC110 - no event to wait on
+                    await asyncio.sleep(0.05)
+            assert heard == ["early", "late"]  # each once
+            await fleet.close()
