@@ -173,7 +173,10 @@ class HttpPart:
     async def charge_pose(self) -> NavPoint:
         """The charger's pose on the current map: metres, radians (GET /navigation/charge_pose)."""
         answer = await self._call("charge_pose()", "GET", "/navigation/charge_pose")
-        return NavPoint(float(answer["x"]), float(answer["y"]), float(answer.get("theta", 0.0)))
+        try:
+            return NavPoint(float(answer["x"]), float(answer["y"]), float(answer.get("theta", 0.0)))
+        except (KeyError, TypeError, ValueError, AttributeError):
+            raise OperationFailed(f"charge_pose(): no pose in {answer!r}", None) from None
 
     async def info(self) -> RobotInfo:
         """Firmware version, code name and battery (GET /system/info)."""

@@ -93,3 +93,18 @@ async def test_an_image_path_outside_the_api_falls_back_to_the_documented_one() 
         answer = {"status": "OK", "map_params": face._sim_map().params(), "map_image": "http://x/"}
         face._map_image = lambda: answer  # type: ignore[method-assign]
         assert await http_of(robot).map_image() == image
+
+
+async def test_a_charge_pose_answer_without_a_pose_is_operation_failed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    async with robot_on_http() as (sim, robot, _face):
+        http = http_of(robot)
+        assert (await http.charge_pose()).x == sim.model.dock[0]
+
+        async def no_pose(*_args: Any) -> Any:
+            return {"status": "no charger on this map"}
+
+        monkeypatch.setattr(type(http), "_call", no_pose)
+        with pytest.raises(OperationFailed, match="charge_pose\\(\\): no pose in"):
+            await http.charge_pose()
